@@ -1,0 +1,48 @@
+"""``c2n analyze LOG...``: the live pipeline over log files, as fast as it can."""
+
+import argparse
+from pathlib import Path
+
+from rich.console import Console
+from rich.text import Text
+
+from app import summary
+from app.cli.common import add_config, error_console
+from app.config import load_config
+from app.errors import NoResultError
+from app.event_line import result_line
+from app.live import EventPrinter, run as run_pipeline
+from app.pipeline import Pipeline
+from app.progress import ReadProgress
+from app.sources import LogSource
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+    parser = subparsers.add_parser("analyze", help="C2n from recorded CAN logs", description=__doc__)
+    parser.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4")
+    add_config(parser)
+    parser.add_argument("--json", type=Path, metavar="OUT", help="write the summary (DESIGN §6) here")
+    parser.add_argument(
+        "--merge", action="store_true", help="the logs are channels of one drive: merge them by timestamp"
+    )
+    parser.set_defaults(run=run)
+    return parser
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    config = load_config(args.config)
+    source = LogSource(args.logs, merge=args.merge)
+    pipeline = Pipeline(config)
+    progress = ReadProgress(pipeline, ", ".join(p.name for p in args.logs))
+    run_pipeline(source, pipeline, EventPrinter(console, pipeline), progress, console, transient=True)
+    result = summary.build(pipeline, [str(p) for p in args.logs], source.reports)
+    if args.json:
+        summary.write(args.json, result)
+    console.print(Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    errors = error_console()
+    for warning in result["warnings"]:
+        errors.print(f"c2n: warning: {warning}", markup=False)
+    missing = summary.missing_required(pipeline)
+    if missing:
+        raise NoResultError(f"{', '.join(str(p) for p in args.logs)}: {missing}")
+    return 0

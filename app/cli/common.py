@@ -1,0 +1,50 @@
+"""Options and helpers several commands share."""
+
+import argparse
+import sys
+from pathlib import Path
+
+from rich.console import Console
+
+from app.config import DEFAULT_CONFIG
+
+
+def add_config(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--config", type=Path, default=DEFAULT_CONFIG, metavar="F", help="vehicle config (default: config/mondeo.toml)"
+    )
+
+
+def add_bus(parser: argparse.ArgumentParser) -> None:
+    """python-can's -i/-c/-b; unset values come from its config file and CAN_* variables."""
+    parser.add_argument("-i", "--interface", metavar="IFACE", help="python-can interface: socketcan, pcan, kvaser, vector, virtual…")
+    parser.add_argument(
+        "-c", "--channel", action="append", metavar="CHANNEL", help="channel; repeat for several (-c can0 -c can1)"
+    )
+    parser.add_argument("-b", "--bitrate", type=int, metavar="BITRATE", help="bit rate, e.g. 1000000")
+    parser.add_argument("--fd", action="store_true", help="CAN FD")
+    parser.add_argument(
+        "--bus-arg", action="append", default=[], metavar="KEY=VALUE", help="extra python-can bus argument (repeatable)"
+    )
+
+
+def channels(args: argparse.Namespace) -> list[str | int | None]:
+    """Channel names as given; bare numbers become ints (Vector, Kvaser, … count from 0)."""
+    given: list[str] = args.channel or []
+    return [int(c) if c.isdigit() else c for c in given] or [None]
+
+
+def bus_kwargs(args: argparse.Namespace) -> dict[str, object]:
+    options: dict[str, object] = {}
+    if args.fd:
+        options["fd"] = True
+    for item in args.bus_arg:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise SystemExit(f"c2n: error: --bus-arg wants KEY=VALUE, got {item!r}")
+        options[key] = int(value) if value.isdigit() else value
+    return options
+
+
+def error_console() -> Console:
+    return Console(file=sys.stderr, highlight=False)

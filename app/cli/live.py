@@ -1,0 +1,87 @@
+"""``c2n live``: the in-car run — dashboard, a line per crossing, every frame recorded."""
+
+import argparse
+import datetime
+import signal
+import threading
+from pathlib import Path
+from types import FrameType
+
+from rich.console import Console
+from rich.text import Text
+
+from app import summary
+from app.cli.common import add_bus, add_config, bus_kwargs, channels
+from app.config import load_config
+from app.dashboard import Dashboard
+from app.event_line import result_line
+from app.live import EventPrinter, run as run_pipeline
+from app.pipeline import Pipeline
+from app.recorder import RAW_FORMATS, SessionRecorder
+from app.sources import BusSource, open_buses
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+    parser = subparsers.add_parser("live", help="live dashboard and C2n on a CAN bus", description=__doc__)
+    add_bus(parser)
+    add_config(parser)
+    parser.add_argument(
+        "--record", type=Path, default=Path("c2n-sessions"), metavar="DIR", help="session folders go here (default: c2n-sessions)"
+    )
+    parser.add_argument("--no-record", action="store_true", help="do not record the session")
+    parser.add_argument("--raw-format", choices=RAW_FORMATS, default=".log", help="raw frame log format (default .log, candump)")
+    parser.add_argument("--json", type=Path, metavar="OUT", help="also write the summary here")
+    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    parser.set_defaults(run=run)
+    return parser
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+def session_folder(parent: Path) -> Path:
+    stamp = datetime.datetime.now().strftime("%Y-%m-%d_%H%M%S")
+    folder, n = parent / stamp, 1
+    while folder.exists():
+        n += 1
+        folder = parent / f"{stamp}-{n}"
+    return folder
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    config = load_config(args.config)
+    buses = open_buses(args.interface, channels(args), args.bitrate, **bus_kwargs(args))
+    title = ", ".join(str(bus.channel_info) for bus in buses)
+    pipeline = Pipeline(config)
+    recorder = None if args.no_record else SessionRecorder(session_folder(args.record), config, args.raw_format)
+    stop = threading.Event()
+    timer = threading.Timer(args.duration, stop.set) if args.duration else None
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    console.print(f"c2n live on {title} — Ctrl-C ends the session", style="dim")
+    try:
+        if timer is not None:
+            timer.start()
+        run_pipeline(
+            BusSource(buses, stop),
+            pipeline,
+            EventPrinter(console, pipeline, recorder),
+            Dashboard(pipeline, title),
+            console,
+            recorder,
+        )
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if timer is not None:
+            timer.cancel()
+        for bus in buses:
+            bus.shutdown()
+        result = summary.build(pipeline, [title])
+        if recorder is not None:
+            recorder.close(result)
+        if args.json:
+            summary.write(args.json, result)
+    console.print(Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    if recorder is not None:
+        console.print(f"session saved in {recorder.folder}", style="dim")
+    return 0

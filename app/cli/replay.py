@@ -1,0 +1,86 @@
+"""``c2n replay LOG``: play a log onto a bus with its recorded timing, like canplayer."""
+
+import argparse
+import logging
+from pathlib import Path
+
+import can
+from rich.console import Console
+
+from app.cli.common import add_bus, bus_kwargs, channels
+from app.errors import BusError, C2nError
+from app.playback import looped, paced
+from app.sources import LogReport, open_log, read_log, open_buses
+
+log = logging.getLogger(__name__)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+    parser = subparsers.add_parser("replay", help="play a CAN log onto a bus in recorded time", description=__doc__)
+    parser.add_argument("log", type=Path, metavar="LOG")
+    add_bus(parser)
+    parser.add_argument("--rate", type=float, default=1.0, metavar="X", help="play X times faster than recorded")
+    parser.add_argument(
+        "--loop", type=int, nargs="?", const=0, default=1, metavar="N", help="play N times (no N: until Ctrl-C)"
+    )
+    parser.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="LOG=BUS",
+        help="send the log's channel LOG to the bus channel BUS (repeatable); default: in order of appearance",
+    )
+    parser.set_defaults(run=run)
+    return parser
+
+
+class Router:
+    """Which bus each of the log's channels goes to."""
+
+    def __init__(self, buses: list[can.BusABC], names: list[str | int | None], mapping: list[str]) -> None:
+        self.buses = buses
+        self.by_name = {str(name): bus for name, bus in zip(names, buses, strict=True)}
+        self.routes: dict[str, can.BusABC] = {}
+        for item in mapping:
+            source, sep, target = item.partition("=")
+            if not sep or target not in self.by_name:
+                raise C2nError(f"--map {item!r}: want LOG=BUS with BUS one of the -c channels {list(self.by_name)}")
+            self.routes[source] = self.by_name[target]
+
+    def bus_for(self, msg: can.Message) -> can.BusABC:
+        key = str(msg.channel)
+        bus = self.routes.get(key)
+        if bus is None:
+            bus = self.buses[min(len(self.routes), len(self.buses) - 1)]
+            self.routes[key] = bus
+            log.info("log channel %s → %s", key, bus.channel_info)
+        return bus
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    if args.rate <= 0:
+        raise C2nError(f"--rate must be > 0, got {args.rate}")
+    reader = open_log(args.log)  # a missing or unknown file fails before the bus opens
+    getattr(reader, "stop", lambda: None)()
+    names = channels(args)
+    buses = open_buses(args.interface, names, args.bitrate, **bus_kwargs(args))
+    router = Router(buses, names, args.map)
+    report = LogReport(args.log)
+    sent = 0
+    try:
+        messages = looped(lambda: read_log(args.log, report), None if args.loop == 0 else args.loop)
+        for msg in paced(messages, args.rate):
+            try:
+                router.bus_for(msg).send(msg)
+            except can.CanError as error:
+                raise BusError(f"sending frame {sent + 1} failed: {error}") from None
+            sent += 1
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for bus in buses:
+            bus.shutdown()
+    console.print(f"sent {sent} frames from {args.log}", style="dim")
+    if report.stopped:
+        console.print(f"c2n: warning: {args.log}: {report.stopped}", style="yellow")
+    return 0

@@ -1,0 +1,341 @@
+"""The vehicle config: one TOML file read once into frozen dataclasses and checked against its DBCs.
+
+Every mistake becomes a one-line ConfigError naming the file, the key and the fix.
+"""
+
+import difflib
+import tomllib
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import MISSING, dataclass, field, fields
+from pathlib import Path
+from typing import Any, Literal
+
+from app.dbc import ChannelSpec, Dbc, load_dbc
+from app.errors import ConfigError
+from app.units import ROLE_UNITS, known_units, si_factor
+
+DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "mondeo.toml"
+
+OPTICAL_ROLES = ("vx", "vy", "beta")
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    sensor_ahead_of_rear_axle_m: float = field(metadata={"help": "d: metres from the rear axle forward to the sensor"})
+    sensor_lateral_m: float = field(default=0.0, metadata={"help": "sensor offset from the centre line, + left"})
+    sensor_height_m: float = 0.0
+    wheelbase_m: float | None = None
+    rear_axle_load_N: float | None = None
+    front_axle_load_N: float | None = None
+    cg_height_m: float | None = None
+    track_m: float | None = None
+    steering_ratio: float | None = None
+    tyre_radius_m: float | None = None
+    gravity_mps2: float = 9.81  # the paper's g; local gravity may differ by 0.3 %
+
+
+@dataclass(frozen=True)
+class Tyres:
+    c1n_per_rad: float | None = None
+    c2n_per_rad: float | None = None
+
+
+@dataclass(frozen=True)
+class DetectorSettings:
+    """Steady-state gate and crossing detection; see README for what each limit protects."""
+
+    ay_max_mps2: float = 4.0  # tyres must stay linear
+    sweep_max_mps2: float = 0.6  # |du/dt| above this is not steady
+    speed_min_mps: float = 4.0
+    radius_max_m: float = 500.0  # straighter than this is "driving straight"
+    yaw_accel_max_radps2: float = 0.08  # transients (step steers) are not steady
+    lateral_accel_rate_max_mps2: float = 0.2  # |dv/dt| at the sensor: transients again
+    settle_s: float = 1.0  # the gate must hold this long before samples count
+    debounce_s: float = 0.3  # a rate limit failing this briefly does not restart settling
+    fit_half_width_mps: float = 1.5  # local fit uses samples within u0 ± this (widened up to 3× for sparse data)
+    min_side_fraction: float = 0.4  # each side of u0 must cover this share of the half width
+    min_fit_samples: int = 40
+    hysteresis_sigmas: float = 3.0  # sign change must clear this many sigmas of the filtered sideslip
+    reversal_mps: float = 0.3  # speed reversal that starts a new sweep
+    max_gap_s: float = 30.0  # longer without steady samples starts a new run
+    min_slope_t: float = 5.0  # the local fit's slope must be this many standard errors from 0
+
+
+@dataclass(frozen=True)
+class FilterSettings:
+    """Kalman filter noise model (standard deviations of measurements, process spectral densities)."""
+
+    sigma_velocity_mps: float = 0.02  # optical vx, vy
+    sigma_beta_deg: float | None = None  # None: sigma_velocity_mps / u
+    sigma_speed_mps: float = 0.5  # vehicle speed: weak, wheel-speed based
+    sigma_yaw_rate_radps: float = 0.003
+    sigma_ay_mps2: float = 0.15
+    q_u: float = 0.05  # jerk spectral density of longitudinal velocity [m²/s⁵]
+    q_v: float = 0.02  # lateral velocity [m²/s⁵]
+    q_r: float = 0.5  # yaw rate [rad²/s⁵]: turn-ins are quick
+    gap_reset_s: float = 1.0  # longer without optical data resets the filter
+    status_timeout_s: float = 1.0  # sensor status older than this is unknown
+    sideslip_source: Literal["auto", "beta", "vy"] = "auto"
+    innovation_gate: float = 30.0  # normalised innovation² beyond this rejects a sample
+
+
+@dataclass(frozen=True)
+class RoleSpec:
+    """A role mapped to a DBC signal, with the factor that takes it to the role's SI unit."""
+
+    role: str
+    message: str
+    signal: str
+    scale: float  # the config's scale (sign flips, unit changes)
+    unit: str  # the decoded unit (from [units] or the DBC)
+    si_factor: float  # unit conversion to the role's internal unit
+    channel: ChannelSpec | None
+
+    @property
+    def name(self) -> str:
+        return f"{self.message}.{self.signal}"
+
+    @property
+    def factor(self) -> float:
+        """Decoded physical value × factor = value in the role's SI unit."""
+        return self.scale * self.si_factor
+
+
+@dataclass(frozen=True)
+class StatusCondition:
+    message: str
+    signal: str
+    value: float
+    applies_to: tuple[str, ...]  # the roles it gates
+
+    @property
+    def name(self) -> str:
+        return f"{self.message}.{self.signal}"
+
+
+@dataclass(frozen=True)
+class Config:
+    path: Path
+    vehicle: Vehicle
+    tyres: Tyres
+    dbcs: tuple[Dbc, ...]
+    roles: Mapping[str, RoleSpec]
+    status: tuple[StatusCondition, ...]
+    detector: DetectorSettings
+    filter: FilterSettings
+
+    @property
+    def d_m(self) -> float:
+        return self.vehicle.sensor_ahead_of_rear_axle_m
+
+
+_SECTIONS = {
+    "vehicle", "tyres", "dbc", "roles", "sensor_status", "beta_status", "units", "channels",
+    "detector", "filter",
+}
+
+
+def load_config(path: Path | str = DEFAULT_CONFIG) -> Config:
+    """Read, validate and resolve a vehicle config (and load its DBCs)."""
+    path = Path(path)
+    try:
+        with path.open("rb") as file:
+            table = tomllib.load(file)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: config file not found — pass --config with a TOML file") from None
+    except tomllib.TOMLDecodeError as error:
+        raise ConfigError(f"{path}: not valid TOML ({error}) — fix the syntax") from None
+    except OSError as error:
+        raise ConfigError(f"{path}: cannot read ({error.strerror})") from None
+    return _build(path, table)
+
+
+def _build(path: Path, table: dict[str, Any]) -> Config:
+    _check_keys(path, "", table, _SECTIONS)
+    vehicle = _dataclass_from(path, "vehicle", Vehicle, _section(path, table, "vehicle", required=True))
+    if vehicle.sensor_ahead_of_rear_axle_m <= 0:
+        raise ConfigError(
+            f"{path}: [vehicle] sensor_ahead_of_rear_axle_m must be > 0 (the method needs the sensor "
+            "ahead of the rear axle)"
+        )
+    tyres = _dataclass_from(path, "tyres", Tyres, _section(path, table, "tyres"))
+    detector = _dataclass_from(path, "detector", DetectorSettings, _section(path, table, "detector"))
+    filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
+    dbcs = _load_dbcs(path, table)
+    roles = _roles(path, table, dbcs)
+    status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(
+        path, table, "beta_status", ("beta",), dbcs
+    )
+    return Config(path, vehicle, tyres, dbcs, roles, status, detector, filter_settings)
+
+
+def _section(path: Path, table: dict[str, Any], name: str, required: bool = False) -> dict[str, Any]:
+    value = table.get(name)
+    if value is None:
+        if required:
+            raise ConfigError(f"{path}: section [{name}] is missing — add it (see config/mondeo.toml)")
+        return {}
+    if not isinstance(value, dict):
+        raise ConfigError(f"{path}: '{name}' must be a table [{name}]")
+    return value
+
+
+def _check_keys(path: Path, section: str, table: Mapping[str, Any], allowed: typing.Iterable[str]) -> None:
+    allowed = list(allowed)
+    for key in table:
+        if key not in allowed:
+            where = f" in [{section}]" if section else ""
+            close = difflib.get_close_matches(key, allowed, n=1)
+            hint = f"did you mean '{close[0]}'?" if close else f"known: {', '.join(sorted(allowed))}"
+            raise ConfigError(f"{path}: unknown key '{key}'{where} — {hint}")
+
+
+def _dataclass_from(path: Path, section: str, cls: type[Any], table: dict[str, Any]) -> Any:
+    """Build a settings dataclass from a TOML table, checking names, presence and types."""
+    hints = typing.get_type_hints(cls)
+    _check_keys(path, section, table, [f.name for f in fields(cls)])
+    values: dict[str, Any] = {}
+    for f in fields(cls):
+        if f.name not in table:
+            if f.default is MISSING:
+                help_text = f.metadata.get("help", "")
+                raise ConfigError(
+                    f"{path}: [{section}] is missing key '{f.name}' — add it"
+                    + (f" ({help_text})" if help_text else "")
+                )
+            continue
+        values[f.name] = _typed(path, section, f.name, table[f.name], hints[f.name])
+    return cls(**values)
+
+
+def _typed(path: Path, section: str, key: str, value: Any, hint: Any) -> Any:
+    options = typing.get_args(hint) if isinstance(hint, types.UnionType) else (hint,)
+    for option in options:
+        if option is float and isinstance(value, int | float) and not isinstance(value, bool):
+            return float(value)
+        if option is int and isinstance(value, int) and not isinstance(value, bool):
+            return value
+        if option is str and isinstance(value, str):
+            return value
+        if typing.get_origin(option) is Literal and value in typing.get_args(option):
+            return value
+    wanted = " or ".join(_type_name(o) for o in options if o is not type(None))
+    raise ConfigError(f"{path}: [{section}] {key} must be {wanted}, got {value!r}")
+
+
+def _type_name(option: Any) -> str:
+    if typing.get_origin(option) is Literal:
+        return " | ".join(repr(v) for v in typing.get_args(option))
+    return {float: "a number", int: "an integer", str: "a string"}.get(option, str(option))
+
+
+def _load_dbcs(path: Path, table: dict[str, Any]) -> tuple[Dbc, ...]:
+    section = _section(path, table, "dbc", required=True)
+    _check_keys(path, "dbc", section, ["files"])
+    files = section.get("files")
+    if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
+        raise ConfigError(f'{path}: [dbc] files must be a list of DBC paths, e.g. files = ["../dbc/x.dbc"]')
+    channels = _section(path, table, "channels")
+    resolved = {name: (path.parent / name).resolve() for name in files}
+    for key, channel in channels.items():
+        if key not in resolved and (path.parent / key).resolve() not in resolved.values():
+            raise ConfigError(f"{path}: [channels] names '{key}', which is not in [dbc] files — use one of {files}")
+        if not isinstance(channel, int | str) or isinstance(channel, bool):
+            raise ConfigError(f"{path}: [channels] '{key}' must be a channel name or number, got {channel!r}")
+    dbcs = []
+    for name, dbc_path in resolved.items():
+        channel = next((c for k, c in channels.items() if (path.parent / k).resolve() == dbc_path), None)
+        dbcs.append(load_dbc(dbc_path, channel))
+    _check_id_collisions(path, dbcs)
+    return tuple(dbcs)
+
+
+def _check_id_collisions(path: Path, dbcs: list[Dbc]) -> None:
+    from app.dbc import channel_matches
+
+    seen: dict[tuple[int, bool], Dbc] = {}
+    for dbc in dbcs:
+        for message in dbc.database.messages:
+            key = (message.frame_id, message.is_extended_frame)
+            other = seen.get(key)
+            if other is not None and (
+                other.channel is None or dbc.channel is None or channel_matches(other.channel, dbc.channel)
+            ):
+                raise ConfigError(
+                    f"{path}: id 0x{message.frame_id:X} is in both {other.path.name} and {dbc.path.name} "
+                    "— set [channels] so each DBC is decoded on its own channel"
+                )
+            seen[key] = dbc
+
+
+def _find_signal(path: Path, where: str, name: str, dbcs: tuple[Dbc, ...]) -> tuple[Dbc, Any, Any]:
+    """Resolve "Message.Signal" to (dbc, cantools message, cantools signal)."""
+    message_name, dot, signal_name = name.partition(".")
+    if not dot or not message_name or not signal_name:
+        raise ConfigError(f'{path}: {where} must be "Message.Signal", got {name!r}')
+    candidates = []
+    for dbc in dbcs:
+        for message in dbc.database.messages:
+            for signal in message.signals:
+                full = f"{message.name}.{signal.name}"
+                if full == name:
+                    return dbc, message, signal
+                candidates.append(full)
+    close = difflib.get_close_matches(name, candidates, n=1, cutoff=0.5)
+    hint = f"did you mean '{close[0]}'?" if close else "check the message and signal names"
+    files = ", ".join(str(d.path.name) for d in dbcs)
+    raise ConfigError(f"{path}: {where} names signal '{name}' that no DBC has ({files}) — {hint}")
+
+
+def _roles(path: Path, table: dict[str, Any], dbcs: tuple[Dbc, ...]) -> dict[str, RoleSpec]:
+    section = _section(path, table, "roles", required=True)
+    _check_keys(path, "roles", section, ROLE_UNITS)
+    units = _section(path, table, "units")
+    _check_keys(path, "units", units, ROLE_UNITS)
+    if "vx" not in section:
+        raise ConfigError(f'{path}: [roles] is missing key \'vx\' — add vx = "Message.Signal" (optical longitudinal velocity)')
+    if "vy" not in section and "beta" not in section:
+        raise ConfigError(f"{path}: [roles] needs 'vy' or 'beta' — add the optical lateral velocity or sideslip angle")
+    roles = {}
+    for role, value in section.items():
+        where = f"[roles] {role}"
+        if isinstance(value, str):
+            value = {"signal": value}
+        if not isinstance(value, dict):
+            raise ConfigError(f'{path}: {where} must be "Message.Signal" or {{signal = "Message.Signal", scale = 1.0}}')
+        _check_keys(path, f"roles.{role}", value, ["signal", "scale", "unit", "channel"])
+        if "signal" not in value or not isinstance(value["signal"], str):
+            raise ConfigError(f'{path}: {where} needs signal = "Message.Signal"')
+        dbc, message, signal = _find_signal(path, where, value["signal"], dbcs)
+        scale = value.get("scale", 1.0)
+        if not isinstance(scale, int | float) or isinstance(scale, bool) or scale == 0:
+            raise ConfigError(f"{path}: {where} scale must be a non-zero number, got {scale!r}")
+        unit = value.get("unit", units.get(role)) or signal.unit or ""
+        if not isinstance(unit, str):
+            raise ConfigError(f"{path}: [units] {role} must be a unit text such as \"km/h\"")
+        factor = si_factor(role, unit)
+        if factor is None:
+            said = f"unit '{unit}'" if unit else "no unit"
+            raise ConfigError(
+                f"{path}: {where} signal {value['signal']} has {said}, not one for {role} — "
+                f"set [units] {role} to one of {', '.join(known_units(role))}"
+            )
+        channel = value.get("channel", dbc.channel)
+        if channel is not None and (not isinstance(channel, int | str) or isinstance(channel, bool)):
+            raise ConfigError(f"{path}: {where} channel must be a channel name or number, got {channel!r}")
+        roles[role] = RoleSpec(role, message.name, signal.name, float(scale), unit, factor, channel)
+    return roles
+
+
+def _status(
+    path: Path, table: dict[str, Any], name: str, applies_to: tuple[str, ...], dbcs: tuple[Dbc, ...]
+) -> tuple[StatusCondition, ...]:
+    conditions = []
+    for key, value in _section(path, table, name).items():
+        _dbc, message, signal = _find_signal(path, f"[{name}] key", key, dbcs)
+        if not isinstance(value, int | float) or isinstance(value, bool):
+            raise ConfigError(f"{path}: [{name}] {key} must be the number the signal must equal, got {value!r}")
+        conditions.append(StatusCondition(message.name, signal.name, float(value), applies_to))
+    return tuple(conditions)

@@ -1,0 +1,164 @@
+"""The in-car dashboard: a rich renderable drawn from the pipeline's state.
+
+Nothing here reads a clock or the bus: it renders what the pipeline has seen (frame time), so a
+test renders it into ``Console(record=True)`` and reads the text.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+from rich.console import Group, RenderableType
+from rich.panel import Panel
+from rich.table import Table
+from rich.text import Text
+
+from app.event_line import result_line
+from app.pipeline import Pipeline
+
+_ADVICE = (
+    ("lateral acceleration too high", "Too much lateral acceleration: slow down or widen the circle"),
+    ("sweep too fast", "Change speed more gently"),
+    ("below", "Speed up"),
+    ("driving straight", "Turn onto the circle"),
+    ("steering transient", "Hold the steering wheel steady"),
+    ("settling", "Hold it steady…"),
+    ("sensor:", "Sensor status bad"),
+)
+
+
+def guidance(reasons: tuple[str, ...]) -> list[str]:
+    """Advice for the driver from the steady-state gate's reasons."""
+    advice = []
+    for reason in reasons:
+        for key, text in _ADVICE:
+            if key in reason:
+                advice.append(f"{text} ({reason})" if key == "sensor:" else text)
+                break
+    return advice
+
+
+@dataclass
+class _RateMeter:
+    """Frames per second per (channel, id), in frame time, between two renders."""
+
+    last_t: float | None = None
+    last_counts: dict[tuple[object, int], int] = field(default_factory=dict)
+    rates: dict[tuple[object, int], float] = field(default_factory=dict)
+
+    def update(self, t: float | None, counts: dict[tuple[object, int], int]) -> None:
+        if t is None:
+            return
+        if self.last_t is not None and t - self.last_t >= 0.5:
+            dt = t - self.last_t
+            self.rates = {key: (n - self.last_counts.get(key, 0)) / dt for key, n in counts.items()}
+        elif self.last_t is not None:
+            return
+        self.last_t = t
+        self.last_counts = dict(counts)
+
+
+class Dashboard:
+    def __init__(self, pipeline: Pipeline, title: str, max_ids: int = 10, max_crossings: int = 8) -> None:
+        self.pipeline = pipeline
+        self.title = title
+        self.max_ids = max_ids
+        self.max_crossings = max_crossings
+        self._rates = _RateMeter()
+
+    def __rich__(self) -> RenderableType:
+        state = self.pipeline.state
+        self._rates.update(state.t_last, self.pipeline.decoder.counts.by_id)
+        t0 = state.t_first or 0.0
+        elapsed = (state.t_last or t0) - t0
+        top = Table.grid(expand=True, padding=(0, 2))
+        top.add_column(ratio=1)
+        top.add_column(ratio=1)
+        top.add_row(self._motion(), self._status())
+        return Panel(
+            Group(top, self._crossings(), self._frames()),
+            title=f"c2n live — {self.title}",
+            subtitle=f"t = {elapsed:.1f} s",
+        )
+
+    def _motion(self) -> RenderableType:
+        state = self.pipeline.state
+        table = Table.grid(padding=(0, 1))
+        table.add_column(style="bold")
+        table.add_column(justify="right")
+        record = state.last
+        e = record.estimate if record else None
+        if e is None:
+            table.add_row("speed", "—")
+            return Panel(table, title="Motion")
+        sigma = math.degrees(e.sideslip_sigma_rad)
+        table.add_row("speed", f"{e.u_mps * 3.6:6.1f} km/h  {e.u_mps:6.2f} m/s")
+        table.add_row("sweep", f"{e.u_dot_mps2:+6.2f} m/s²")
+        table.add_row("sideslip", f"{math.degrees(e.sideslip_rad):+7.3f}° ± {sigma:.3f}")
+        table.add_row("lat. acc.", f"{e.ay_mps2:+6.2f} m/s²" if e.ay_mps2 is not None else "—")
+        table.add_row("yaw rate", f"{math.degrees(e.r_radps):+6.2f} °/s" if e.r_radps is not None else "—")
+        steer = state.latest.get("steer")
+        table.add_row("steering", f"{math.degrees(steer):+6.1f}°" if steer is not None else "—")
+        table.add_row("filter health", f"{e.health:5.2f}")
+        return Panel(table, title="Motion")
+
+    def _status(self) -> RenderableType:
+        state = self.pipeline.state
+        lines: list[Text] = []
+        steady = state.last.steady if state.last else None
+        if steady is None:
+            lines.append(Text("waiting for optical sensor frames", style="yellow"))
+        elif steady.steady:
+            turn = f"{steady.direction} turn" if steady.direction else "turning"
+            lines.append(Text(f"● STEADY — {turn}", style="bold green"))
+        else:
+            lines.append(Text("○ not steady", style="yellow"))
+            lines.extend(Text(f"→ {advice}", style="yellow") for advice in guidance(steady.reasons))
+        if state.sensor_problem:
+            lines.append(Text(f"sensor: {state.sensor_problem}", style="bold red"))
+        status = self.pipeline.decoder.status
+        if status.values:
+            shown = ", ".join(f"{name.partition('.')[2]} {value:g}" for name, value in sorted(status.values.items()))
+            lines.append(Text(f"status: {shown}"))
+        for direction, t, u in self.pipeline.detector.pending:
+            lines.append(Text(f"sign change {direction or ''} at {u * 3.6:.1f} km/h: fitting…", style="cyan"))
+        return Panel(Group(*lines), title="Steady state")
+
+    def _crossings(self) -> RenderableType:
+        state = self.pipeline.state
+        config = self.pipeline.config
+        table = Table(expand=True, box=None, padding=(0, 1))
+        for name in ("t [s]", "dir", "sweep", "u0 [m/s]", "u0 [km/h]", "a_y [m/s²]", "C2n [1/rad]", "95 %"):
+            table.add_column(name, justify="right")
+        t0 = state.t_first or 0.0
+        for c in state.crossings[-self.max_crossings :]:
+            lo, hi = c.ci95
+            table.add_row(
+                f"{c.t - t0:.1f}",
+                c.direction,
+                c.sweep,
+                f"{c.u0_mps:.3f}",
+                f"{c.u0_kmh:.2f}",
+                f"{c.ay_mps2:.2f}",
+                f"{c.c2n:.3f}",
+                f"{lo:.3f}–{hi:.3f}",
+            )
+        result = Text(result_line(state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold")
+        rejected = len(state.rejections)
+        note = Text(f"{rejected} sign change(s) not used", style="dim") if rejected else Text("")
+        return Panel(Group(table, result, note), title="Crossings")
+
+    def _frames(self) -> RenderableType:
+        counts = self.pipeline.decoder.counts
+        table = Table(expand=True, box=None, padding=(0, 1))
+        for name in ("channel", "id", "frames", "rate [1/s]"):
+            table.add_column(name, justify="right")
+        busiest = sorted(counts.by_id.items(), key=lambda kv: -kv[1])[: self.max_ids]
+        for (channel, frame_id), n in sorted(busiest, key=lambda kv: (str(kv[0][0]), kv[0][1])):
+            rate = self._rates.rates.get((channel, frame_id))
+            table.add_row(str(channel), f"0x{frame_id:X}", str(n), f"{rate:.0f}" if rate is not None else "—")
+        bad = (
+            f"total {counts.total}  used {counts.used}  unknown id {counts.unknown_id}  "
+            f"bad length {counts.bad_length}  error {counts.error_frames}  remote {counts.remote_frames}  "
+            f"other channel {counts.other_channel}"
+        )
+        return Panel(Group(table, Text(bad)), title="Frames")

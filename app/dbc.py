@@ -1,0 +1,80 @@
+"""Loading DBC files (cantools) and telling which CAN channel a frame belongs to."""
+
+import logging
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cantools
+
+from app.errors import DbcError
+
+log = logging.getLogger(__name__)
+
+ChannelSpec = int | str
+"""A channel as the config names it: a live channel name ("can1") or a log's channel number."""
+
+
+@dataclass(frozen=True)
+class Dbc:
+    """A loaded DBC file and the channel it is decoded on (None: every channel)."""
+
+    path: Path
+    database: Any  # cantools.database.can.Database (untyped library)
+    channel: ChannelSpec | None = None
+    relaxed: bool = False  # loaded with strict=False
+
+
+def load_dbc(path: Path, channel: ChannelSpec | None = None) -> Dbc:
+    """Load a DBC, translating cantools' errors into one-line DbcErrors.
+
+    Real-world DBCs often have overlapping signals; those load with ``strict=False`` and a
+    warning, as long as cantools can read them at all.
+    """
+    if not path.is_file():
+        raise DbcError(f"{path}: DBC file not found — check [dbc] files in the config")
+    try:
+        return Dbc(path, cantools.database.load_file(path, strict=True), channel)
+    except Exception as strict_error:  # noqa: BLE001 — cantools raises many types; retried below
+        try:
+            database = cantools.database.load_file(path, strict=False)
+        except Exception as error:  # noqa: BLE001 — translated at the edge
+            reason = _one_line(error)
+            raise DbcError(
+                f"{path}: not a readable DBC ({reason}) — fix the file or remove it from [dbc] files"
+            ) from error
+        log.warning("%s: loaded with strict=False: %s", path, _one_line(strict_error))
+        return Dbc(path, database, channel, relaxed=True)
+
+
+def _one_line(error: BaseException) -> str:
+    text = " ".join(str(error).split()) or type(error).__name__
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+_TRAILING_NUMBER = re.compile(r"(\d+)$")
+
+
+def _channel_number(channel: ChannelSpec) -> int | None:
+    if isinstance(channel, int):
+        return channel
+    match = _TRAILING_NUMBER.search(channel)
+    return int(match.group(1)) if match else None
+
+
+def channel_matches(spec: ChannelSpec | None, channel: object) -> bool:
+    """Does a frame received on ``channel`` belong to the config's channel ``spec``?
+
+    None (no spec) matches every channel. Names match exactly ("can1" == "can1"); a bare number
+    matches a name ending in that number, so ``1`` matches python-can's log channel 1 and "can1".
+    """
+    if spec is None:
+        return True
+    if channel is None or not isinstance(channel, int | str):
+        return False
+    if str(spec) == str(channel):
+        return True
+    if isinstance(spec, int) or isinstance(channel, int):
+        return _channel_number(spec) == _channel_number(channel)
+    return False

@@ -1,0 +1,192 @@
+"""Frames in, role values out: cantools decoding, role mapping, sensor-status gating, frame counts.
+
+Malformed frames are data, not exceptions: every frame is counted by what it was, and only
+values that are fit to use reach the pipeline.
+"""
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+
+from app.config import Config, RoleSpec, StatusCondition
+from app.dbc import ChannelSpec, channel_matches
+from app.records import Record
+
+
+@dataclass
+class FrameCounts:
+    """What the frames were. ``total`` is the sum of the kinds below it."""
+
+    total: int = 0
+    used: int = 0  # gave the pipeline a role value or a sensor status
+    unused: int = 0  # a DBC message nothing in the config needs
+    unknown_id: int = 0
+    other_channel: int = 0  # a known id on a channel its DBC is not decoded on
+    bad_length: int = 0
+    undecodable: int = 0
+    error_frames: int = 0
+    remote_frames: int = 0
+    by_id: Counter[tuple[object, int]] = field(default_factory=Counter)  # (channel, id) -> frames
+    bad_by_id: Counter[tuple[int, str]] = field(default_factory=Counter)  # (id, kind) -> frames
+    role_frames: Counter[str] = field(default_factory=Counter)  # role -> frames carrying it
+    rejected: Counter[str] = field(default_factory=Counter)  # "role: reason" -> values dropped
+
+    def as_dict(self) -> dict[str, int]:
+        return {
+            "total": self.total,
+            "used": self.used,
+            "unused": self.unused,
+            "unknown_id": self.unknown_id,
+            "other_channel": self.other_channel,
+            "bad_length": self.bad_length,
+            "undecodable": self.undecodable,
+            "error_frames": self.error_frames,
+            "remote_frames": self.remote_frames,
+        }
+
+
+class SensorStatus:
+    """The latest value of each status signal, and whether a role may be used at time t."""
+
+    def __init__(self, conditions: tuple[StatusCondition, ...], timeout_s: float) -> None:
+        self.conditions = conditions
+        self.timeout_s = timeout_s
+        self.values: dict[str, float] = {}
+        self.t: float | None = None
+
+    def update(self, t: float, values: dict[str, float]) -> None:
+        self.values.update(values)
+        self.t = t
+
+    def why_not(self, role: str, t: float) -> str | None:
+        """None when every condition on ``role`` holds at time t, else the reason it does not."""
+        relevant = [c for c in self.conditions if role in c.applies_to]
+        if not relevant:
+            return None
+        if self.t is None:
+            return "no sensor status yet"
+        if abs(t - self.t) > self.timeout_s:
+            return f"sensor status older than {self.timeout_s:g} s"
+        for condition in relevant:
+            value = self.values.get(condition.name)
+            if value is None:
+                return f"no {condition.name} yet"
+            if value != condition.value:
+                return f"{condition.name}={value:g} (needs {condition.value:g})"
+        return None
+
+
+@dataclass(frozen=True)
+class _RoleBinding:
+    role: str
+    signal: str
+    factor: float
+    low: float  # SI range from the DBC's minimum/maximum
+    high: float
+    channel: ChannelSpec | None
+
+
+@dataclass(frozen=True)
+class _MessageBinding:
+    message: Any  # cantools Message
+    channel: ChannelSpec | None
+    roles: tuple[_RoleBinding, ...]
+    status: tuple[str, ...]  # status signal names ("Message.Signal") in this message
+
+    @property
+    def needed(self) -> bool:
+        return bool(self.roles or self.status)
+
+
+class Decoder:
+    """Turns python-can messages into Records, counting every frame."""
+
+    def __init__(self, config: Config) -> None:
+        self.counts = FrameCounts()
+        self.status = SensorStatus(config.status, config.filter.status_timeout_s)
+        self._bindings: dict[tuple[int, bool], list[_MessageBinding]] = {}
+        status_names = {c.name for c in config.status}
+        for dbc in config.dbcs:
+            for message in dbc.database.messages:
+                roles = tuple(
+                    _bind_role(spec, message) for spec in config.roles.values() if spec.message == message.name
+                )
+                status = tuple(
+                    f"{message.name}.{s.name}" for s in message.signals if f"{message.name}.{s.name}" in status_names
+                )
+                key = (message.frame_id, bool(message.is_extended_frame))
+                self._bindings.setdefault(key, []).append(_MessageBinding(message, dbc.channel, roles, status))
+
+    def decode(self, msg: can.Message) -> Record | None:
+        """Count the frame; return a Record when it carries role values (usable or not)."""
+        counts = self.counts
+        counts.total += 1
+        counts.by_id[(msg.channel, msg.arbitration_id)] += 1
+        if msg.is_error_frame:
+            counts.error_frames += 1
+            return None
+        if msg.is_remote_frame:
+            counts.remote_frames += 1
+            return None
+        candidates = self._bindings.get((msg.arbitration_id, bool(msg.is_extended_id)))
+        if candidates is None:
+            counts.unknown_id += 1
+            return None
+        binding = next((b for b in candidates if channel_matches(b.channel, msg.channel)), None)
+        if binding is None:
+            counts.other_channel += 1
+            return None
+        if not binding.needed:
+            counts.unused += 1
+            return None
+        message = binding.message
+        if len(msg.data) != message.length:
+            counts.bad_length += 1
+            kind = "short" if len(msg.data) < message.length else "long"
+            counts.bad_by_id[(msg.arbitration_id, kind)] += 1
+            return None
+        try:
+            decoded = message.decode(bytes(msg.data), decode_choices=False, scaling=True)
+        except Exception:  # noqa: BLE001 — cantools raises several types; the frame is data
+            counts.undecodable += 1
+            counts.bad_by_id[(msg.arbitration_id, "undecodable")] += 1
+            return None
+        counts.used += 1
+        t = msg.timestamp
+        if binding.status:
+            self.status.update(t, {name: float(decoded[name.partition(".")[2]]) for name in binding.status})
+        signals: dict[str, float] = {}
+        rejected: dict[str, str] = {}
+        for role in binding.roles:
+            if not channel_matches(role.channel, msg.channel):
+                continue
+            counts.role_frames[role.role] += 1
+            value = float(decoded[role.signal]) * role.factor
+            reason = self._why_not(role, value, t)
+            if reason is None:
+                signals[role.role] = value
+            else:
+                rejected[role.role] = reason
+                counts.rejected[f"{role.role}: {reason}"] += 1
+        if not signals and not rejected:
+            return None
+        return Record(t, msg.channel, msg.arbitration_id, signals, rejected)
+
+    def _why_not(self, role: _RoleBinding, value: float, t: float) -> str | None:
+        if not math.isfinite(value):
+            return "not a number"
+        if not role.low <= value <= role.high:
+            return "out of range"
+        return self.status.why_not(role.role, t)
+
+
+def _bind_role(spec: RoleSpec, message: Any) -> _RoleBinding:
+    signal = message.get_signal_by_name(spec.signal)
+    low, high = (-math.inf, math.inf)
+    if signal.minimum is not None and signal.maximum is not None and signal.minimum < signal.maximum:
+        a, b = signal.minimum * spec.factor, signal.maximum * spec.factor
+        low, high = min(a, b), max(a, b)
+    return _RoleBinding(spec.role, spec.signal, spec.factor, low, high, spec.channel)

@@ -1,0 +1,239 @@
+"""Kalman filter (filterpy) on longitudinal velocity, lateral velocity and yaw rate, with their rates.
+
+State x = [u, u̇, v, v̇, r, ṙ] (ISO 8855): u the longitudinal velocity, v the lateral velocity at
+the sensor's longitudinal position (d ahead of the rear axle) on the centre line, r the yaw rate.
+Each pair is a continuous white-noise-jerk model, discretised for the time since the last frame,
+so sensors at different rates update the same state as their frames arrive.
+
+Measurement models (y_s: sensor's lateral offset, + left):
+    optical vx      = u − r·y_s                 (rigid body: the head sees the yaw's share)
+    optical vy      = v
+    optical angle β = atan2(v, u − r·y_s)       (linearised about the prior, as in an EKF)
+    vehicle speed   = u                         (weak: wheel-speed scale errors and lags)
+    yaw rate        = r                         (or ay/u without a gyro)
+"""
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+
+from app.config import FilterSettings
+from app.records import Estimate, Record
+
+_LATE_TOLERANCE_S = 0.05  # frames up to this much out of order are applied at the current time
+_YAW_TIMEOUT_S = 0.5  # yaw information older than this leaves r unobserved
+_HEALTH_ALPHA = 0.02  # memory of the health figure: about 50 updates
+_MIN_SPEED_FOR_ANGLE = 1.0  # m/s: below this the angle says nothing about v
+_MAX_CONSECUTIVE_REJECTS = 3  # a sensor rejected this often in a row is right and the model wrong
+
+
+@dataclass
+class FilterCounts:
+    resets: int = 0
+    time_jumps: int = 0  # timestamps that went backwards
+    late_frames: int = 0
+    outliers: int = 0  # measurements rejected by the innovation gate
+
+
+class MotionFilter:
+    def __init__(self, settings: FilterSettings, sensor_lateral_m: float, roles: frozenset[str]) -> None:
+        self.settings = settings
+        self.roles = roles
+        self.has_yaw = "yaw_rate" in roles or "ay" in roles
+        # Without yaw information the lateral offset cannot be corrected (r is not observable).
+        self.y_s = sensor_lateral_m if self.has_yaw else 0.0
+        self.counts = FilterCounts()
+        self.kf = KalmanFilter(dim_x=6, dim_z=1)
+        self.health = 1.0
+        self._t: float | None = None
+        self._t_optical = -math.inf
+        self._t_yaw = -math.inf
+        self._last_ay: float | None = None
+        self._rejects: dict[str, int] = {}  # consecutive gate rejections per sensor
+
+    # -- time ------------------------------------------------------------------------------
+    def _reset(self) -> None:
+        self._t = None
+        self._t_optical = -math.inf
+        self._t_yaw = -math.inf
+
+    def _initialise(self, record: Record) -> bool:
+        s = record.signals
+        if "vx" not in s:
+            return False
+        u = s["vx"]
+        if "vy" in s:
+            v = s["vy"]
+        elif "beta" in s:
+            v = u * math.tan(s["beta"])
+        else:
+            v = 0.0
+        r = s.get("yaw_rate", 0.0)
+        self.kf.x = np.array([[u + r * self.y_s], [0.0], [v], [0.0], [r], [0.0]])
+        self.kf.P = np.diag([0.1, 1.0, 0.1, 0.5, 0.05 if self.has_yaw else 0.0, 0.1 if self.has_yaw else 0.0]) ** 2
+        self._t = record.t
+        self.health = 1.0
+        return True
+
+    def _predict(self, dt: float) -> None:
+        f, q = transition(dt, self.settings.q_u, self.settings.q_v, self.settings.q_r if self.has_yaw else 0.0)
+        self.kf.predict(F=f, Q=q)
+
+    # -- one frame -------------------------------------------------------------------------
+    def step(self, record: Record) -> Estimate | None:
+        """Predict to the record's time and update with its measurements."""
+        s = record.signals
+        optical = "vx" in s or "vy" in s or "beta" in s
+        t = record.t
+        if self._t is not None:
+            dt = t - self._t
+            if dt < -_LATE_TOLERANCE_S:
+                self.counts.time_jumps += 1
+                self.counts.resets += 1
+                self._reset()
+            elif optical and t - self._t_optical > self.settings.gap_reset_s:
+                self.counts.resets += 1
+                self._reset()
+        if self._t is None:
+            if not self._initialise(record):
+                return None
+            self._t_optical = t
+            if "yaw_rate" in s:
+                self._t_yaw = t
+            return self._estimate(t, None, s.get("ay"))
+        dt = t - self._t
+        if dt < 0:
+            self.counts.late_frames += 1
+        elif dt > 0:
+            self._predict(dt)
+            self._t = t
+        v_meas = self._update(record)
+        if optical:
+            self._t_optical = t
+        return self._estimate(t, v_meas, s.get("ay"))
+
+    def _update(self, record: Record) -> float | None:
+        """Update with every measurement in the record; return the measured v if there was one."""
+        s = record.signals
+        x = self.kf.x[:, 0]
+        u, v, r = x[0], x[2], x[4]
+        u_s = u - r * self.y_s  # the head's own longitudinal velocity
+        rows: list[tuple[float, np.ndarray, float, str]] = []  # (z, H row, R, kind)
+        sigma_v = self.settings.sigma_velocity_mps
+        if "vx" in s:
+            rows.append((s["vx"], _row(u=1.0, r=-self.y_s), sigma_v**2, "vx"))
+        lateral = self._lateral_source(s, u_s)
+        v_meas = None
+        if lateral == "vy":
+            v_meas = s["vy"]
+            rows.append((v_meas, _row(v=1.0), sigma_v**2, "lateral"))
+        elif lateral == "beta":
+            beta = s["beta"]
+            v_meas = u_s * math.tan(beta)
+            n2 = u_s * u_s + v * v
+            h = math.atan2(v, u_s)
+            jac = _row(u=-v / n2, v=u_s / n2, r=v * self.y_s / n2)
+            sigma_b = (
+                math.radians(self.settings.sigma_beta_deg)
+                if self.settings.sigma_beta_deg is not None
+                else sigma_v / abs(u_s)
+            )
+            # pseudo-measurement: filterpy forms y = z − Hx, the EKF needs y = z − h(x)
+            rows.append((beta - h + float(jac @ x), jac, sigma_b**2, "lateral"))
+        if "speed" in s:
+            rows.append((s["speed"], _row(u=1.0), self.settings.sigma_speed_mps**2, "speed"))
+        if "yaw_rate" in s:
+            rows.append((s["yaw_rate"], _row(r=1.0), self.settings.sigma_yaw_rate_radps**2, "yaw"))
+            self._t_yaw = record.t
+        elif "ay" in s and "yaw_rate" not in self.roles and u > _MIN_SPEED_FOR_ANGLE:
+            rows.append((s["ay"] / u, _row(r=1.0), (self.settings.sigma_ay_mps2 / u) ** 2, "yaw"))
+            self._t_yaw = record.t
+        rows = self._gate(rows)
+        if rows:
+            z = np.array([[row[0]] for row in rows])
+            h_matrix = np.array([row[1] for row in rows])
+            r_matrix = np.diag([row[2] for row in rows])
+            self.kf.update(z, R=r_matrix, H=h_matrix)
+        return v_meas
+
+    def _lateral_source(self, s: Mapping[str, float], u_s: float) -> str | None:
+        source = self.settings.sideslip_source
+        if source in ("auto", "beta") and "beta" in s and abs(u_s) > _MIN_SPEED_FOR_ANGLE:
+            return "beta"
+        if source in ("auto", "vy") and "vy" in s:
+            return "vy"
+        return None
+
+    def _gate(self, rows: list[tuple[float, np.ndarray, float, str]]) -> list[tuple[float, np.ndarray, float, str]]:
+        """Drop measurements whose normalised innovation² exceeds the gate (outliers), unless the
+        same sensor was dropped several times running: then the model has lost the car, and the
+        sensor is believed. The optical rows' normalised innovation² is the health figure."""
+        x, p = self.kf.x[:, 0], self.kf.P
+        kept = []
+        optical_nis = []
+        for row in rows:
+            z, h, r, kind = row
+            innovation = z - float(h @ x)
+            nis = innovation * innovation / (float(h @ p @ h) + r)
+            if nis > self.settings.innovation_gate and self._rejects.get(kind, 0) < _MAX_CONSECUTIVE_REJECTS:
+                self.counts.outliers += 1
+                self._rejects[kind] = self._rejects.get(kind, 0) + 1
+                continue
+            self._rejects[kind] = 0
+            kept.append(row)
+            if kind in ("vx", "lateral"):
+                optical_nis.append(nis)
+        if optical_nis:
+            self.health += _HEALTH_ALPHA * (sum(optical_nis) / len(optical_nis) - self.health)
+        return kept
+
+    def _estimate(self, t: float, v_meas: float | None, ay_meas: float | None) -> Estimate:
+        x, p = self.kf.x[:, 0], self.kf.P
+        u, v = float(x[0]), float(x[2])
+        n2 = u * u + v * v
+        jac = _row(u=-v / n2, v=u / n2) if n2 > 0 else _row()
+        sigma = math.sqrt(max(float(jac @ p @ jac), 0.0) * max(1.0, self.health))
+        if ay_meas is not None:
+            self._last_ay = ay_meas
+        yaw_observed = t - self._t_yaw <= _YAW_TIMEOUT_S
+        r = float(x[4]) if yaw_observed else None
+        ay = u * r if r is not None else self._last_ay
+        sideslip_meas = math.atan2(v_meas, u) if v_meas is not None else None
+        return Estimate(
+            u_mps=u,
+            u_dot_mps2=float(x[1]),
+            v_mps=v,
+            v_dot_mps2=float(x[3]),
+            r_radps=r,
+            r_dot_radps2=float(x[5]) if yaw_observed else None,
+            sideslip_rad=math.atan2(v, u),
+            sideslip_sigma_rad=sigma,
+            ay_mps2=ay,
+            health=self.health,
+            v_meas_mps=v_meas,
+            sideslip_meas_rad=sideslip_meas,
+        )
+
+
+def transition(dt: float, q_u: float, q_v: float, q_r: float) -> tuple[np.ndarray, np.ndarray]:
+    """F and Q for the three [value, rate] pairs over dt.
+
+    x_k+1 = F x_k with F = [[1, dt], [0, 1]] per pair; Q = q·[[dt³/3, dt²/2], [dt²/2, dt]] per pair,
+    white jerk of spectral density q integrated over dt (filterpy's Q_continuous_white_noise,
+    built here directly: scipy's block_diag costs ten times the rest of the filter).
+    """
+    f = np.eye(6)
+    q = np.zeros((6, 6))
+    block = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+    for i, density in enumerate((q_u, q_v, q_r)):
+        j = 2 * i
+        f[j, j + 1] = dt
+        q[j : j + 2, j : j + 2] = density * block
+    return f, q
+
+
+def _row(u: float = 0.0, v: float = 0.0, r: float = 0.0) -> np.ndarray:
+    return np.array([u, 0.0, v, 0.0, r, 0.0])

@@ -1,0 +1,82 @@
+"""The run loop shared by ``c2n live``, ``c2n demo`` and ``c2n analyze``: frames through the
+pipeline, events printed as they happen, the dashboard redrawn and the recording flushed on a
+wall-clock cadence (the only clock here, and it is injected)."""
+
+import time
+from collections.abc import Callable, Iterable, Sequence
+from contextlib import nullcontext
+from typing import Any
+
+import can
+from rich.console import Console, RenderableType
+from rich.live import Live
+from rich.text import Text
+
+from app.event_line import crossing_line, rejected_line
+from app.pipeline import Pipeline
+from app.records import Crossing, CrossingRejected, Event
+from app.recorder import SessionRecorder
+
+
+class EventPrinter:
+    """Prints each crossing (and each sign change not used) as one line."""
+
+    def __init__(self, console: Console, pipeline: Pipeline, recorder: SessionRecorder | None = None) -> None:
+        self.console = console
+        self.pipeline = pipeline
+        self.recorder = recorder
+
+    def __call__(self, events: Sequence[Event]) -> None:
+        t0 = self.pipeline.state.t_first or 0.0
+        for event in events:
+            if isinstance(event, Crossing):
+                self.console.print(Text(crossing_line(event, t0), style="bold green"), soft_wrap=True)
+                if self.recorder is not None:
+                    self.recorder.on_crossing(event, t0)
+            elif isinstance(event, CrossingRejected):
+                self.console.print(Text(rejected_line(event, t0), style="dim"), soft_wrap=True)
+
+
+def run(
+    source: Iterable[can.Message | None],
+    pipeline: Pipeline,
+    printer: Callable[[Sequence[Event]], None],
+    display: RenderableType | None = None,
+    console: Console | None = None,
+    recorder: SessionRecorder | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    refresh_s: float = 0.1,
+    transient: bool = False,
+) -> bool:
+    """Run until the source ends (True) or Ctrl-C / SIGTERM (False); then fit what is pending.
+
+    The display (dashboard, progress) is drawn only on a terminal; elsewhere the printed lines
+    are all there is. A transient display is cleared at the end.
+    """
+    live: Any = nullcontext()
+    if display is not None and console is not None and console.is_terminal:
+        live = Live(display, console=console, auto_refresh=False, transient=transient, redirect_stdout=False)
+    completed = True
+    with live:
+        next_refresh = clock()
+        try:
+            for msg in source:
+                if msg is not None:
+                    if recorder is not None:
+                        recorder.on_message(msg)
+                    record = pipeline.process(msg)
+                    if record is not None and record.events:
+                        printer(record.events)
+                now = clock()
+                if now >= next_refresh:
+                    if isinstance(live, Live):
+                        live.refresh()
+                    if recorder is not None:
+                        recorder.flush()
+                    next_refresh = now + refresh_s
+        except KeyboardInterrupt:
+            completed = False
+        printer(pipeline.finish())
+        if isinstance(live, Live):
+            live.refresh()
+    return completed

@@ -1,0 +1,61 @@
+"""Replay with the recorded timing, like canplayer: pacing and looping of a message stream.
+
+The clock and the sleep are parameters, so tests pace without real waiting.
+"""
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+
+import can
+
+
+def paced(
+    messages: Iterable[can.Message],
+    rate: float = 1.0,
+    clock: Callable[[], float] = time.perf_counter,
+    sleep: Callable[[float], None] = time.sleep,
+    max_wait_s: float = 5.0,
+) -> Iterator[can.Message]:
+    """Yield each message when its recorded time comes, ``rate`` times faster than recorded.
+
+    Gaps longer than ``max_wait_s`` (in playback time) are shortened to it, like python-can's
+    MessageSync ``skip``.
+    """
+    if rate <= 0:
+        raise ValueError("rate must be > 0")
+    start_wall: float | None = None
+    start_log = 0.0
+    skipped = 0.0
+    previous = None
+    for message in messages:
+        if start_wall is None:
+            start_wall, start_log = clock(), message.timestamp
+        else:
+            gap = (message.timestamp - previous) / rate if previous is not None else 0.0
+            if gap > max_wait_s:
+                skipped += gap - max_wait_s
+        previous = message.timestamp
+        due = start_wall + (message.timestamp - start_log) / rate - skipped
+        wait = due - clock()
+        if wait > 0:
+            sleep(wait)
+        yield message
+
+
+def looped(read: Callable[[], Iterable[can.Message]], loops: int | None) -> Iterator[can.Message]:
+    """Repeat a recording ``loops`` times (None: forever), shifting timestamps so they keep rising."""
+    offset = 0.0
+    count = 0
+    while loops is None or count < loops:
+        first = last = None
+        for message in read():
+            if first is None:
+                first = message.timestamp
+            last = message.timestamp
+            if offset:
+                message.timestamp += offset
+            yield message
+        if first is None or last is None:
+            return
+        offset += (last - first) + 0.01
+        count += 1

@@ -1,0 +1,94 @@
+"""The record that flows through the pipeline, and the events the detector adds to it.
+
+source → decode → estimate → detect → sinks: the decoder makes a Record from a frame; the
+pipeline fills in the estimate, the steady-state verdict and any events. All frozen.
+"""
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+Direction = Literal["left", "right"]
+Sweep = Literal["up", "down"]
+
+
+@dataclass(frozen=True, slots=True)
+class Estimate:
+    """Filtered motion at the sensor's longitudinal position, on the centre line (ISO 8855)."""
+
+    u_mps: float  # longitudinal velocity
+    u_dot_mps2: float  # its rate: the speed sweep
+    v_mps: float  # lateral velocity at the sensor position d ahead of the rear axle
+    v_dot_mps2: float  # its rate: large in transients
+    r_radps: float | None  # yaw rate; None while unobserved
+    r_dot_radps2: float | None
+    sideslip_rad: float  # atan2(v, u): the sign the method watches
+    sideslip_sigma_rad: float  # its standard deviation, scaled by the measured innovation
+    ay_mps2: float | None  # u·r (steady lateral acceleration), or the measured ay without a yaw rate
+    health: float  # mean normalised innovation² per dimension: ≈1 when the noise model fits
+    v_meas_mps: float | None = None  # this frame's measured lateral velocity at the sensor position
+    sideslip_meas_rad: float | None = None  # this frame's measured sideslip
+
+
+@dataclass(frozen=True, slots=True)
+class SteadyState:
+    steady: bool
+    direction: Direction | None
+    reasons: tuple[str, ...] = ()  # why not steady, for the dashboard's guidance
+
+
+@dataclass(frozen=True, slots=True)
+class SignChange:
+    """The filtered sideslip changed sign: a crossing is being fitted."""
+
+    t: float
+    direction: Direction | None
+    sweep: Sweep
+    u_mps: float
+
+
+@dataclass(frozen=True, slots=True)
+class Crossing:
+    """A sideslip sign change fitted locally: u0 and C2n = u0²/(g·d) (paper eq. 7)."""
+
+    t: float
+    direction: Direction
+    sweep: Sweep
+    u0_mps: float
+    u0_ci95: tuple[float, float]
+    c2n: float
+    c2n_se: float  # standard error, autocorrelation-corrected
+    ci95: tuple[float, float]
+    ay_mps2: float  # steady lateral acceleration at the crossing
+    n_samples: int
+    method: Literal["v/r", "beta"]  # fitted quantity against u²
+
+    @property
+    def u0_kmh(self) -> float:
+        return self.u0_mps * 3.6
+
+
+@dataclass(frozen=True, slots=True)
+class CrossingRejected:
+    t: float
+    direction: Direction | None
+    sweep: Sweep
+    u_mps: float
+    reason: str
+
+
+Event = SignChange | Crossing | CrossingRejected
+
+
+@dataclass(frozen=True, slots=True)
+class Record:
+    """One decoded frame with what the pipeline made of it."""
+
+    t: float
+    channel: object
+    frame_id: int
+    signals: Mapping[str, float]  # role -> value in SI units, only values fit to use
+    rejected: Mapping[str, str] = field(default_factory=dict)  # role -> why it was dropped
+    estimate: Estimate | None = None
+    steady: SteadyState | None = None
+    events: tuple[Event, ...] = ()

@@ -1,0 +1,198 @@
+"""Where frames come from: log files (any format python-can reads) and live buses.
+
+A source is an iterable of ``can.Message``. Library errors become one-line LogFileError /
+BusError here, at the edge; a log that breaks part-way gives every frame before the damage and
+says where it stopped.
+"""
+
+import heapq
+import logging
+import queue
+import threading
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+
+from app.errors import BusError, LogFileError
+
+log = logging.getLogger(__name__)
+
+READABLE_SUFFIXES = (".asc", ".blf", ".csv", ".db", ".log", ".mf4", ".trc")
+
+
+@dataclass
+class LogReport:
+    """How reading one file went."""
+
+    path: Path
+    frames: int = 0
+    stopped: str | None = None  # why reading stopped before the end, if it did
+
+
+def open_log(path: Path) -> Iterable[can.Message]:
+    """Open a log with python-can's reader for its suffix, translating its errors."""
+    if not path.exists():
+        raise LogFileError(f"{path}: no such file")
+    if path.is_dir():
+        raise LogFileError(f"{path}: is a folder, not a log file")
+    suffixes = [s.lower() for s in path.suffixes]
+    real = suffixes[-2] if suffixes and suffixes[-1] == ".gz" and len(suffixes) > 1 else (suffixes[-1] if suffixes else "")
+    if real not in READABLE_SUFFIXES:
+        raise LogFileError(
+            f"{path}: unknown log format '{real or path.name}' — use one of {', '.join(READABLE_SUFFIXES)}"
+        )
+    if path.stat().st_size == 0:
+        raise LogFileError(f"{path}: the file is empty")
+    try:
+        return can.LogReader(path)  # type: ignore[no-any-return]
+    except ImportError as error:
+        raise LogFileError(f"{path}: cannot read {real} files ({error}) — pip install asammdf") from None
+    except Exception as error:  # noqa: BLE001 — python-can's readers raise many types on bad headers
+        raise LogFileError(f"{path}: not a readable {real} log ({_one_line(error)})") from None
+
+
+def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
+    """Frames of one log file, in file order; damage ends the file, noted in ``report``."""
+    reader = open_log(path)
+    iterator = iter(reader)
+    try:
+        while True:
+            try:
+                message = next(iterator)
+            except StopIteration:
+                return
+            except Exception as error:  # noqa: BLE001 — a damaged file: keep what came before it
+                report.stopped = f"stopped after frame {report.frames}: {_one_line(error)}"
+                log.warning("%s: %s", path, report.stopped)
+                return
+            report.frames += 1
+            yield message
+    finally:
+        stop = getattr(reader, "stop", None)
+        if callable(stop):
+            stop()
+
+
+class LogSource:
+    """Frames of several log files: one after another, or merged by timestamp (``merge``), for
+    per-channel recordings of one drive (e.g. two candump files)."""
+
+    def __init__(self, paths: Sequence[Path], merge: bool = False) -> None:
+        self.paths = list(paths)
+        self.merge = merge
+        self.reports = [LogReport(p) for p in self.paths]
+        for path in self.paths:  # fail before any work on a missing or unknown file
+            reader = open_log(path)
+            stop = getattr(reader, "stop", None)
+            if callable(stop):
+                stop()
+
+    def __iter__(self) -> Iterator[can.Message]:
+        streams = [read_log(p, r) for p, r in zip(self.paths, self.reports, strict=True)]
+        if self.merge:
+            yield from heapq.merge(*streams, key=lambda m: m.timestamp)
+        else:
+            for stream in streams:
+                yield from stream
+
+
+def _one_line(error: BaseException) -> str:
+    text = " ".join(str(error).split()) or type(error).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+# -- live buses ---------------------------------------------------------------------------------
+
+
+def open_buses(
+    interface: str | None, channels: Sequence[str | int | None], bitrate: int | None, **kwargs: Any
+) -> list[can.BusABC]:
+    """Open one python-can bus per channel. None values fall back to python-can's config file and
+    CAN_INTERFACE / CAN_CHANNEL / CAN_BITRATE."""
+    buses: list[can.BusABC] = []
+    options = dict(kwargs)
+    if bitrate is not None:
+        options["bitrate"] = bitrate
+    for channel in channels or [None]:
+        try:
+            buses.append(can.Bus(interface=interface, channel=channel, **options))
+        except Exception as error:  # noqa: BLE001 — interfaces raise CanError, OSError, ValueError, ImportError…
+            for bus in buses:
+                bus.shutdown()
+            where = f"{interface or 'default interface'} {channel if channel is not None else '(default channel)'}"
+            raise BusError(f"{where}: cannot open ({_one_line(error)}) — {_bus_hint(interface)}") from None
+    return buses
+
+
+def _bus_hint(interface: str | None) -> str:
+    if interface is None:
+        return "give -i/-c, or set CAN_INTERFACE and CAN_CHANNEL, or write ~/can.conf"
+    if interface == "socketcan":
+        return "is it up? (sudo ip link set can0 up type can bitrate 1000000)"
+    return "check the interface name, channel and driver"
+
+
+class _Forward(can.Listener):
+    """Puts a bus's frames on the shared queue, naming the channel if the interface did not."""
+
+    def __init__(self, out: "queue.SimpleQueue[can.Message | BaseException]", channel: object) -> None:
+        self.out = out
+        self.channel = channel
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.channel is None:
+            msg.channel = self.channel
+        self.out.put(msg)
+
+    def on_error(self, exc: Exception) -> None:
+        self.out.put(exc)
+
+
+class BusSource:
+    """Frames from one or more live buses in arrival order.
+
+    Iterating yields a message, or None after ``idle_s`` without one (so the caller can redraw).
+    It ends at once when ``stop`` is set, or once the buses fall quiet after ``finished`` is set
+    (a player that has sent everything). A bus that fails ends it with BusError.
+    """
+
+    def __init__(
+        self,
+        buses: Sequence[can.BusABC],
+        stop: threading.Event,
+        finished: threading.Event | None = None,
+        idle_s: float = 0.1,
+    ) -> None:
+        self.buses = list(buses)
+        self.stop = stop
+        self.finished = finished
+        self.idle_s = idle_s
+        self._queue: queue.SimpleQueue[can.Message | BaseException] = queue.SimpleQueue()
+        self._notifiers: list[can.Notifier] = []
+
+    def __iter__(self) -> Iterator[can.Message | None]:
+        for bus in self.buses:
+            self._notifiers.append(can.Notifier(bus, [_Forward(self._queue, bus.channel_info)], timeout=self.idle_s))
+        stop = self.stop
+        try:
+            while not stop.is_set():
+                try:
+                    item = self._queue.get(timeout=self.idle_s)
+                except queue.Empty:
+                    if self.finished is not None and self.finished.is_set():
+                        return
+                    yield None
+                    continue
+                if isinstance(item, BaseException):
+                    raise BusError(f"the bus failed: {_one_line(item)}")
+                yield item
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        for notifier in self._notifiers:
+            notifier.stop(timeout=1.0)
+        self._notifiers.clear()

@@ -1,0 +1,88 @@
+"""Is the car in steady cornering? The gate in front of the crossing detector.
+
+The method holds for linear tyres in steady state (paper §2–3): lateral acceleration below
+~4 m/s², slow speed changes, no steering transients, and the car must actually be turning
+(driving straight, the sideslip is ~0 and its sign is noise). Each failed condition becomes a
+reason the dashboard turns into guidance for the driver.
+"""
+
+import math
+
+from app.config import DetectorSettings
+from app.records import Direction, Estimate, SteadyState
+
+
+class SteadyStateGate:
+    """Hard limits (speed, a_y, straight driving, sensor) end a steady spell at once; the rate
+    limits (sweep, transients) read filtered derivatives that are noisy, so a brief excursion
+    drops only its own samples and the spell goes on without settling again."""
+
+    def __init__(self, settings: DetectorSettings) -> None:
+        self.settings = settings
+        self._since: float | None = None  # when every condition began to hold
+        self._soft_since: float | None = None  # when a rate limit began to fail
+
+    def step(self, t: float, estimate: Estimate, steer_rad: float | None, sensor_problem: str | None) -> SteadyState:
+        direction = _direction(estimate, steer_rad)
+        hard = self._hard_reasons(estimate, sensor_problem)
+        soft = self._soft_reasons(estimate)
+        if self._since is not None and t < self._since:
+            self._since = None  # time went backwards
+        if hard:
+            self._since = self._soft_since = None
+            return SteadyState(False, direction, hard + soft)
+        if soft:
+            if self._soft_since is None or t < self._soft_since:
+                self._soft_since = t
+            if t - self._soft_since > self.settings.debounce_s:
+                self._since = None
+            return SteadyState(False, direction, soft)
+        self._soft_since = None
+        if self._since is None:
+            self._since = t
+        held = t - self._since
+        if held < self.settings.settle_s:
+            return SteadyState(False, direction, (f"settling ({held:.1f} of {self.settings.settle_s:g} s)",))
+        return SteadyState(True, direction)
+
+    def _hard_reasons(self, e: Estimate, sensor_problem: str | None) -> tuple[str, ...]:
+        s = self.settings
+        reasons = []
+        if sensor_problem is not None:
+            reasons.append(f"sensor: {sensor_problem}")
+        if e.u_mps < s.speed_min_mps:
+            reasons.append(f"speed {e.u_mps:.1f} m/s below {s.speed_min_mps:g}")
+        if e.ay_mps2 is not None and abs(e.ay_mps2) > s.ay_max_mps2:
+            reasons.append(f"lateral acceleration too high: {abs(e.ay_mps2):.1f} m/s² > {s.ay_max_mps2:g}")
+        curvature = _curvature(e)
+        if curvature is not None and curvature < 1.0 / s.radius_max_m:
+            reasons.append(f"driving straight (radius over {s.radius_max_m:g} m)")
+        return tuple(reasons)
+
+    def _soft_reasons(self, e: Estimate) -> tuple[str, ...]:
+        s = self.settings
+        reasons = []
+        if abs(e.u_dot_mps2) > s.sweep_max_mps2:
+            reasons.append(f"sweep too fast: {abs(e.u_dot_mps2):.2f} m/s² > {s.sweep_max_mps2:g}")
+        yaw_transient = e.r_dot_radps2 is not None and abs(e.r_dot_radps2) > s.yaw_accel_max_radps2
+        if yaw_transient or abs(e.v_dot_mps2) > s.lateral_accel_rate_max_mps2:
+            reasons.append("steering transient")
+        return tuple(reasons)
+
+
+def _curvature(e: Estimate) -> float | None:
+    if e.u_mps <= 0:
+        return None
+    if e.r_radps is not None:
+        return abs(e.r_radps) / e.u_mps
+    if e.ay_mps2 is not None:
+        return abs(e.ay_mps2) / (e.u_mps * e.u_mps)
+    return None
+
+
+def _direction(e: Estimate, steer_rad: float | None) -> Direction | None:
+    """Turning direction (ISO 8855: positive yaw rate is a left turn)."""
+    for value in (e.r_radps, e.ay_mps2, steer_rad):
+        if value is not None and value != 0 and math.isfinite(value):
+            return "left" if value > 0 else "right"
+    return None

@@ -1,0 +1,142 @@
+"""The session summary (DESIGN §6): what ``c2n analyze --json`` and a live session write."""
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from app import __version__
+from app.config import Config
+from app.errors import C2nError
+from app.pipeline import Pipeline
+from app.records import Crossing
+from app.sources import LogReport
+
+REQUIRED_ROLES = (("vx",), ("vy", "beta"))
+
+
+def _frame_ids(config: Config, role: str) -> str:
+    spec = config.roles[role]
+    for dbc in config.dbcs:
+        for message in dbc.database.messages:
+            if message.name == spec.message:
+                where = f" on channel {spec.channel}" if spec.channel is not None else ""
+                return f"{spec.name}, id 0x{message.frame_id:X}{where}"
+    return spec.name
+
+
+def roles_without_frames(pipeline: Pipeline) -> list[str]:
+    counts = pipeline.decoder.counts.role_frames
+    return [role for role in pipeline.config.roles if counts[role] == 0]
+
+
+def missing_required(pipeline: Pipeline) -> str | None:
+    """A message naming the required role that had no frames, or None."""
+    silent = set(roles_without_frames(pipeline))
+    for group in REQUIRED_ROLES:
+        configured = [r for r in group if r in pipeline.config.roles]
+        if configured and all(r in silent for r in configured):
+            role = configured[0]
+            return f"no frames for role '{role}' ({_frame_ids(pipeline.config, role)}) — is the optical sensor on this bus/log and channel?"
+    return None
+
+
+def warnings(pipeline: Pipeline, reports: Sequence[LogReport] = ()) -> list[str]:
+    config = pipeline.config
+    counts = pipeline.decoder.counts
+    out: list[str] = []
+    for report in reports:
+        if report.stopped:
+            out.append(f"{report.path}: {report.stopped}")
+    for role in roles_without_frames(pipeline):
+        out.append(f"no frames for role '{role}' ({_frame_ids(config, role)})")
+    if "yaw_rate" not in config.roles and "ay" not in config.roles:
+        out.append("no yaw rate or lateral acceleration: the steady-state gate cannot check a_y or tell straight driving")
+    for dbc in config.dbcs:
+        if dbc.relaxed:
+            out.append(f"{dbc.path.name} loaded with strict=False (overlapping or oversized signals)")
+    if counts.other_channel:
+        out.append(f"{counts.other_channel} frames of known ids arrived on a channel their DBC is not decoded on ([channels])")
+    for reason, n in counts.rejected.most_common():
+        out.append(f"{n} samples dropped: {reason}")
+    f = pipeline.filter.counts
+    if f.time_jumps:
+        out.append(f"timestamps went backwards {f.time_jumps} times: the filter restarted")
+    if f.resets - f.time_jumps:
+        out.append(f"the optical data stopped {f.resets - f.time_jumps} times for over {config.filter.gap_reset_s:g} s: the filter restarted")
+    rejected = pipeline.state.rejections
+    if rejected:
+        out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
+    if pipeline.state.t_first is not None and not pipeline.state.crossings:
+        out.append("no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle")
+    return out
+
+
+def _round(value: float, digits: int = 4) -> float | None:
+    return round(value, digits) if math.isfinite(value) else None
+
+
+def _crossing(c: Crossing, t0: float) -> dict[str, Any]:
+    return {
+        "t": _round(c.t - t0, 3),
+        "t_abs": c.t,
+        "u0_mps": _round(c.u0_mps),
+        "u0_kmh": _round(c.u0_kmh, 3),
+        "u0_ci95": [_round(v) for v in c.u0_ci95],
+        "c2n": _round(c.c2n),
+        "ci95": [_round(v) for v in c.ci95],
+        "direction": c.direction,
+        "sweep": c.sweep,
+        "ay_mps2": _round(c.ay_mps2, 3),
+        "n_samples": c.n_samples,
+        "method": c.method,
+    }
+
+
+def build(pipeline: Pipeline, inputs: Sequence[str], reports: Sequence[LogReport] = ()) -> dict[str, Any]:
+    state = pipeline.state
+    config = pipeline.config
+    t0 = state.t_first or 0.0
+    combined = state.combined
+    g, d = config.vehicle.gravity_mps2, config.d_m
+    counts = pipeline.decoder.counts
+    return {
+        "c2n": _round(combined.c2n) if combined else None,
+        "c2n_ci95": [_round(v) for v in combined.ci95] if combined else None,
+        "u0_mps": _round(math.sqrt(combined.c2n * g * d)) if combined else None,
+        "crossings": [_crossing(c, t0) for c in state.crossings],
+        "regression": None,
+        "frames": counts.as_dict(),
+        "warnings": warnings(pipeline, reports),
+        "combined": {"n": combined.n, "birge_ratio": _round(combined.birge_ratio, 3), "se": _round(combined.se, 5)}
+        if combined
+        else None,
+        "rejected_crossings": [
+            {"t": _round(r.t - t0, 3), "direction": r.direction, "sweep": r.sweep, "u_mps": _round(r.u_mps, 3), "reason": r.reason}
+            for r in state.rejections
+        ],
+        "d_m": d,
+        "g_mps2": g,
+        "duration_s": _round((state.t_last or t0) - t0, 3),
+        "inputs": list(inputs),
+        "config": str(config.path),
+        "frames_by_id": [
+            {"channel": str(ch), "id": f"0x{i:X}", "frames": n} for (ch, i), n in sorted(counts.by_id.items(), key=lambda kv: (str(kv[0][0]), kv[0][1]))
+        ],
+        "filter": asdict(pipeline.filter.counts) | {"health": _round(pipeline.filter.health, 3)},
+        "version": __version__,
+    }
+
+
+def write(path: Path, summary: dict[str, Any]) -> None:
+    """Write atomically: a crash leaves the old file or the new one, never half of one."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(json.dumps(summary, indent=2) + "\n")
+        os.replace(tmp, path)
+    except OSError as error:
+        raise C2nError(f"{path}: cannot write the summary ({error.strerror})") from None

@@ -23,8 +23,12 @@ OPTICAL_ROLES = ("vx", "vy", "beta")
 
 @dataclass(frozen=True)
 class Vehicle:
-    sensor_ahead_of_rear_axle_m: float = field(metadata={"help": "d: metres from the rear axle forward to the sensor"})
-    sensor_lateral_m: float = field(default=0.0, metadata={"help": "sensor offset from the centre line, + left"})
+    sensor_ahead_of_rear_axle_m: float = field(
+        metadata={"help": "d: metres from the rear axle forward to the sensor"}
+    )
+    sensor_lateral_m: float = field(
+        default=0.0, metadata={"help": "sensor offset from the centre line, + left"}
+    )
     sensor_height_m: float = 0.0
     wheelbase_m: float | None = None
     rear_axle_load_N: float | None = None
@@ -54,7 +58,9 @@ class DetectorSettings:
     lateral_accel_rate_max_mps2: float = 0.2  # |dv/dt| at the sensor: transients again
     settle_s: float = 1.0  # the gate must hold this long before samples count
     debounce_s: float = 0.3  # a rate limit failing this briefly does not restart settling
-    fit_half_width_mps: float = 1.5  # local fit uses samples within u0 ± this (widened up to 3× for sparse data)
+    fit_half_width_mps: float = (
+        1.5  # local fit uses samples within u0 ± this (widened up to 3× for sparse data)
+    )
     min_side_fraction: float = 0.4  # each side of u0 must cover this share of the half width
     min_fit_samples: int = 40
     hysteresis_sigmas: float = 3.0  # sign change must clear this many sigmas of the filtered sideslip
@@ -132,8 +138,16 @@ class Config:
 
 
 _SECTIONS = {
-    "vehicle", "tyres", "dbc", "roles", "sensor_status", "beta_status", "units", "channels",
-    "detector", "filter",
+    "vehicle",
+    "tyres",
+    "dbc",
+    "roles",
+    "sensor_status",
+    "beta_status",
+    "units",
+    "channels",
+    "detector",
+    "filter",
 }
 
 
@@ -241,11 +255,13 @@ def _load_dbcs(path: Path, table: dict[str, Any]) -> tuple[Dbc, ...]:
     resolved = {name: (path.parent / name).resolve() for name in files}
     for key, channel in channels.items():
         if key not in resolved and (path.parent / key).resolve() not in resolved.values():
-            raise ConfigError(f"{path}: [channels] names '{key}', which is not in [dbc] files — use one of {files}")
+            raise ConfigError(
+                f"{path}: [channels] names '{key}', which is not in [dbc] files — use one of {files}"
+            )
         if not isinstance(channel, int | str) or isinstance(channel, bool):
             raise ConfigError(f"{path}: [channels] '{key}' must be a channel name or number, got {channel!r}")
     dbcs = []
-    for name, dbc_path in resolved.items():
+    for dbc_path in resolved.values():
         channel = next((c for k, c in channels.items() if (path.parent / k).resolve() == dbc_path), None)
         dbcs.append(load_dbc(dbc_path, channel))
     _check_id_collisions(path, dbcs)
@@ -295,16 +311,23 @@ def _roles(path: Path, table: dict[str, Any], dbcs: tuple[Dbc, ...]) -> dict[str
     units = _section(path, table, "units")
     _check_keys(path, "units", units, ROLE_UNITS)
     if "vx" not in section:
-        raise ConfigError(f'{path}: [roles] is missing key \'vx\' — add vx = "Message.Signal" (optical longitudinal velocity)')
+        raise ConfigError(
+            f"{path}: [roles] is missing key 'vx' — add vx = \"Message.Signal\" "
+            "(optical longitudinal velocity)"
+        )
     if "vy" not in section and "beta" not in section:
-        raise ConfigError(f"{path}: [roles] needs 'vy' or 'beta' — add the optical lateral velocity or sideslip angle")
+        raise ConfigError(
+            f"{path}: [roles] needs 'vy' or 'beta' — add the optical lateral velocity or sideslip angle"
+        )
     roles = {}
     for role, value in section.items():
         where = f"[roles] {role}"
         if isinstance(value, str):
             value = {"signal": value}
         if not isinstance(value, dict):
-            raise ConfigError(f'{path}: {where} must be "Message.Signal" or {{signal = "Message.Signal", scale = 1.0}}')
+            raise ConfigError(
+                f'{path}: {where} must be "Message.Signal" or {{signal = "Message.Signal", scale = 1.0}}'
+            )
         _check_keys(path, f"roles.{role}", value, ["signal", "scale", "unit", "channel"])
         if "signal" not in value or not isinstance(value["signal"], str):
             raise ConfigError(f'{path}: {where} needs signal = "Message.Signal"')
@@ -314,7 +337,7 @@ def _roles(path: Path, table: dict[str, Any], dbcs: tuple[Dbc, ...]) -> dict[str
             raise ConfigError(f"{path}: {where} scale must be a non-zero number, got {scale!r}")
         unit = value.get("unit", units.get(role)) or signal.unit or ""
         if not isinstance(unit, str):
-            raise ConfigError(f"{path}: [units] {role} must be a unit text such as \"km/h\"")
+            raise ConfigError(f'{path}: [units] {role} must be a unit text such as "km/h"')
         factor = si_factor(role, unit)
         if factor is None:
             said = f"unit '{unit}'" if unit else "no unit"
@@ -336,6 +359,8 @@ def _status(
     for key, value in _section(path, table, name).items():
         _dbc, message, signal = _find_signal(path, f"[{name}] key", key, dbcs)
         if not isinstance(value, int | float) or isinstance(value, bool):
-            raise ConfigError(f"{path}: [{name}] {key} must be the number the signal must equal, got {value!r}")
+            raise ConfigError(
+                f"{path}: [{name}] {key} must be the number the signal must equal, got {value!r}"
+            )
         conditions.append(StatusCondition(message.name, signal.name, float(value), applies_to))
     return tuple(conditions)

@@ -8,7 +8,7 @@ of it — using samples of one turning direction while the speed moves one way (
 With a yaw rate, the fitted quantity is v/r, the lateral velocity at the sensor over the yaw
 rate: in linear steady state v/r = d − u²/(g·C2n) for any radius (eq. 6 times R), so constant
 steering, constant radius and step steers all give a straight line in u². Without a yaw rate it
-is the sideslip itself, a straight line in u² at constant radius (eq. 6).
+is the sideslip itself (as v/u = tan β), a straight line in u² at constant radius (eq. 6).
 """
 
 import math
@@ -66,7 +66,12 @@ class _Run:
 
     def restart_at_extreme(self) -> None:
         """Keep only the samples since the speed's turning point; the trend flips."""
-        del self.t[: self.i_extreme], self.u[: self.i_extreme], self.y[: self.i_extreme], self.ay[: self.i_extreme]
+        del (
+            self.t[: self.i_extreme],
+            self.u[: self.i_extreme],
+            self.y[: self.i_extreme],
+            self.ay[: self.i_extreme],
+        )
         self.trend = -self.trend
         self.crossed = False
         self.u_extreme = self.u[-1] if self.u else math.nan
@@ -139,7 +144,7 @@ class CrossingDetector:
         if estimate.r_radps is not None:
             kind, y = "v/r", estimate.v_meas_mps / estimate.r_radps
         else:
-            kind, y = "beta", estimate.sideslip_meas_rad
+            kind, y = "beta", estimate.v_meas_mps / u  # tan β: eq. 6 is linear in it
         run = self._runs.get(key)
         if run is not None and run.kind != kind:
             events.extend(self._end_run(key, "the yaw rate came or went"))
@@ -175,7 +180,13 @@ class CrossingDetector:
         if run.sign != 0 and sign != run.sign:
             if (pending := run.take_pending()) is not None:
                 events.append(
-                    CrossingRejected(t, key, pending.sweep, pending.u, "the sideslip changed sign back within the fit window")
+                    CrossingRejected(
+                        t,
+                        key,
+                        pending.sweep,
+                        pending.u,
+                        "the sideslip changed sign back within the fit window",
+                    )
                 )
             elif run.crossed:
                 sweep_now: Sweep = "up" if run.trend > 0 else "down"
@@ -272,7 +283,13 @@ class CrossingDetector:
         used = u[selected]
         below, above = u0 - float(used.min()), float(used.max()) - u0
         if min(below, above) < s.min_side_fraction * width:
-            return f"samples cover u0 −{max(below, 0):.2f}/+{max(above, 0):.2f} m/s, not ±{s.min_side_fraction * width:.2f}"
+            return (
+                f"samples cover u0 −{max(below, 0):.2f}/+{max(above, 0):.2f} m/s, "
+                f"not ±{s.min_side_fraction * width:.2f}"
+            )
+        hole = float(used[used >= u0].min() - used[used <= u0].max())
+        if hole > 0.5 * width:
+            return f"no samples within {hole:.1f} m/s around u0 (sensor status, transients?)"
         if fit.slope_t < s.min_slope_t:
             return f"the sideslip hardly changes with speed here (slope t = {fit.slope_t:.1f})"
         return _Window(fit, zero, selected)

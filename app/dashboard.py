@@ -14,6 +14,7 @@ from rich.text import Text
 
 from app.event_line import result_line
 from app.pipeline import Pipeline
+from app.summary import format_id
 
 _ADVICE = (
     ("lateral acceleration too high", "Too much lateral acceleration: slow down or widen the circle"),
@@ -42,10 +43,10 @@ class _RateMeter:
     """Frames per second per (channel, id), in frame time, between two renders."""
 
     last_t: float | None = None
-    last_counts: dict[tuple[object, int], int] = field(default_factory=dict)
-    rates: dict[tuple[object, int], float] = field(default_factory=dict)
+    last_counts: dict[tuple[object, int, bool], int] = field(default_factory=dict)
+    rates: dict[tuple[object, int, bool], float] = field(default_factory=dict)
 
-    def update(self, t: float | None, counts: dict[tuple[object, int], int]) -> None:
+    def update(self, t: float | None, counts: dict[tuple[object, int, bool], int]) -> None:
         if t is None:
             return
         if self.last_t is not None and t - self.last_t >= 0.5:
@@ -117,9 +118,11 @@ class Dashboard:
             lines.append(Text(f"sensor: {state.sensor_problem}", style="bold red"))
         status = self.pipeline.decoder.status
         if status.values:
-            shown = ", ".join(f"{name.partition('.')[2]} {value:g}" for name, value in sorted(status.values.items()))
+            shown = ", ".join(
+                f"{name.partition('.')[2]} {value:g}" for name, value in sorted(status.values.items())
+            )
             lines.append(Text(f"status: {shown}"))
-        for direction, t, u in self.pipeline.detector.pending:
+        for direction, _t, u in self.pipeline.detector.pending:
             lines.append(Text(f"sign change {direction or ''} at {u * 3.6:.1f} km/h: fitting…", style="cyan"))
         return Panel(Group(*lines), title="Steady state")
 
@@ -153,9 +156,15 @@ class Dashboard:
         for name in ("channel", "id", "frames", "rate [1/s]"):
             table.add_column(name, justify="right")
         busiest = sorted(counts.by_id.items(), key=lambda kv: -kv[1])[: self.max_ids]
-        for (channel, frame_id), n in sorted(busiest, key=lambda kv: (str(kv[0][0]), kv[0][1])):
-            rate = self._rates.rates.get((channel, frame_id))
-            table.add_row(str(channel), f"0x{frame_id:X}", str(n), f"{rate:.0f}" if rate is not None else "—")
+        for key, n in sorted(busiest, key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])):
+            channel, frame_id, extended = key
+            rate = self._rates.rates.get(key)
+            table.add_row(
+                str(channel),
+                format_id(frame_id, extended),
+                str(n),
+                f"{rate:.0f}" if rate is not None else "—",
+            )
         bad = (
             f"total {counts.total}  used {counts.used}  unknown id {counts.unknown_id}  "
             f"bad length {counts.bad_length}  error {counts.error_frames}  remote {counts.remote_frames}  "

@@ -36,10 +36,10 @@ def load_dbc(path: Path, channel: ChannelSpec | None = None) -> Dbc:
         raise DbcError(f"{path}: DBC file not found — check [dbc] files in the config")
     try:
         return Dbc(path, cantools.database.load_file(path, strict=True), channel)
-    except Exception as strict_error:  # noqa: BLE001 — cantools raises many types; retried below
+    except Exception as strict_error:
         try:
             database = cantools.database.load_file(path, strict=False)
-        except Exception as error:  # noqa: BLE001 — translated at the edge
+        except Exception as error:
             reason = _one_line(error)
             raise DbcError(
                 f"{path}: not a readable DBC ({reason}) — fix the file or remove it from [dbc] files"

@@ -29,10 +29,12 @@ class FrameCounts:
     undecodable: int = 0
     error_frames: int = 0
     remote_frames: int = 0
-    by_id: Counter[tuple[object, int]] = field(default_factory=Counter)  # (channel, id) -> frames
+    by_id: Counter[tuple[object, int, bool]] = field(
+        default_factory=Counter
+    )  # (channel, id, extended) -> frames
     bad_by_id: Counter[tuple[int, str]] = field(default_factory=Counter)  # (id, kind) -> frames
     role_frames: Counter[str] = field(default_factory=Counter)  # role -> frames carrying it
-    rejected: Counter[str] = field(default_factory=Counter)  # "role: reason" -> values dropped
+    rejected: Counter[str] = field(default_factory=Counter)  # "reason (roles)" -> frames with values dropped
 
     def as_dict(self) -> dict[str, int]:
         return {
@@ -112,19 +114,25 @@ class Decoder:
         for dbc in config.dbcs:
             for message in dbc.database.messages:
                 roles = tuple(
-                    _bind_role(spec, message) for spec in config.roles.values() if spec.message == message.name
+                    _bind_role(spec, message)
+                    for spec in config.roles.values()
+                    if spec.message == message.name
                 )
                 status = tuple(
-                    f"{message.name}.{s.name}" for s in message.signals if f"{message.name}.{s.name}" in status_names
+                    f"{message.name}.{s.name}"
+                    for s in message.signals
+                    if f"{message.name}.{s.name}" in status_names
                 )
                 key = (message.frame_id, bool(message.is_extended_frame))
-                self._bindings.setdefault(key, []).append(_MessageBinding(message, dbc.channel, roles, status))
+                self._bindings.setdefault(key, []).append(
+                    _MessageBinding(message, dbc.channel, roles, status)
+                )
 
     def decode(self, msg: can.Message) -> Record | None:
         """Count the frame; return a Record when it carries role values (usable or not)."""
         counts = self.counts
         counts.total += 1
-        counts.by_id[(msg.channel, msg.arbitration_id)] += 1
+        counts.by_id[(msg.channel, msg.arbitration_id, msg.is_extended_id)] += 1
         if msg.is_error_frame:
             counts.error_frames += 1
             return None
@@ -150,7 +158,7 @@ class Decoder:
             return None
         try:
             decoded = message.decode(bytes(msg.data), decode_choices=False, scaling=True)
-        except Exception:  # noqa: BLE001 — cantools raises several types; the frame is data
+        except Exception:
             counts.undecodable += 1
             counts.bad_by_id[(msg.arbitration_id, "undecodable")] += 1
             return None
@@ -170,8 +178,11 @@ class Decoder:
                 signals[role.role] = value
             else:
                 rejected[role.role] = reason
-                counts.rejected[f"{role.role}: {reason}"] += 1
-        if not signals and not rejected:
+        if rejected:
+            for reason in dict.fromkeys(rejected.values()):
+                roles = ", ".join(r for r, why in rejected.items() if why == reason)
+                counts.rejected[f"{reason} ({roles})"] += 1
+        elif not signals:
             return None
         return Record(t, msg.channel, msg.arbitration_id, signals, rejected)
 
@@ -186,7 +197,21 @@ class Decoder:
 def _bind_role(spec: RoleSpec, message: Any) -> _RoleBinding:
     signal = message.get_signal_by_name(spec.signal)
     low, high = (-math.inf, math.inf)
-    if signal.minimum is not None and signal.maximum is not None and signal.minimum < signal.maximum:
+    if _range_is_real(signal):
         a, b = signal.minimum * spec.factor, signal.maximum * spec.factor
         low, high = min(a, b), max(a, b)
     return _RoleBinding(spec.role, spec.signal, spec.factor, low, high, spec.channel)
+
+
+def _range_is_real(signal: Any) -> bool:
+    """A DBC's [min|max] is a validity range only if the signal's bits can reach beyond it;
+    many DBCs carry placeholders such as [0|65535] on a signed signal, or [0|0]."""
+    if signal.minimum is None or signal.maximum is None or not signal.minimum < signal.maximum:
+        return False
+    if signal.is_float:
+        return True
+    bits = signal.length
+    raw_low, raw_high = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signal.is_signed else (0, 2**bits - 1)
+    ends = sorted((raw_low * signal.scale + signal.offset, raw_high * signal.scale + signal.offset))
+    tolerance = abs(signal.scale)
+    return bool(ends[0] - tolerance <= signal.minimum and signal.maximum <= ends[1] + tolerance)

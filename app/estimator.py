@@ -73,13 +73,17 @@ class MotionFilter:
             v = 0.0
         r = s.get("yaw_rate", 0.0)
         self.kf.x = np.array([[u + r * self.y_s], [0.0], [v], [0.0], [r], [0.0]])
-        self.kf.P = np.diag([0.1, 1.0, 0.1, 0.5, 0.05 if self.has_yaw else 0.0, 0.1 if self.has_yaw else 0.0]) ** 2
+        self.kf.P = (
+            np.diag([0.1, 1.0, 0.1, 0.5, 0.05 if self.has_yaw else 0.0, 0.1 if self.has_yaw else 0.0]) ** 2
+        )
         self._t = record.t
         self.health = 1.0
         return True
 
     def _predict(self, dt: float) -> None:
-        f, q = transition(dt, self.settings.q_u, self.settings.q_v, self.settings.q_r if self.has_yaw else 0.0)
+        f, q = transition(
+            dt, self.settings.q_u, self.settings.q_v, self.settings.q_r if self.has_yaw else 0.0
+        )
         self.kf.predict(F=f, Q=q)
 
     # -- one frame -------------------------------------------------------------------------
@@ -167,7 +171,9 @@ class MotionFilter:
             return "vy"
         return None
 
-    def _gate(self, rows: list[tuple[float, np.ndarray, float, str]]) -> list[tuple[float, np.ndarray, float, str]]:
+    def _gate(
+        self, rows: list[tuple[float, np.ndarray, float, str]]
+    ) -> list[tuple[float, np.ndarray, float, str]]:
         """Drop measurements whose normalised innovation² exceeds the gate (outliers), unless the
         same sensor was dropped several times running: then the model has lost the car, and the
         sensor is believed. The optical rows' normalised innovation² is the health figure."""

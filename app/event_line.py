@@ -17,7 +17,10 @@ def crossing_line(c: Crossing, t0: float) -> str:
 
 def rejected_line(r: CrossingRejected, t0: float) -> str:
     direction = r.direction or "?"
-    return f"{r.t - t0:8.1f} s  {direction:<5} {r.sweep:<4}  sign change near {r.u_mps * 3.6:.1f} km/h not used: {r.reason}"
+    return (
+        f"{r.t - t0:8.1f} s  {direction:<5} {r.sweep:<4}  "
+        f"sign change near {r.u_mps * 3.6:.1f} km/h not used: {r.reason}"
+    )
 
 
 def result_line(combined: Combined | None, g: float, d_m: float) -> str:

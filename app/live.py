@@ -14,8 +14,8 @@ from rich.text import Text
 
 from app.event_line import crossing_line, rejected_line
 from app.pipeline import Pipeline
-from app.records import Crossing, CrossingRejected, Event
 from app.recorder import SessionRecorder
+from app.records import Crossing, CrossingRejected, Event
 
 
 class EventPrinter:

@@ -17,7 +17,18 @@ from app.records import Crossing
 from app.summary import write as write_summary
 
 RAW_FORMATS = (".log", ".asc", ".blf")
-EVENT_FIELDS = ("t", "direction", "sweep", "u0_mps", "u0_kmh", "ay_mps2", "c2n", "ci95_low", "ci95_high", "n_samples")
+EVENT_FIELDS = (
+    "t",
+    "direction",
+    "sweep",
+    "u0_mps",
+    "u0_kmh",
+    "ay_mps2",
+    "c2n",
+    "ci95_low",
+    "ci95_high",
+    "n_samples",
+)
 
 
 class SessionRecorder:
@@ -36,7 +47,9 @@ class SessionRecorder:
             self._writer: Any = can.Logger(self.raw_path)
             self._events: IO[str] = (folder / "events.csv").open("w", newline="")
         except OSError as error:
-            raise C2nError(f"{folder}: cannot record the session ({error.strerror}) — use --record DIR") from None
+            raise C2nError(
+                f"{folder}: cannot record the session ({error.strerror}) — use --record DIR"
+            ) from None
         self._csv = csv.writer(self._events)
         self._csv.writerow(EVENT_FIELDS)
         self.frames = 0
@@ -48,8 +61,18 @@ class SessionRecorder:
     def on_crossing(self, c: Crossing, t0: float) -> None:
         lo, hi = c.ci95
         self._csv.writerow(
-            [f"{c.t - t0:.3f}", c.direction, c.sweep, f"{c.u0_mps:.4f}", f"{c.u0_kmh:.3f}", f"{c.ay_mps2:.3f}",
-             f"{c.c2n:.4f}", f"{lo:.4f}", f"{hi:.4f}", c.n_samples]
+            [
+                f"{c.t - t0:.3f}",
+                c.direction,
+                c.sweep,
+                f"{c.u0_mps:.4f}",
+                f"{c.u0_kmh:.3f}",
+                f"{c.ay_mps2:.3f}",
+                f"{c.c2n:.4f}",
+                f"{lo:.4f}",
+                f"{hi:.4f}",
+                c.n_samples,
+            ]
         )
         self._events.flush()
 

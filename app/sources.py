@@ -8,8 +8,9 @@ says where it stopped.
 import heapq
 import logging
 import queue
+import re
 import threading
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,8 @@ from app.errors import BusError, LogFileError
 log = logging.getLogger(__name__)
 
 READABLE_SUFFIXES = (".asc", ".blf", ".csv", ".db", ".log", ".mf4", ".trc")
+# Reader options per format: ASC gives absolute times (like BLF and candump), not file-relative ones.
+_READER_OPTIONS: dict[str, dict[str, Any]] = {".asc": {"relative_timestamp": False}}
 
 
 @dataclass
@@ -39,19 +42,57 @@ def open_log(path: Path) -> Iterable[can.Message]:
     if path.is_dir():
         raise LogFileError(f"{path}: is a folder, not a log file")
     suffixes = [s.lower() for s in path.suffixes]
-    real = suffixes[-2] if suffixes and suffixes[-1] == ".gz" and len(suffixes) > 1 else (suffixes[-1] if suffixes else "")
-    if real not in READABLE_SUFFIXES:
-        raise LogFileError(
-            f"{path}: unknown log format '{real or path.name}' — use one of {', '.join(READABLE_SUFFIXES)}"
-        )
+    real = (
+        suffixes[-2]
+        if suffixes and suffixes[-1] == ".gz" and len(suffixes) > 1
+        else (suffixes[-1] if suffixes else "")
+    )
     if path.stat().st_size == 0:
         raise LogFileError(f"{path}: the file is empty")
+    if real not in READABLE_SUFFIXES:
+        sniffed = _sniff(path)
+        if sniffed is None:
+            raise LogFileError(
+                f"{path}: unknown log format '{real or path.name}' — "
+                f"use one of {', '.join(READABLE_SUFFIXES)}"
+            )
+        try:
+            return _TEXT_READERS[sniffed](path)
+        except Exception as error:
+            raise LogFileError(f"{path}: not a readable {sniffed} log ({_one_line(error)})") from None
     try:
-        return can.LogReader(path)  # type: ignore[no-any-return]
+        reader: Iterable[can.Message] = can.LogReader(path, **_READER_OPTIONS.get(real, {}))
+        return reader
     except ImportError as error:
         raise LogFileError(f"{path}: cannot read {real} files ({error}) — pip install asammdf") from None
-    except Exception as error:  # noqa: BLE001 — python-can's readers raise many types on bad headers
+    except Exception as error:
         raise LogFileError(f"{path}: not a readable {real} log ({_one_line(error)})") from None
+
+
+_CANDUMP_LINE = re.compile(r"^\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
+_TEXT_READERS: dict[str, Callable[[Path], Iterable[can.Message]]] = {
+    "candump": can.CanutilsLogReader,
+    "asc": lambda path: can.ASCReader(path, relative_timestamp=False),
+}
+
+
+def _sniff(path: Path) -> str | None:
+    """Recognise a text log with a suffix python-can does not know (e.g. candump saved as .can)."""
+    try:
+        with path.open("r", encoding="ascii", errors="replace") as file:
+            head = [line.strip() for _, line in zip(range(20), file, strict=False)]
+    except OSError:
+        return None
+    lines = [line for line in head if line]
+    if lines and _CANDUMP_LINE.match(lines[0]):
+        return "candump"
+    if (
+        lines
+        and lines[0].lower().startswith("date ")
+        and any(line.lower().startswith("base ") for line in lines[:3])
+    ):
+        return "asc"
+    return None
 
 
 def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
@@ -64,7 +105,7 @@ def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
                 message = next(iterator)
             except StopIteration:
                 return
-            except Exception as error:  # noqa: BLE001 — a damaged file: keep what came before it
+            except Exception as error:
                 report.stopped = f"stopped after frame {report.frames}: {_one_line(error)}"
                 log.warning("%s: %s", path, report.stopped)
                 return
@@ -119,10 +160,11 @@ def open_buses(
     for channel in channels or [None]:
         try:
             buses.append(can.Bus(interface=interface, channel=channel, **options))
-        except Exception as error:  # noqa: BLE001 — interfaces raise CanError, OSError, ValueError, ImportError…
+        except Exception as error:
             for bus in buses:
                 bus.shutdown()
-            where = f"{interface or 'default interface'} {channel if channel is not None else '(default channel)'}"
+            named = channel if channel is not None else "(default channel)"
+            where = f"{interface or 'default interface'} {named}"
             raise BusError(f"{where}: cannot open ({_one_line(error)}) — {_bus_hint(interface)}") from None
     return buses
 
@@ -138,7 +180,7 @@ def _bus_hint(interface: str | None) -> str:
 class _Forward(can.Listener):
     """Puts a bus's frames on the shared queue, naming the channel if the interface did not."""
 
-    def __init__(self, out: "queue.SimpleQueue[can.Message | BaseException]", channel: object) -> None:
+    def __init__(self, out: "queue.SimpleQueue[can.Message | BaseException]", channel: str) -> None:
         self.out = out
         self.channel = channel
 
@@ -175,7 +217,9 @@ class BusSource:
 
     def __iter__(self) -> Iterator[can.Message | None]:
         for bus in self.buses:
-            self._notifiers.append(can.Notifier(bus, [_Forward(self._queue, bus.channel_info)], timeout=self.idle_s))
+            self._notifiers.append(
+                can.Notifier(bus, [_Forward(self._queue, bus.channel_info)], timeout=self.idle_s)
+            )
         stop = self.stop
         try:
             while not stop.is_set():

@@ -22,7 +22,9 @@ class SteadyStateGate:
         self._since: float | None = None  # when every condition began to hold
         self._soft_since: float | None = None  # when a rate limit began to fail
 
-    def step(self, t: float, estimate: Estimate, steer_rad: float | None, sensor_problem: str | None) -> SteadyState:
+    def step(
+        self, t: float, estimate: Estimate, steer_rad: float | None, sensor_problem: str | None
+    ) -> SteadyState:
         direction = _direction(estimate, steer_rad)
         hard = self._hard_reasons(estimate, sensor_problem)
         soft = self._soft_reasons(estimate)

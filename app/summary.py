@@ -40,7 +40,10 @@ def missing_required(pipeline: Pipeline) -> str | None:
         configured = [r for r in group if r in pipeline.config.roles]
         if configured and all(r in silent for r in configured):
             role = configured[0]
-            return f"no frames for role '{role}' ({_frame_ids(pipeline.config, role)}) — is the optical sensor on this bus/log and channel?"
+            return (
+                f"no frames for role '{role}' ({_frame_ids(pipeline.config, role)}) — "
+                "is the optical sensor on this bus/log and channel?"
+            )
     return None
 
 
@@ -54,25 +57,41 @@ def warnings(pipeline: Pipeline, reports: Sequence[LogReport] = ()) -> list[str]
     for role in roles_without_frames(pipeline):
         out.append(f"no frames for role '{role}' ({_frame_ids(config, role)})")
     if "yaw_rate" not in config.roles and "ay" not in config.roles:
-        out.append("no yaw rate or lateral acceleration: the steady-state gate cannot check a_y or tell straight driving")
+        out.append(
+            "no yaw rate or lateral acceleration: the steady-state gate cannot check a_y "
+            "or tell straight driving"
+        )
     for dbc in config.dbcs:
         if dbc.relaxed:
             out.append(f"{dbc.path.name} loaded with strict=False (overlapping or oversized signals)")
     if counts.other_channel:
-        out.append(f"{counts.other_channel} frames of known ids arrived on a channel their DBC is not decoded on ([channels])")
+        out.append(
+            f"{counts.other_channel} frames of known ids arrived on a channel their DBC "
+            "is not decoded on ([channels])"
+        )
     for reason, n in counts.rejected.most_common():
-        out.append(f"{n} samples dropped: {reason}")
+        out.append(f"{n} frames' values dropped: {reason}")
     f = pipeline.filter.counts
     if f.time_jumps:
         out.append(f"timestamps went backwards {f.time_jumps} times: the filter restarted")
     if f.resets - f.time_jumps:
-        out.append(f"the optical data stopped {f.resets - f.time_jumps} times for over {config.filter.gap_reset_s:g} s: the filter restarted")
+        out.append(
+            f"the optical data stopped {f.resets - f.time_jumps} times for over "
+            f"{config.filter.gap_reset_s:g} s: the filter restarted"
+        )
     rejected = pipeline.state.rejections
     if rejected:
         out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
     if pipeline.state.t_first is not None and not pipeline.state.crossings:
-        out.append("no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle")
+        out.append(
+            "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
+        )
     return out
+
+
+def format_id(frame_id: int, extended: bool) -> str:
+    """0x7E5 for an 11-bit id, 0x000007E5 for a 29-bit one, as CAN tools write them."""
+    return f"0x{frame_id:08X}" if extended else f"0x{frame_id:X}"
 
 
 def _round(value: float, digits: int = 4) -> float | None:
@@ -111,11 +130,21 @@ def build(pipeline: Pipeline, inputs: Sequence[str], reports: Sequence[LogReport
         "regression": None,
         "frames": counts.as_dict(),
         "warnings": warnings(pipeline, reports),
-        "combined": {"n": combined.n, "birge_ratio": _round(combined.birge_ratio, 3), "se": _round(combined.se, 5)}
+        "combined": {
+            "n": combined.n,
+            "birge_ratio": _round(combined.birge_ratio, 3),
+            "se": _round(combined.se, 5),
+        }
         if combined
         else None,
         "rejected_crossings": [
-            {"t": _round(r.t - t0, 3), "direction": r.direction, "sweep": r.sweep, "u_mps": _round(r.u_mps, 3), "reason": r.reason}
+            {
+                "t": _round(r.t - t0, 3),
+                "direction": r.direction,
+                "sweep": r.sweep,
+                "u_mps": _round(r.u_mps, 3),
+                "reason": r.reason,
+            }
             for r in state.rejections
         ],
         "d_m": d,
@@ -124,7 +153,10 @@ def build(pipeline: Pipeline, inputs: Sequence[str], reports: Sequence[LogReport
         "inputs": list(inputs),
         "config": str(config.path),
         "frames_by_id": [
-            {"channel": str(ch), "id": f"0x{i:X}", "frames": n} for (ch, i), n in sorted(counts.by_id.items(), key=lambda kv: (str(kv[0][0]), kv[0][1]))
+            {"channel": str(ch), "id": format_id(i, ext), "frames": n}
+            for (ch, i, ext), n in sorted(
+                counts.by_id.items(), key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])
+            )
         ],
         "filter": asdict(pipeline.filter.counts) | {"health": _round(pipeline.filter.health, 3)},
         "version": __version__,

@@ -11,15 +11,18 @@ from app.cli.common import add_config, error_console
 from app.config import load_config
 from app.errors import NoResultError
 from app.event_line import result_line
-from app.live import EventPrinter, run as run_pipeline
+from app.live import EventPrinter
+from app.live import run as run_pipeline
 from app.pipeline import Pipeline
 from app.progress import ReadProgress
 from app.sources import LogSource
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
     parser = subparsers.add_parser("analyze", help="C2n from recorded CAN logs", description=__doc__)
-    parser.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4")
+    parser.add_argument(
+        "logs", nargs="+", type=Path, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4"
+    )
     add_config(parser)
     parser.add_argument("--json", type=Path, metavar="OUT", help="write the summary (DESIGN §6) here")
     parser.add_argument(
@@ -38,7 +41,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     result = summary.build(pipeline, [str(p) for p in args.logs], source.reports)
     if args.json:
         summary.write(args.json, result)
-    console.print(Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    console.print(
+        Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold")
+    )
     errors = error_console()
     for warning in result["warnings"]:
         errors.print(f"c2n: warning: {warning}", markup=False)

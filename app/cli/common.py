@@ -11,20 +11,37 @@ from app.config import DEFAULT_CONFIG
 
 def add_config(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--config", type=Path, default=DEFAULT_CONFIG, metavar="F", help="vehicle config (default: config/mondeo.toml)"
+        "--config",
+        type=Path,
+        default=DEFAULT_CONFIG,
+        metavar="F",
+        help="vehicle config (default: config/mondeo.toml)",
     )
 
 
 def add_bus(parser: argparse.ArgumentParser) -> None:
     """python-can's -i/-c/-b; unset values come from its config file and CAN_* variables."""
-    parser.add_argument("-i", "--interface", metavar="IFACE", help="python-can interface: socketcan, pcan, kvaser, vector, virtual…")
     parser.add_argument(
-        "-c", "--channel", action="append", metavar="CHANNEL", help="channel; repeat for several (-c can0 -c can1)"
+        "-i",
+        "--interface",
+        metavar="IFACE",
+        help="python-can interface: socketcan, pcan, kvaser, vector, virtual…",
+    )
+    parser.add_argument(
+        "-c",
+        "--channel",
+        action="append",
+        metavar="CHANNEL",
+        help="channel; repeat for several (-c can0 -c can1)",
     )
     parser.add_argument("-b", "--bitrate", type=int, metavar="BITRATE", help="bit rate, e.g. 1000000")
     parser.add_argument("--fd", action="store_true", help="CAN FD")
     parser.add_argument(
-        "--bus-arg", action="append", default=[], metavar="KEY=VALUE", help="extra python-can bus argument (repeatable)"
+        "--bus-arg",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="extra python-can bus argument (repeatable)",
     )
 
 
@@ -47,4 +64,4 @@ def bus_kwargs(args: argparse.Namespace) -> dict[str, object]:
 
 
 def error_console() -> Console:
-    return Console(file=sys.stderr, highlight=False)
+    return Console(file=sys.stderr, highlight=False, soft_wrap=True)

@@ -16,7 +16,8 @@ from app.config import load_config
 from app.dashboard import Dashboard
 from app.errors import C2nError
 from app.event_line import result_line
-from app.live import EventPrinter, run as run_pipeline
+from app.live import EventPrinter
+from app.live import run as run_pipeline
 from app.pipeline import Pipeline
 from app.playback import paced
 from app.sim.scenarios import SCENARIOS
@@ -24,9 +25,13 @@ from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
 from app.sources import BusSource, LogReport, read_log
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
-    parser = subparsers.add_parser("demo", help="simulated drive → virtual CAN bus → live dashboard", description=__doc__)
-    parser.add_argument("--speedup", type=float, default=10.0, metavar="X", help="replay X times faster than driven")
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "demo", help="simulated drive → virtual CAN bus → live dashboard", description=__doc__
+    )
+    parser.add_argument(
+        "--speedup", type=float, default=10.0, metavar="X", help="replay X times faster than driven"
+    )
     parser.add_argument("--seed", type=int, default=2026, metavar="N")
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="constant_radius")
     add_config(parser)
@@ -51,7 +56,7 @@ class Player(threading.Thread):
                     break
                 self.bus.send(msg)
                 self.sent += 1
-        except Exception as error:  # noqa: BLE001 — reported by the main thread
+        except Exception as error:
             self.error = error
         finally:
             self.finished.set()
@@ -64,7 +69,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     console.print(f"c2n demo: simulating a {args.scenario} drive (seed {args.seed})…", style="dim")
     drive = simulate_drive(config, DriveOptions(scenario=args.scenario, seed=args.seed))
     truth = drive.truth
-    console.print(f"simulated truth: {describe(truth)}", style="dim")
+    console.print(f"the drive: {describe(truth)}", style="dim")
     channel = f"c2n-demo-{uuid.uuid4().hex[:8]}"
     with tempfile.TemporaryDirectory(prefix="c2n-demo-") as tmp:
         log = Path(tmp) / "demo-drive.blf"
@@ -96,6 +101,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if combined is not None:
         error = 100.0 * (combined.c2n / truth["c2n"] - 1.0)
         console.print(
-            Text(f"simulated truth C2n = {truth['c2n']:.3f} 1/rad (u0 = {truth['u0_mps']:.3f} m/s): error {error:+.2f} %", style="bold")
+            Text(
+                f"simulated truth C2n = {truth['c2n']:.3f} 1/rad (u0 = {truth['u0_mps']:.3f} m/s): "
+                f"error {error:+.2f} %",
+                style="bold",
+            )
         )
     return 0

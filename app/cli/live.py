@@ -15,21 +15,31 @@ from app.cli.common import add_bus, add_config, bus_kwargs, channels
 from app.config import load_config
 from app.dashboard import Dashboard
 from app.event_line import result_line
-from app.live import EventPrinter, run as run_pipeline
+from app.live import EventPrinter
+from app.live import run as run_pipeline
 from app.pipeline import Pipeline
 from app.recorder import RAW_FORMATS, SessionRecorder
 from app.sources import BusSource, open_buses
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
     parser = subparsers.add_parser("live", help="live dashboard and C2n on a CAN bus", description=__doc__)
     add_bus(parser)
     add_config(parser)
     parser.add_argument(
-        "--record", type=Path, default=Path("c2n-sessions"), metavar="DIR", help="session folders go here (default: c2n-sessions)"
+        "--record",
+        type=Path,
+        default=Path("c2n-sessions"),
+        metavar="DIR",
+        help="session folders go here (default: c2n-sessions)",
     )
     parser.add_argument("--no-record", action="store_true", help="do not record the session")
-    parser.add_argument("--raw-format", choices=RAW_FORMATS, default=".log", help="raw frame log format (default .log, candump)")
+    parser.add_argument(
+        "--raw-format",
+        choices=RAW_FORMATS,
+        default=".log",
+        help="raw frame log format (default .log, candump)",
+    )
     parser.add_argument("--json", type=Path, metavar="OUT", help="also write the summary here")
     parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     parser.set_defaults(run=run)
@@ -54,7 +64,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     buses = open_buses(args.interface, channels(args), args.bitrate, **bus_kwargs(args))
     title = ", ".join(str(bus.channel_info) for bus in buses)
     pipeline = Pipeline(config)
-    recorder = None if args.no_record else SessionRecorder(session_folder(args.record), config, args.raw_format)
+    recorder = (
+        None if args.no_record else SessionRecorder(session_folder(args.record), config, args.raw_format)
+    )
     stop = threading.Event()
     timer = threading.Timer(args.duration, stop.set) if args.duration else None
     previous = signal.signal(signal.SIGTERM, _interrupt)
@@ -81,7 +93,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
             recorder.close(result)
         if args.json:
             summary.write(args.json, result)
-    console.print(Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    console.print(
+        Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold")
+    )
     if recorder is not None:
         console.print(f"session saved in {recorder.folder}", style="dim")
     return 0

@@ -10,25 +10,36 @@ from rich.console import Console
 from app.cli.common import add_bus, bus_kwargs, channels
 from app.errors import BusError, C2nError
 from app.playback import looped, paced
-from app.sources import LogReport, open_log, read_log, open_buses
+from app.sources import LogReport, open_buses, open_log, read_log
 
 log = logging.getLogger(__name__)
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
-    parser = subparsers.add_parser("replay", help="play a CAN log onto a bus in recorded time", description=__doc__)
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "replay", help="play a CAN log onto a bus in recorded time", description=__doc__
+    )
     parser.add_argument("log", type=Path, metavar="LOG")
     add_bus(parser)
-    parser.add_argument("--rate", type=float, default=1.0, metavar="X", help="play X times faster than recorded")
     parser.add_argument(
-        "--loop", type=int, nargs="?", const=0, default=1, metavar="N", help="play N times (no N: until Ctrl-C)"
+        "--rate", type=float, default=1.0, metavar="X", help="play X times faster than recorded"
+    )
+    parser.add_argument(
+        "--loop",
+        type=int,
+        nargs="?",
+        const=0,
+        default=1,
+        metavar="N",
+        help="play N times (no N: until Ctrl-C)",
     )
     parser.add_argument(
         "--map",
         action="append",
         default=[],
         metavar="LOG=BUS",
-        help="send the log's channel LOG to the bus channel BUS (repeatable); default: in order of appearance",
+        help="send the log's channel LOG to the bus channel BUS (repeatable); "
+        "default: in order of appearance",
     )
     parser.set_defaults(run=run)
     return parser
@@ -44,7 +55,9 @@ class Router:
         for item in mapping:
             source, sep, target = item.partition("=")
             if not sep or target not in self.by_name:
-                raise C2nError(f"--map {item!r}: want LOG=BUS with BUS one of the -c channels {list(self.by_name)}")
+                raise C2nError(
+                    f"--map {item!r}: want LOG=BUS with BUS one of the -c channels {list(self.by_name)}"
+                )
             self.routes[source] = self.by_name[target]
 
     def bus_for(self, msg: can.Message) -> can.BusABC:

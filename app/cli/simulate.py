@@ -11,24 +11,40 @@ from app.sim.scenarios import SCENARIOS
 from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
-    parser = subparsers.add_parser("simulate", help="write a simulated test drive as a CAN log", description=__doc__)
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "simulate", help="write a simulated test drive as a CAN log", description=__doc__
+    )
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="constant_radius")
-    parser.add_argument("--out", type=Path, metavar="LOG", help="log to write (.blf, .asc, .log, .csv, .mf4, .trc)")
+    parser.add_argument(
+        "--out", type=Path, metavar="LOG", help="log to write (.blf, .asc, .log, .csv, .mf4, .trc)"
+    )
     parser.add_argument("--seed", type=int, default=0, metavar="N")
     add_config(parser)
-    parser.add_argument("--c2n", type=float, metavar="X", help="true C2n [1/rad] (default: the config's [tyres])")
-    parser.add_argument("--tyre", choices=("linear", "magic"), default="linear", help="linear or saturating tyres")
+    parser.add_argument(
+        "--c2n", type=float, metavar="X", help="true C2n [1/rad] (default: the config's [tyres])"
+    )
+    parser.add_argument(
+        "--tyre", choices=("linear", "magic"), default="linear", help="linear or saturating tyres"
+    )
     parser.add_argument("--mu", type=float, default=1.0, help="peak friction of the saturating tyre")
     parser.add_argument("--sweep-rate", type=float, default=0.3, metavar="MPS2", help="speed sweep rate")
-    parser.add_argument("--ay-max", type=float, default=3.5, metavar="MPS2", help="lateral acceleration at the top speed")
+    parser.add_argument(
+        "--ay-max", type=float, default=3.5, metavar="MPS2", help="lateral acceleration at the top speed"
+    )
     parser.add_argument("--optical-hz", type=float, default=100.0, help="optical sensor rate (50–250)")
     parser.add_argument("--noise", type=float, default=0.02, metavar="MPS", help="optical velocity noise (σ)")
-    parser.add_argument("--sensor-lateral", type=float, metavar="M", help="true sensor offset left of the centre line")
-    parser.add_argument("--misalignment", type=float, default=0.0, metavar="DEG", help="sensor head yawed left by DEG")
+    parser.add_argument(
+        "--sensor-lateral", type=float, metavar="M", help="true sensor offset left of the centre line"
+    )
+    parser.add_argument(
+        "--misalignment", type=float, default=0.0, metavar="DEG", help="sensor head yawed left by DEG"
+    )
     parser.add_argument("--speed-scale", type=float, default=1.0, help="vehicle speed scale error")
     parser.add_argument("--speed-latency", type=float, default=0.0, metavar="S", help="vehicle speed delay")
-    parser.add_argument("--single-channel", action="store_true", help="sensor and vehicle frames on one channel")
+    parser.add_argument(
+        "--single-channel", action="store_true", help="sensor and vehicle frames on one channel"
+    )
     parser.set_defaults(run=run)
     return parser
 

@@ -29,8 +29,10 @@ class DriveTrace:
         return self.v + self.r * x_m
 
 
-def simulate(params: BicycleParams, scenario: Scenario, steering_ratio: float, dt: float = 0.002) -> DriveTrace:
-    n = int(round(scenario.duration_s / dt)) + 1
+def simulate(
+    params: BicycleParams, scenario: Scenario, steering_ratio: float, dt: float = 0.002
+) -> DriveTrace:
+    n = round(scenario.duration_s / dt) + 1
     t = np.arange(n) * dt
     u, u_dot = _speed_profile(scenario, t)
     if np.any(u <= 0.5):

@@ -85,13 +85,18 @@ def _sweeps(name: str, plan: SweepPlan, steer: Callable[[int], Steer]) -> Scenar
 
 
 def step_steer(
-    plan: SweepPlan, speeds_mps: tuple[float, ...] | None = None, wheel_deg: float | None = None, hold_s: float = 5.0
+    plan: SweepPlan,
+    speeds_mps: tuple[float, ...] | None = None,
+    wheel_deg: float | None = None,
+    hold_s: float = 5.0,
 ) -> Scenario:
     """Straight at constant speed, a quick step of the steering wheel, held until steady (Fig. 5),
     repeated at several speeds (Fig. 6); left and right."""
     if speeds_mps is None:
         n = 9
-        speeds_mps = tuple(plan.speed_lo_mps + i * (plan.speed_hi_mps - plan.speed_lo_mps) / (n - 1) for i in range(n))
+        speeds_mps = tuple(
+            plan.speed_lo_mps + i * (plan.speed_hi_mps - plan.speed_lo_mps) / (n - 1) for i in range(n)
+        )
     if wheel_deg is None:
         u = max(speeds_mps)
         radius = u * u / plan.ay_max_mps2

@@ -42,7 +42,9 @@ class SensorSetup:
     jitter_s: float = 0.0002  # transmission delay after the sample, uniform
 
 
-def frames(trace: DriveTrace, setup: SensorSetup, kistler: Any, ford: Any, rng: np.random.Generator) -> list[can.Message]:
+def frames(
+    trace: DriveTrace, setup: SensorSetup, kistler: Any, ford: Any, rng: np.random.Generator
+) -> list[can.Message]:
     """All frames of the drive, in timestamp order. ``kistler``/``ford``: cantools databases."""
     sources = [
         _optical(trace, setup, kistler, rng),
@@ -62,10 +64,12 @@ def _times(trace: DriveTrace, hz: float) -> np.ndarray:
 
 
 def _at(trace: DriveTrace, times: np.ndarray, values: np.ndarray) -> np.ndarray:
-    return np.interp(times, trace.t, values)
+    return np.asarray(np.interp(times, trace.t, values))
 
 
-def _encode(message: Any, channel: int, times: np.ndarray, columns: dict[str, np.ndarray]) -> Iterator[can.Message]:
+def _encode(
+    message: Any, channel: int, times: np.ndarray, columns: dict[str, np.ndarray]
+) -> Iterator[can.Message]:
     signals = {s.name: s for s in message.signals}
     clipped = {}
     for name, values in columns.items():
@@ -104,7 +108,12 @@ def _optical(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         db.get_message_by_name("Correvit"),
         channel,
         t,
-        {"VelX_cor": velocity["vx"], "VelY_cor": velocity["vy"], "Vel_cor": velocity["vel"], "Angle_cor": angle},
+        {
+            "VelX_cor": velocity["vx"],
+            "VelY_cor": velocity["vy"],
+            "Vel_cor": velocity["vel"],
+            "Angle_cor": angle,
+        },
     )
     yield from _encode(
         db.get_message_by_name("Vel_Angle"),
@@ -113,7 +122,10 @@ def _optical(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         {"VelX": velocity["vx"], "VelY": velocity["vy"], "Vel": velocity["vel"], "Angle": angle},
     )
     yield from _encode(
-        db.get_message_by_name("AngVelHor"), channel, t, {"AngVelX_hor": zeros, "AngVelY_hor": zeros, "AngVelZ_hor": yaw}
+        db.get_message_by_name("AngVelHor"),
+        channel,
+        t,
+        {"AngVelX_hor": zeros, "AngVelY_hor": zeros, "AngVelZ_hor": yaw},
     )
 
 
@@ -177,7 +189,10 @@ def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         db.get_message_by_name("SteeringPinion_Data"),
         channel,
         t,
-        {"StePinComp_An_Est": np.degrees(_at(trace, t, trace.delta)) * s.steering_ratio, "StePinCompAnEst_D_Qf": qf_ok},
+        {
+            "StePinComp_An_Est": np.degrees(_at(trace, t, trace.delta)) * s.steering_ratio,
+            "StePinCompAnEst_D_Qf": qf_ok,
+        },
     )
     half_track = 0.5 * s.track_m
     left, right = (u - r * half_track) / s.tyre_radius_m, (u + r * half_track) / s.tyre_radius_m

@@ -1,0 +1,31 @@
+"""Seeded simulated drives for the tests, cached so each is made once per test session."""
+
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from app.config import Config, load_config
+from app.pipeline import Pipeline
+from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive
+
+REPO = Path(__file__).resolve().parents[1]
+
+# The S-Motion's default cycle (20 ms) and a vehicle bus at 50 Hz keep the tests quick.
+FAST_SENSORS: dict[str, Any] = {"optical_hz": 50.0, "vehicle_hz": 50.0}
+
+
+@cache
+def cached_drive(
+    scenario: str = "constant_radius", seed: int = 7, c2n: float | None = None, **sensor: Any
+) -> SimulatedDrive:
+    return simulate_drive(
+        load_config(), DriveOptions(scenario=scenario, seed=seed, c2n=c2n, sensor=FAST_SENSORS | sensor)
+    )
+
+
+def run_pipeline(config: Config, drive: SimulatedDrive) -> Pipeline:
+    pipeline = Pipeline(config)
+    for message in drive.messages:
+        pipeline.process(message)
+    pipeline.finish()
+    return pipeline

@@ -1,0 +1,253 @@
+"""The command line: exit codes, one-line errors, and each command doing its job."""
+
+import json
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import can
+import pytest
+from rich.console import Console
+
+from app.cli import main
+from app.sim.session import write_drive
+from tests.simulated import REPO, cached_drive
+
+
+def console() -> Console:
+    return Console(file=None, force_terminal=False, soft_wrap=True, width=200)
+
+
+@pytest.fixture(scope="module")
+def drive_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    log = tmp_path_factory.mktemp("cli") / "drive.blf"
+    write_drive(cached_drive("constant_radius", 41, 15.1), log)
+    return log
+
+
+def one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("c2n: error: ") and "Traceback" not in err
+    return lines[0]
+
+
+def test_analyze_prints_each_crossing_then_the_result_and_writes_json(
+    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "summary.json"
+    assert main(["analyze", str(drive_log), "--json", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    crossing_lines = [
+        line for line in lines if " s  " in line and "C2n " in line and not line.startswith("C2n =")
+    ]
+    assert len(crossing_lines) == 4
+    assert lines[-1].startswith("C2n = ")  # the result comes after the crossings
+    summary = json.loads(out.read_text())
+    assert set(summary) >= {"c2n", "c2n_ci95", "u0_mps", "crossings", "regression", "frames", "warnings"}
+    assert abs(summary["c2n"] / 15.1 - 1) <= 0.01
+    assert summary["frames"]["total"] == len(cached_drive("constant_radius", 41, 15.1).messages)
+    crossing = summary["crossings"][0]
+    assert set(crossing) >= {"t", "u0_mps", "c2n", "ci95", "direction", "sweep", "ay_mps2"}
+    assert crossing["direction"] in ("left", "right") and crossing["sweep"] in ("up", "down")
+    for c, line in zip(summary["crossings"], crossing_lines, strict=True):
+        assert f"{c['c2n']:.3f}" in line and c["direction"] in line
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["analyze", "nothere.blf"], "nothere.blf: no such file"),
+        (["analyze", "{tmp}/x.json"], "unknown log format '.json'"),
+        (["analyze", "{tmp}/empty.log"], "the file is empty"),
+        (["analyze", "{log}", "--config", "{tmp}/none.toml"], "none.toml: config file not found"),
+        (["simulate", "--out", "{tmp}/x.txt"], "unknown log format '.txt'"),
+        (["replay", "{log}", "--rate", "0", "-i", "virtual"], "--rate must be > 0"),
+        (["live", "-i", "nosuchinterface", "-c", "x", "--no-record"], "cannot open"),
+    ],
+)
+def test_user_errors_are_one_line_and_exit_1(
+    args: list[str], message: str, drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "x.json").write_text("{}")
+    (tmp_path / "empty.log").write_text("")
+    argv = [a.replace("{tmp}", str(tmp_path)).replace("{log}", str(drive_log)) for a in args]
+    assert main(argv, console()) == 1
+    assert message in one_error_line(capsys.readouterr().err)
+
+
+def test_bad_usage_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze"]) == 2
+    assert main(["frobnicate"]) == 2
+    assert main([]) == 2
+    assert "usage" in capsys.readouterr().err
+
+
+def test_truncated_log_uses_every_frame_before_the_damage(
+    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text_log = tmp_path / "drive.log"
+    with can.Logger(text_log) as writer:
+        for m in can.LogReader(drive_log):
+            writer.on_message_received(m)
+    lines = text_log.read_text().splitlines()
+    keep = len(lines) // 2
+    text_log.write_text(
+        "\n".join(lines[:keep]) + "\n(1763900099.5) can1 7E5#00GARBAGE\n" + "\n".join(lines[keep:])
+    )
+    out = tmp_path / "s.json"
+    assert main(["analyze", str(text_log), "--json", str(out)]) == 0
+    summary = json.loads(out.read_text())
+    assert summary["frames"]["total"] == keep
+    assert any(f"stopped after frame {keep}" in w for w in summary["warnings"])
+    assert f"stopped after frame {keep}" in capsys.readouterr().err
+
+
+def test_missing_required_role_names_it(
+    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A log without the optical sensor: the message says which role had no frames."""
+    vehicle_only = tmp_path / "vehicle.log"
+    with can.Logger(vehicle_only) as writer:
+        for m in can.LogReader(drive_log):
+            if not 0x7E0 <= m.arbitration_id <= 0x7EB:
+                writer.on_message_received(m)
+    out = tmp_path / "s.json"
+    assert main(["analyze", str(vehicle_only), "--json", str(out)]) == 1
+    line = one_error_line("\n".join(line for line in capsys.readouterr().err.splitlines() if "error" in line))
+    assert "no frames for role 'vx' (Correvit.VelX_cor, id 0x7E5)" in line
+    summary = json.loads(out.read_text())  # nothing lost: the counts are still written
+    assert summary["c2n"] is None and summary["frames"]["total"] > 0
+
+
+def test_merge_per_channel_logs_of_one_drive(
+    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two candump files, one per interface, merged by timestamp give the single log's crossings."""
+    sensor, vehicle = tmp_path / "can1.log", tmp_path / "can0.log"
+    with can.Logger(sensor) as s, can.Logger(vehicle) as v:
+        for m in can.LogReader(drive_log):
+            (s if m.channel == 1 else v).on_message_received(m)
+    one, two = tmp_path / "one.json", tmp_path / "two.json"
+    assert main(["analyze", str(drive_log), "--json", str(one)]) == 0
+    assert main(["analyze", str(sensor), str(vehicle), "--merge", "--json", str(two)]) == 0
+    a, b = json.loads(one.read_text()), json.loads(two.read_text())
+    assert [c["c2n"] for c in a["crossings"]] == [c["c2n"] for c in b["crossings"]]
+
+
+def test_simulate_writes_log_and_truth(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "step.asc"
+    assert (
+        main(
+            [
+                "simulate",
+                "--scenario",
+                "step_steer",
+                "--seed",
+                "5",
+                "--c2n",
+                "12.5",
+                "--out",
+                str(out),
+                "--optical-hz",
+                "50",
+            ]
+        )
+        == 0
+    )
+    truth = json.loads((tmp_path / "step.asc.truth.json").read_text())
+    assert truth["c2n"] == pytest.approx(12.5) and truth["d_m"] == 1.11
+    assert truth["u0_mps"] == pytest.approx((12.5 * 9.81 * 1.11) ** 0.5)
+    assert sum(1 for _ in can.LogReader(out)) == truth["frames"]
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_replay_sends_every_frame_onto_a_virtual_bus(
+    drive_log: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    channel = f"replay-{uuid.uuid4().hex}"
+    received: list[can.Message] = []
+    with can.Bus(interface="virtual", channel=channel) as listener:
+        notifier = can.Notifier(listener, [received.append])
+        assert (
+            main(["replay", str(drive_log), "-i", "virtual", "-c", channel, "--rate", "1e6"], console()) == 0
+        )
+        deadline = time.monotonic() + 10
+        total = len(cached_drive("constant_radius", 41, 15.1).messages)
+        while len(received) < total and time.monotonic() < deadline:
+            time.sleep(0.05)
+        notifier.stop()
+    assert len(received) == total
+    assert [m.arbitration_id for m in received[:50]] == [
+        m.arbitration_id for m in list(can.LogReader(drive_log))[:50]
+    ]
+
+
+def test_live_records_every_frame_and_writes_the_summary(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    channel = f"live-{uuid.uuid4().hex}"
+    frames = cached_drive("constant_radius", 41, 15.1).messages[:5000]
+    started = threading.Event()
+
+    def send() -> None:
+        with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
+            started.wait(5)
+            time.sleep(0.3)
+            for m in frames:
+                bus.send(m)
+
+    sender = threading.Thread(target=send)
+    sender.start()
+    started.set()
+    code = main(
+        [
+            "live",
+            "-i",
+            "virtual",
+            "-c",
+            channel,
+            "--record",
+            str(tmp_path),
+            "--duration",
+            "3",
+            "--json",
+            str(tmp_path / "s.json"),
+        ],
+        console(),
+    )
+    sender.join()
+    assert code == 0
+    [session] = list(tmp_path.glob("20*"))
+    recorded = list(can.LogReader(session / "frames.log"))
+    assert len(recorded) == len(frames)
+    assert [bytes(m.data) for m in recorded] == [bytes(m.data) for m in frames]
+    assert {p.name for p in (session / "config").iterdir()} == {
+        "mondeo.toml",
+        "kistler_smotion.dbc",
+        "vehicle_ford.dbc",
+    }
+    summary = json.loads((session / "summary.json").read_text())
+    assert summary["frames"]["total"] == len(frames)
+    assert json.loads((tmp_path / "s.json").read_text())["frames"] == summary["frames"]
+    assert (session / "events.csv").read_text().startswith("t,direction,sweep,u0_mps")
+    assert f"session saved in {session}" in capsys.readouterr().out
+
+
+def test_demo_prints_crossings_and_c2n_beside_the_truth(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--speedup", "1000", "--seed", "5"], console()) == 0
+    out = capsys.readouterr().out
+    assert sum(" s  " in line and "C2n " in line for line in out.splitlines()) >= 4
+    [truth_line] = [line for line in out.splitlines() if line.startswith("simulated truth C2n")]
+    error = float(truth_line.rsplit("error ", 1)[1].rstrip(" %"))
+    assert abs(error) <= 1.0
+
+
+def test_python_dash_m_app_is_the_same_program() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "app", "--version"], capture_output=True, text=True, cwd=REPO, check=False
+    )
+    assert result.returncode == 0 and result.stdout.startswith("c2n ")

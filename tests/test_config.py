@@ -1,0 +1,156 @@
+"""The vehicle config: defaults load; every mistake is one line naming the file, key and fix."""
+
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from app.config import DEFAULT_CONFIG, load_config
+from app.errors import ConfigError, DbcError
+
+GOOD = """
+[vehicle]
+sensor_ahead_of_rear_axle_m = 1.11
+sensor_lateral_m = 0.2
+
+[dbc]
+files = ["{dbc}/kistler_smotion.dbc", "{dbc}/vehicle_ford.dbc"]
+
+[roles]
+vx = "Correvit.VelX_cor"
+vy = {signal = "Correvit.VelY_cor", scale = -1.0}
+speed = "BrakeSysFeatures.Veh_V_ActlBrk"
+
+[sensor_status]
+"Status.HeadStatus" = 1
+"""
+
+
+def test_default_config_loads_with_si_factors() -> None:
+    config = load_config(DEFAULT_CONFIG)
+    assert config.d_m == 1.11
+    assert config.roles["vx"].factor == pytest.approx(1 / 3.6)
+    assert config.roles["beta"].factor == pytest.approx(3.141592653589793 / 180)
+    assert config.roles["speed"].unit == "km/h"
+    assert {c.name for c in config.status} == {
+        "Status.HeadStatus",
+        "Status.TemperatureOK",
+        "Status.AngleSwitchedOff",
+    }
+    assert config.tyres.c2n_per_rad == 14.87
+
+
+def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
+    config = load_config(write_config(GOOD))
+    assert config.roles["vy"].factor == pytest.approx(-1 / 3.6)
+    assert config.vehicle.sensor_lateral_m == 0.2
+    assert config.vehicle.wheelbase_m is None  # optional until the simulator needs it
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (
+            ("sensor_ahead_of_rear_axle_m = 1.11\n", ""),
+            "[vehicle] is missing key 'sensor_ahead_of_rear_axle_m' — add it",
+        ),
+        (
+            ("sensor_lateral_m = 0.2", "sensor_lateral = 0.2"),
+            "unknown key 'sensor_lateral' in [vehicle] — did you mean 'sensor_lateral_m'?",
+        ),
+        (
+            ("sensor_lateral_m = 0.2", 'sensor_lateral_m = "left"'),
+            "[vehicle] sensor_lateral_m must be a number, got 'left'",
+        ),
+        (
+            ('vx = "Correvit.VelX_cor"', 'vx = "Correvit.VelX"'),
+            "[roles] vx names signal 'Correvit.VelX' that no DBC has",
+        ),
+        (('vx = "Correvit.VelX_cor"', 'vx = "VelX_cor"'), '[roles] vx must be "Message.Signal"'),
+        (('vx = "Correvit.VelX_cor"\n', ""), "[roles] is missing key 'vx'"),
+        (
+            ('"Status.HeadStatus" = 1', '"Status.HeadStat" = 1'),
+            "[sensor_status] key names signal 'Status.HeadStat'",
+        ),
+        (("[roles]", "[rolez]"), "unknown key 'rolez' — did you mean 'roles'?"),
+        (("scale = -1.0", "scale = 0"), "[roles] vy scale must be a non-zero number"),
+        (
+            ('speed = "BrakeSysFeatures.Veh_V_ActlBrk"', 'speed = "Correvit.Angle_cor"'),
+            "not one for speed — set [units] speed to one of",
+        ),
+        (("sensor_ahead_of_rear_axle_m = 1.11", "sensor_ahead_of_rear_axle_m = -0.5"), "must be > 0"),
+    ],
+)
+def test_mistakes_give_one_line_naming_file_key_and_fix(
+    write_config: Callable[[str], Path], change: tuple[str, str], expected: str
+) -> None:
+    path = write_config(GOOD.replace(*change))
+    assert change[0] in GOOD
+    with pytest.raises(ConfigError) as error:
+        load_config(path)
+    message = str(error.value)
+    assert message.startswith(str(path))
+    assert expected in message
+    assert "\n" not in message
+
+
+def test_did_you_mean_for_a_misspelt_signal(write_config: Callable[[str], Path]) -> None:
+    with pytest.raises(ConfigError, match=re.escape("did you mean 'Correvit.VelY_cor'")):
+        load_config(write_config(GOOD.replace("Correvit.VelY_cor", "Correvit.VelY_corr")))
+
+
+def test_missing_and_broken_dbc(write_config: Callable[[str], Path], tmp_path: Path) -> None:
+    with pytest.raises(DbcError, match=re.escape("nothere.dbc: DBC file not found")):
+        load_config(write_config(GOOD.replace("{dbc}/vehicle_ford.dbc", "{dbc}/nothere.dbc")))
+    broken = tmp_path / "broken.dbc"
+    broken.write_text(
+        'VERSION ""\nBO_ 12 Broken: 8 X\n SG_ A : 0|16@1+ (1,0) [0|1] "" X\nVAL_ 12 A 0 "x" 1 ;\n'
+    )
+    with pytest.raises(DbcError) as error:
+        load_config(write_config(GOOD.replace("{dbc}/vehicle_ford.dbc", str(broken))))
+    assert str(error.value).startswith(str(broken)) and "not a readable DBC" in str(error.value)
+
+
+def test_not_toml_and_not_found(write_config: Callable[[str], Path], tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(write_config("[vehicle\n"))
+    with pytest.raises(ConfigError, match="config file not found"):
+        load_config(tmp_path / "none.toml")
+
+
+def test_id_collision_needs_channels(write_config: Callable[[str], Path]) -> None:
+    twice = GOOD.replace(
+        '"{dbc}/vehicle_ford.dbc"]', '"{dbc}/vehicle_ford.dbc", "{dbc}/../tests/data/kistler_copy.dbc"]'
+    )
+    copy = Path(__file__).parent / "data" / "kistler_copy.dbc"
+    copy.parent.mkdir(exist_ok=True)
+    copy.write_text((Path(__file__).parents[1] / "dbc" / "kistler_smotion.dbc").read_text())
+    with pytest.raises(
+        ConfigError,
+        match=re.escape("id 0x7E0 is in both kistler_smotion.dbc and kistler_copy.dbc — set [channels]"),
+    ):
+        load_config(write_config(twice))
+    separated = (
+        twice + '\n[channels]\n"{dbc}/kistler_smotion.dbc" = 1\n"{dbc}/../tests/data/kistler_copy.dbc" = 2\n'
+    )
+    config = load_config(write_config(separated))
+    assert [d.channel for d in config.dbcs] == [1, None, 2]
+
+
+def test_channels_must_name_a_listed_dbc(write_config: Callable[[str], Path]) -> None:
+    with pytest.raises(
+        ConfigError, match=re.escape("[channels] names 'other.dbc', which is not in [dbc] files")
+    ):
+        load_config(write_config(GOOD + '\n[channels]\n"other.dbc" = 1\n'))
+
+
+def test_settings_sections_are_typed(write_config: Callable[[str], Path]) -> None:
+    config = load_config(
+        write_config(GOOD + '\n[detector]\nay_max_mps2 = 3\n[filter]\nsideslip_source = "vy"\n')
+    )
+    assert config.detector.ay_max_mps2 == 3.0 and config.filter.sideslip_source == "vy"
+    with pytest.raises(ConfigError, match="sideslip_source must be 'auto' \\| 'beta' \\| 'vy', got 'angle'"):
+        load_config(write_config(GOOD + '\n[filter]\nsideslip_source = "angle"\n'))
+    with pytest.raises(ConfigError, match="min_fit_samples must be an integer"):
+        load_config(write_config(GOOD + "\n[detector]\nmin_fit_samples = 2.5\n"))

@@ -1,0 +1,75 @@
+"""The dashboard, rendered into a recording console and read as text."""
+
+from rich.console import Console
+
+from app.dashboard import Dashboard, guidance
+from app.pipeline import Pipeline
+from app.records import SteadyState
+
+
+def render(dashboard: Dashboard, width: int = 130) -> str:
+    console = Console(record=True, width=width, force_terminal=False)
+    console.print(dashboard)
+    return console.export_text()
+
+
+def test_dashboard_after_a_drive(analysed: Pipeline) -> None:
+    text = render(Dashboard(analysed, "vcan0"))
+    assert "c2n live — vcan0" in text
+    for label in (
+        "speed",
+        "km/h",
+        "sideslip",
+        "lat. acc.",
+        "yaw rate",
+        "filter health",
+        "Crossings",
+        "Frames",
+    ):
+        assert label in text, label
+    assert "C2n = " in text and "from 4 crossings" in text
+    assert "0x7E5" in text and "0x415" in text  # frame table
+    assert f"total {analysed.decoder.counts.total}" in text
+    last = analysed.state.crossings[-1]
+    assert f"{last.c2n:.3f}" in text and f"{last.u0_kmh:.2f}" in text
+    assert "status: " in text and "HeadStatus 1" in text
+
+
+def test_guidance_for_the_driver() -> None:
+    reasons = (
+        "lateral acceleration too high: 4.3 m/s² > 4",
+        "sweep too fast: 0.80 m/s² > 0.6",
+        "sensor: Status.HeadStatus=0 (needs 1)",
+    )
+    assert guidance(reasons) == [
+        "Too much lateral acceleration: slow down or widen the circle",
+        "Change speed more gently",
+        "Sensor status bad (sensor: Status.HeadStatus=0 (needs 1))",
+    ]
+
+
+def test_not_steady_shows_the_guidance(analysed: Pipeline) -> None:
+    record = analysed.state.last
+    assert record is not None
+    analysed.state.last = type(record)(
+        record.t,
+        record.channel,
+        record.frame_id,
+        record.signals,
+        record.rejected,
+        record.estimate,
+        SteadyState(False, "left", ("driving straight (radius over 500 m)",)),
+    )
+    try:
+        text = render(Dashboard(analysed, "can0"))
+    finally:
+        analysed.state.last = record
+    assert "not steady" in text and "Turn onto the circle" in text
+
+
+def test_empty_dashboard_before_any_frame(config: object) -> None:
+    from app.config import Config
+
+    assert isinstance(config, Config)
+    text = render(Dashboard(Pipeline(config), "can0"))
+    assert "waiting for optical sensor frames" in text and "no result" in text

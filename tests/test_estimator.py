@@ -1,0 +1,122 @@
+"""The Kalman filter stage: filterpy's discretisation, the measurement models, time handling."""
+
+import math
+
+import numpy as np
+import pytest
+from filterpy.common import Q_continuous_white_noise
+from scipy.linalg import block_diag
+
+from app.config import FilterSettings
+from app.estimator import MotionFilter, transition
+from app.records import Record
+
+ROLES = frozenset({"vx", "vy", "beta", "yaw_rate", "speed"})
+
+
+def record(t: float, **signals: float) -> Record:
+    return Record(t, 0, 0x7E5, signals)
+
+
+def test_transition_equals_filterpy_reference() -> None:
+    for dt in (0.004, 0.02, 0.5):
+        f, q = transition(dt, 0.05, 0.02, 0.5)
+        reference_q = block_diag(*(Q_continuous_white_noise(2, dt, d) for d in (0.05, 0.02, 0.5)))
+        reference_f = block_diag(*([np.array([[1.0, dt], [0.0, 1.0]])] * 3))
+        np.testing.assert_allclose(q, reference_q, rtol=0, atol=1e-18)
+        np.testing.assert_allclose(f, reference_f, rtol=0, atol=0)
+
+
+def steady_stream(
+    u: float, v: float, r: float, y_s: float = 0.0, seconds: float = 5.0, hz: float = 100.0
+) -> list[Record]:
+    vx = u - r * y_s
+    return [
+        record(k / hz, vx=vx, vy=v, beta=math.atan2(v, vx), yaw_rate=r, speed=u)
+        for k in range(int(seconds * hz))
+    ]
+
+
+def test_converges_to_the_motion_and_its_sideslip() -> None:
+    f = MotionFilter(FilterSettings(), 0.0, ROLES)
+    for rec in steady_stream(12.0, 0.06, 0.15):
+        e = f.step(rec)
+    assert e is not None
+    assert e.u_mps == pytest.approx(12.0, abs=1e-6)
+    assert e.v_mps == pytest.approx(0.06, abs=1e-6)
+    assert e.r_radps == pytest.approx(0.15, abs=1e-6)
+    assert e.sideslip_rad == pytest.approx(math.atan2(0.06, 12.0), abs=1e-7)
+    assert e.ay_mps2 == pytest.approx(12.0 * 0.15, rel=1e-6)
+
+
+def test_lateral_offset_moves_vx_to_the_centre_line() -> None:
+    """A head 0.9 m left of the centre sees vx = u − r·y_s; the filter reports u."""
+    f = MotionFilter(FilterSettings(), 0.9, ROLES - {"speed"})
+    for rec in steady_stream(12.0, 0.0, 0.2, y_s=0.9):
+        e = f.step(Record(rec.t, 0, 0, {k: v for k, v in rec.signals.items() if k != "speed"}))
+    assert e is not None
+    assert e.u_mps == pytest.approx(12.0, abs=1e-5)
+
+
+def test_angle_alone_gives_lateral_velocity() -> None:
+    """With sideslip_source 'beta' the EKF update recovers v from the angle."""
+    f = MotionFilter(FilterSettings(sideslip_source="beta"), 0.0, frozenset({"vx", "beta"}))
+    for k in range(500):
+        e = f.step(record(k / 100, vx=10.0, beta=math.atan2(-0.08, 10.0)))
+    assert e is not None
+    assert e.v_mps == pytest.approx(-0.08, abs=1e-6)
+    assert e.r_radps is None  # no yaw information at all
+    assert e.v_meas_mps == pytest.approx(-0.08, abs=1e-9)
+
+
+def test_time_going_backwards_restarts_the_filter() -> None:
+    f = MotionFilter(FilterSettings(), 0.0, ROLES)
+    for rec in steady_stream(10.0, 0.0, 0.1, seconds=1.0):
+        f.step(rec)
+    f.step(record(0.2, vx=20.0, vy=0.0, yaw_rate=0.1))
+    assert f.counts.time_jumps == 1
+    e = f.step(record(0.21, vx=20.0, vy=0.0, yaw_rate=0.1))
+    assert e is not None and e.u_mps == pytest.approx(20.0, abs=0.05)
+
+
+def test_optical_dropout_restarts_and_late_frames_are_applied_now() -> None:
+    f = MotionFilter(FilterSettings(gap_reset_s=1.0), 0.0, ROLES)
+    for rec in steady_stream(10.0, 0.0, 0.1, seconds=1.0):
+        f.step(rec)
+    f.step(record(0.985, vx=10.0, vy=0.0))  # 5 ms out of order
+    assert f.counts.late_frames == 1
+    f.step(record(5.0, vx=15.0, vy=0.0))  # 4 s without optical frames
+    assert f.counts.resets == 1
+
+
+def test_a_spike_is_gated_but_a_real_jump_is_believed() -> None:
+    f = MotionFilter(FilterSettings(), 0.0, ROLES)
+    for rec in steady_stream(10.0, 0.0, 0.1, seconds=2.0):
+        f.step(rec)
+    e = f.step(record(2.0, yaw_rate=0.9))  # one wild gyro sample
+    assert f.counts.outliers == 1
+    assert e is not None and e.r_radps == pytest.approx(0.1, abs=1e-3)
+    for k in range(1, 20):  # the gyro insists: the model lost the car, believe the sensor
+        e = f.step(record(2.0 + k / 100, yaw_rate=0.9))
+    assert e is not None and e.r_radps == pytest.approx(0.9, abs=0.05)
+
+
+def test_health_is_about_one_when_the_noise_model_fits() -> None:
+    rng = np.random.default_rng(3)
+    sigma = 0.02
+    f = MotionFilter(
+        FilterSettings(sigma_velocity_mps=sigma, sideslip_source="vy"), 0.0, frozenset({"vx", "vy"})
+    )
+    healths = []
+    for k in range(6000):
+        e = f.step(record(k / 100, vx=12.0 + rng.normal(0, sigma), vy=0.05 + rng.normal(0, sigma)))
+        if k > 1000 and e is not None:
+            healths.append(e.health)
+    assert 0.8 < float(np.mean(healths)) < 1.2
+    # the same data against a model that claims 4× less noise reads about 16× worse
+    g = MotionFilter(
+        FilterSettings(sigma_velocity_mps=sigma / 4, sideslip_source="vy"), 0.0, frozenset({"vx", "vy"})
+    )
+    for k in range(6000):
+        e = g.step(record(k / 100, vx=12.0 + rng.normal(0, sigma), vy=0.05 + rng.normal(0, sigma)))
+    assert e is not None and e.health > 5

@@ -1,0 +1,120 @@
+"""Live and offline are one pipeline: a drive replayed over a python-can virtual bus gives the same
+crossings as the offline analysis of its log file."""
+
+import threading
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+
+import can
+import pytest
+
+from app import summary
+from app.cli import main
+from app.cli.demo import Player
+from app.config import Config, load_config
+from app.live import run
+from app.pipeline import Pipeline
+from app.sim.session import write_drive
+from app.sources import BusSource, LogSource
+from tests.simulated import cached_drive
+
+
+def offline(config: Config, log: Path) -> Pipeline:
+    pipeline = Pipeline(config)
+    run(LogSource([log]), pipeline, printer=lambda events: None)
+    return pipeline
+
+
+def test_virtual_bus_replay_equals_analyze(
+    config: Config, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    drive = cached_drive("constant_radius", 31, 15.2)
+    log = tmp_path / "drive.blf"
+    write_drive(drive, log)
+    channel = f"test-{uuid.uuid4().hex}"
+    printed: list[object] = []
+    with (
+        can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as tx,
+        can.Bus(interface="virtual", channel=channel) as rx,
+    ):
+        stop = threading.Event()
+        player = Player(log, tx, rate=1e6, stop=stop)  # the player thread sends the drive
+        live = Pipeline(config)
+        player.start()
+        completed = run(BusSource([rx], stop, finished=player.finished), live, printer=printed.extend)
+        player.join()
+    assert completed and player.error is None and player.sent == len(drive.messages)
+    assert live.decoder.counts.total == len(drive.messages)
+    reference = offline(config, log)
+    assert len(live.state.crossings) == 4
+    assert live.state.crossings == reference.state.crossings  # exactly, float for float
+    assert [
+        e for e in printed if type(e).__name__ == "Crossing"
+    ] == live.state.crossings  # printed as they came
+
+    # and the CLI's JSON says the same
+    assert main(["analyze", str(log), "--json", str(tmp_path / "offline.json")]) == 0
+    import json
+
+    cli = json.loads((tmp_path / "offline.json").read_text())
+    assert cli["crossings"] == summary.build(live, [str(log)])["crossings"]
+
+
+SEPARATE = """
+[vehicle]
+sensor_ahead_of_rear_axle_m = 1.11
+[dbc]
+files = ["{dbc}/kistler_smotion.dbc", "{dbc}/vehicle_ford.dbc"]
+[roles]
+vx = "Correvit.VelX_cor"
+vy = "Correvit.VelY_cor"
+yaw_rate = "AngVelHor.AngVelZ_hor"
+speed = "BrakeSysFeatures.Veh_V_ActlBrk"
+[channels]
+"{dbc}/kistler_smotion.dbc" = "SENSOR"
+"{dbc}/vehicle_ford.dbc" = "VEHICLE"
+"""
+
+
+def test_two_live_channels_kept_apart(write_config: Callable[[str], Path]) -> None:
+    """The sensor on a channel of its own and the vehicle bus on another, read at once; an OBD
+    request on the vehicle bus with a sensor id is not taken for the sensor."""
+    tag = uuid.uuid4().hex
+    config = load_config(
+        write_config(SEPARATE.replace("SENSOR", f"sensor-{tag}").replace("VEHICLE", f"vehicle-{tag}"))
+    )
+    drive = cached_drive("constant_radius", 32, 14.4)
+    sensor_ids = {m.frame_id for m in config.dbcs[0].database.messages}
+    with (
+        can.Bus(interface="virtual", channel=f"sensor-{tag}") as sensor_rx,
+        can.Bus(interface="virtual", channel=f"vehicle-{tag}") as vehicle_rx,
+        can.Bus(interface="virtual", channel=f"sensor-{tag}", preserve_timestamps=True) as sensor_tx,
+        can.Bus(interface="virtual", channel=f"vehicle-{tag}", preserve_timestamps=True) as vehicle_tx,
+    ):
+        finished, stop = threading.Event(), threading.Event()
+        pipeline = Pipeline(config)
+
+        def play() -> None:
+            for m in drive.messages[:20000]:
+                (sensor_tx if m.arbitration_id in sensor_ids else vehicle_tx).send(m)
+            obd = can.Message(
+                timestamp=drive.messages[20000].timestamp,
+                arbitration_id=0x7E5,
+                is_extended_id=False,
+                data=bytes.fromhex("0201050000000000"),
+            )
+            vehicle_tx.send(obd)
+            finished.set()
+
+        player = threading.Thread(target=play)
+        player.start()
+        run(
+            BusSource([sensor_rx, vehicle_rx], stop, finished=finished), pipeline, printer=lambda events: None
+        )
+        player.join()
+    counts = pipeline.decoder.counts
+    assert counts.total == 20001
+    assert counts.other_channel == 1
+    assert counts.role_frames["vx"] > 0 and counts.role_frames["speed"] > 0
+    assert {str(channel) for channel, _, _ in counts.by_id} == {f"sensor-{tag}", f"vehicle-{tag}"}

@@ -119,21 +119,16 @@ def test_not_toml_and_not_found(write_config: Callable[[str], Path], tmp_path: P
         load_config(tmp_path / "none.toml")
 
 
-def test_id_collision_needs_channels(write_config: Callable[[str], Path]) -> None:
-    twice = GOOD.replace(
-        '"{dbc}/vehicle_ford.dbc"]', '"{dbc}/vehicle_ford.dbc", "{dbc}/../tests/data/kistler_copy.dbc"]'
-    )
-    copy = Path(__file__).parent / "data" / "kistler_copy.dbc"
-    copy.parent.mkdir(exist_ok=True)
+def test_id_collision_needs_channels(write_config: Callable[..., Path], tmp_path: Path) -> None:
+    copy = tmp_path / "kistler_copy.dbc"
     copy.write_text((Path(__file__).parents[1] / "dbc" / "kistler_smotion.dbc").read_text())
+    twice = GOOD.replace('"{dbc}/vehicle_ford.dbc"]', f'"{{dbc}}/vehicle_ford.dbc", "{copy}"]')
     with pytest.raises(
         ConfigError,
         match=re.escape("id 0x7E0 is in both kistler_smotion.dbc and kistler_copy.dbc — set [channels]"),
     ):
         load_config(write_config(twice))
-    separated = (
-        twice + '\n[channels]\n"{dbc}/kistler_smotion.dbc" = 1\n"{dbc}/../tests/data/kistler_copy.dbc" = 2\n'
-    )
+    separated = twice + f'\n[channels]\n"{{dbc}}/kistler_smotion.dbc" = 1\n"{copy}" = 2\n'
     config = load_config(write_config(separated))
     assert [d.channel for d in config.dbcs] == [1, None, 2]
 

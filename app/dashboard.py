@@ -152,19 +152,16 @@ class Dashboard:
 
     def _frames(self) -> RenderableType:
         counts = self.pipeline.decoder.counts
-        table = Table(expand=True, box=None, padding=(0, 1))
-        for name in ("channel", "id", "frames", "rate [1/s]"):
-            table.add_column(name, justify="right")
+        table = Table(box=None, padding=(0, 2))
+        for name in ("channel", "id", "message", "frames", "rate [1/s]"):
+            table.add_column(name, justify="left" if name == "message" else "right")
         busiest = sorted(counts.by_id.items(), key=lambda kv: -kv[1])[: self.max_ids]
         for key, n in sorted(busiest, key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])):
             channel, frame_id, extended = key
             rate = self._rates.rates.get(key)
-            table.add_row(
-                str(channel),
-                format_id(frame_id, extended),
-                str(n),
-                f"{rate:.0f}" if rate is not None else "—",
-            )
+            name = self.pipeline.decoder.message_name(frame_id, extended) or "(unknown)"
+            rate_text = f"{rate:.0f}" if rate is not None else "—"
+            table.add_row(str(channel), format_id(frame_id, extended), name, str(n), rate_text)
         bad = (
             f"total {counts.total}  used {counts.used}  unknown id {counts.unknown_id}  "
             f"bad length {counts.bad_length}  error {counts.error_frames}  remote {counts.remote_frames}  "

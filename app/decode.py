@@ -128,6 +128,11 @@ class Decoder:
                     _MessageBinding(message, dbc.channel, roles, status)
                 )
 
+    def message_name(self, frame_id: int, extended: bool) -> str | None:
+        """The DBC name of a frame id (the first DBC's, if several define it)."""
+        bindings = self._bindings.get((frame_id, extended))
+        return str(bindings[0].message.name) if bindings else None
+
     def decode(self, msg: can.Message) -> Record | None:
         """Count the frame; return a Record when it carries role values (usable or not)."""
         counts = self.counts
@@ -162,15 +167,17 @@ class Decoder:
             counts.undecodable += 1
             counts.bad_by_id[(msg.arbitration_id, "undecodable")] += 1
             return None
-        counts.used += 1
         t = msg.timestamp
         if binding.status:
             self.status.update(t, {name: float(decoded[name.partition(".")[2]]) for name in binding.status})
         signals: dict[str, float] = {}
         rejected: dict[str, str] = {}
-        for role in binding.roles:
-            if not channel_matches(role.channel, msg.channel):
-                continue
+        roles = [role for role in binding.roles if channel_matches(role.channel, msg.channel)]
+        if not roles and not binding.status:
+            counts.other_channel += 1  # its roles are bound to another channel
+            return None
+        counts.used += 1
+        for role in roles:
             counts.role_frames[role.role] += 1
             value = float(decoded[role.signal]) * role.factor
             reason = self._why_not(role, value, t)
@@ -180,8 +187,8 @@ class Decoder:
                 rejected[role.role] = reason
         if rejected:
             for reason in dict.fromkeys(rejected.values()):
-                roles = ", ".join(r for r, why in rejected.items() if why == reason)
-                counts.rejected[f"{reason} ({roles})"] += 1
+                names = ", ".join(r for r, why in rejected.items() if why == reason)
+                counts.rejected[f"{reason} ({names})"] += 1
         elif not signals:
             return None
         return Record(t, msg.channel, msg.arbitration_id, signals, rejected)

@@ -251,3 +251,38 @@ def test_python_dash_m_app_is_the_same_program() -> None:
         [sys.executable, "-m", "app", "--version"], capture_output=True, text=True, cwd=REPO, check=False
     )
     assert result.returncode == 0 and result.stdout.startswith("c2n ")
+
+
+def test_bad_role_in_the_config_is_one_line(
+    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', f'"{REPO}/dbc/')
+    config = tmp_path / "car.toml"
+    config.write_text(text.replace('vy = "Correvit.VelY_cor"', 'vy = "Correvit.VelY"'))
+    assert main(["analyze", str(drive_log), "--config", str(config)]) == 1
+    line = one_error_line(capsys.readouterr().err)
+    assert str(config) in line and "[roles] vy names signal 'Correvit.VelY' that no DBC has" in line
+
+
+@pytest.mark.parametrize("signal", ["SIGINT", "SIGTERM"])
+def test_live_ends_cleanly_on_ctrl_c_and_sigterm_and_writes_the_summary(tmp_path: Path, signal: str) -> None:
+    import signal as signals
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "app", "live", "-i", "virtual", "-c", "nobody", "--record", str(tmp_path)],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 30
+    while not list(tmp_path.glob("20*/frames.log")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(0.5)
+    process.send_signal(getattr(signals, signal))
+    out, err = process.communicate(timeout=30)
+    assert process.returncode == 0, err
+    [session] = list(tmp_path.glob("20*"))
+    summary = json.loads((session / "summary.json").read_text())
+    assert summary["frames"]["total"] == 0 and summary["c2n"] is None
+    assert "session saved in" in out and "Traceback" not in err

@@ -28,7 +28,7 @@ def test_dashboard_after_a_drive(analysed: Pipeline) -> None:
     ):
         assert label in text, label
     assert "C2n = " in text and "from 4 crossings" in text
-    assert "0x7E5" in text and "0x415" in text  # frame table
+    assert "0x7E5" in text and "Correvit" in text and "0x415" in text and "BrakeSysFeatures" in text
     assert f"total {analysed.decoder.counts.total}" in text
     last = analysed.state.crossings[-1]
     assert f"{last.c2n:.3f}" in text and f"{last.u0_kmh:.2f}" in text

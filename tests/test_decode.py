@@ -201,3 +201,17 @@ def test_channel_matching_rules() -> None:
     ]
     for spec, channel, expected in cases:
         assert channel_matches(spec, channel) is expected, (spec, channel)
+
+
+def test_a_role_can_name_its_own_channel(write_config: Callable[[str], Path]) -> None:
+    """The sensor's yaw rate taken only from the sensor's channel, its velocities from anywhere."""
+    text = CHANNELS.replace("[channels]", "[ignored]").split("[ignored]")[0]
+    text += 'yaw_rate = {signal = "AngVelHor.AngVelZ_hor", channel = "can1"}\n'
+    config = load_config(write_config(text))
+    decoder = Decoder(config)
+    decoder.decode(status(config))
+    assert decoder.decode(frame(config, "AngVelHor", channel="can0", AngVelZ_hor=5.0)) is None
+    rec = decoder.decode(frame(config, "AngVelHor", channel="can1", AngVelZ_hor=5.0))
+    assert rec is not None and rec.signals["yaw_rate"] == pytest.approx(math.radians(5.0))
+    assert decoder.counts.role_frames["yaw_rate"] == 1
+    assert decoder.counts.other_channel == 1 and decoder.counts.used == 2  # the status and the can1 frame

@@ -40,6 +40,7 @@ class _Run:
     u: list[float] = field(default_factory=list)
     y: list[float] = field(default_factory=list)
     ay: list[float] = field(default_factory=list)
+    ud: list[float] = field(default_factory=list)  # du/dt
     trend: int = 0  # +1 speed rising, −1 falling, 0 not yet known
     u_first: float = math.nan
     u_extreme: float = math.nan
@@ -66,12 +67,8 @@ class _Run:
 
     def restart_at_extreme(self) -> None:
         """Keep only the samples since the speed's turning point; the trend flips."""
-        del (
-            self.t[: self.i_extreme],
-            self.u[: self.i_extreme],
-            self.y[: self.i_extreme],
-            self.ay[: self.i_extreme],
-        )
+        for samples in (self.t, self.u, self.y, self.ay, self.ud):
+            del samples[: self.i_extreme]
         self.trend = -self.trend
         self.crossed = False
         self.u_extreme = self.u[-1] if self.u else math.nan
@@ -84,11 +81,12 @@ class _Run:
         pending, self.pending = self.pending, None
         return pending
 
-    def append(self, t: float, u: float, y: float, ay: float, keep_within: float) -> None:
+    def append(self, t: float, u: float, y: float, ay: float, ud: float, keep_within: float) -> None:
         self.t.append(t)
         self.u.append(u)
         self.y.append(y)
         self.ay.append(ay)
+        self.ud.append(ud)
         self.appended += 1
         if self.appended % _TRIM_EVERY == 0 or len(self.t) > _MAX_RUN_SAMPLES:
             self._trim(u, keep_within)
@@ -104,6 +102,7 @@ class _Run:
         self.u = [self.u[i] for i in keep]
         self.y = [self.y[i] for i in keep]
         self.ay = [self.ay[i] for i in keep]
+        self.ud = [self.ud[i] for i in keep]
         self.u_extreme = self.u[0] if self.u else math.nan
         self.i_extreme = 0
         for i, value in enumerate(self.u):
@@ -157,7 +156,8 @@ class CrossingDetector:
                 events.append(self._fit(run, pending, key))
             run.restart_at_extreme()
         hw = self.settings.fit_half_width_mps
-        run.append(t, u, y, abs(estimate.ay_mps2) if estimate.ay_mps2 is not None else math.nan, 3 * hw)
+        ay = abs(estimate.ay_mps2) if estimate.ay_mps2 is not None else math.nan
+        run.append(t, u, y, ay, estimate.u_dot_mps2, 3 * hw)
         events.extend(self._watch_sign(run, key, t, u, estimate))
         if run.pending is not None and abs(u - run.pending.u) >= hw:
             events.append(self._fit(run, run.take_pending(), key))
@@ -215,7 +215,7 @@ class CrossingDetector:
         def reject(reason: str) -> CrossingRejected:
             return CrossingRejected(pending.t, key, pending.sweep, pending.u, reason)
 
-        t, u, y, ay = (np.asarray(a) for a in (run.t, run.u, run.y, run.ay))
+        t, u, y, ay, ud = (np.asarray(a) for a in (run.t, run.u, run.y, run.ay, run.ud))
         hw = self.settings.fit_half_width_mps
         outcome: _Window | str = "no samples"
         for width in (hw, 1.5 * hw, 2.0 * hw, 3.0 * hw):  # sparse data (step steers) need a wider window
@@ -238,6 +238,8 @@ class CrossingDetector:
         if direction is None:
             return reject("the turning direction is unknown")
         nearest = int(np.argmin(np.abs(u - u0) + np.where(selected, 0.0, np.inf)))
+        ay0 = float(ay[nearest])
+        radius = (u0 * u0 / ay0 if ay0 > 0 else math.inf) * (1 if direction == "left" else -1)
         scale = 1.0 / (self.g * self.d_m)
         lo, hi = zero.ci95
         return Crossing(
@@ -249,7 +251,9 @@ class CrossingDetector:
             c2n=zero.x0 * scale,
             c2n_se=zero.se * scale,
             ci95=(lo * scale, hi * scale),
-            ay_mps2=float(ay[nearest]),
+            ay_mps2=ay0,
+            radius_m=radius,
+            sweep_rate_mps2=float(np.mean(ud[selected])),
             n_samples=n,
             method="v/r" if run.kind == "v/r" else "beta",
         )

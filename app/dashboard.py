@@ -145,10 +145,31 @@ class Dashboard:
                 f"{c.c2n:.3f}",
                 f"{lo:.3f}–{hi:.3f}",
             )
-        result = Text(result_line(state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold")
+        result = Text(result_line(state, config.vehicle.gravity_mps2, config.d_m), style="bold")
+        lines: list[RenderableType] = [table, result]
+        fit = state.regression
+        if fit is not None:
+            psi0 = f"ψ0 {math.degrees(fit.psi0_rad):+.3f}°" if fit.psi0_rad is not None else "ψ0 —"
+            model = "softening tyre model" if fit.model == "softening" else "linear"
+            lines.append(
+                Text(
+                    f"regression: d {fit.d_m:.3f} m [{fit.d_ci95[0]:.3f}, {fit.d_ci95[1]:.3f}] "
+                    f"(config {config.d_m:g}), {psi0}, {model}, "
+                    f"a_y {fit.ay_range[0]:.1f}–{fit.ay_range[1]:.1f} m/s²"
+                )
+            )
+        paired = state.paired
+        if paired is not None and (paired.misalignment_rad is not None or paired.lag_s is not None):
+            parts = []
+            if paired.misalignment_rad is not None:
+                parts.append(f"head misalignment {math.degrees(paired.misalignment_rad):+.2f}°")
+            if paired.lag_s is not None:
+                parts.append(f"lag {paired.lag_s * 1000:+.0f} ms")
+            lines.append(Text("pairing: " + ", ".join(parts)))
         rejected = len(state.rejections)
-        note = Text(f"{rejected} sign change(s) not used", style="dim") if rejected else Text("")
-        return Panel(Group(table, result, note), title="Crossings")
+        if rejected:
+            lines.append(Text(f"{rejected} sign change(s) not used", style="dim"))
+        return Panel(Group(*lines), title="Crossings")
 
     def _frames(self) -> RenderableType:
         counts = self.pipeline.decoder.counts

@@ -2,7 +2,7 @@
 
 import math
 
-from app.combine import Combined
+from app.pipeline import SessionState
 from app.records import Crossing, CrossingRejected
 
 
@@ -23,13 +23,25 @@ def rejected_line(r: CrossingRejected, t0: float) -> str:
     )
 
 
-def result_line(combined: Combined | None, g: float, d_m: float) -> str:
-    if combined is None:
-        return "C2n: no result (no usable sideslip sign change)"
-    lo, hi = combined.ci95
-    u0 = math.sqrt(combined.c2n * g * d_m)
-    crossings = "crossing" if combined.n == 1 else "crossings"
-    return (
-        f"C2n = {combined.c2n:.3f} 1/rad [{lo:.3f}, {hi:.3f}] (95 %) from {combined.n} {crossings}; "
-        f"u0 = {u0:.3f} m/s = {u0 * 3.6:.2f} km/h at d = {d_m:g} m"
+def result_line(state: SessionState, g: float, d_m: float) -> str:
+    """The run's result: the headline C2n and how it was found, and the crossings beside it."""
+    headline = state.headline
+    if headline is None:
+        return "C2n: no result (no usable sideslip sign change or steady samples)"
+    lo, hi = headline.ci95
+    u0 = math.sqrt(headline.c2n * g * d_m)
+    how = headline.method
+    if state.regression is not None:
+        how = f"regression over {state.regression.n_samples:,} steady samples"
+        if state.regression.model == "softening":
+            how += ", extrapolated to zero a_y"
+    text = (
+        f"C2n = {headline.c2n:.3f} 1/rad [{lo:.3f}, {hi:.3f}] (95 %, {how}); "
+        f"u0 = {u0:.3f} m/s = {u0 * 3.6:.2f} km/h"
     )
+    crossings = state.paired or state.combined
+    if crossings is not None and headline.method == "regression":
+        clo, chi = crossings.ci95
+        paired = " paired" if state.paired is not None else ""
+        text += f"; {crossings.n}{paired} crossings: {crossings.c2n:.3f} [{clo:.3f}, {chi:.3f}]"
+    return text

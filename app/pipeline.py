@@ -13,10 +13,23 @@ from app.config import OPTICAL_ROLES, Config
 from app.crossing_detector import CrossingDetector
 from app.decode import Decoder
 from app.estimator import MotionFilter
+from app.pairing import Paired, pair
 from app.records import Crossing, CrossingRejected, Event, Record
+from app.regression import RegressionFit, SampleRegression
 from app.steady_state import SteadyStateGate
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
+_REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
+
+
+@dataclass(frozen=True)
+class Headline:
+    """The C2n to report: the regression's (linear, at zero a_y) where there is one, else the
+    paired crossings', else the crossings' mean."""
+
+    c2n: float
+    ci95: tuple[float, float]
+    method: str
 
 
 @dataclass
@@ -30,7 +43,19 @@ class SessionState:
     sensor_problem: str | None = None  # why optical samples are being dropped, if they are
     crossings: list[Crossing] = field(default_factory=list)
     rejections: list[CrossingRejected] = field(default_factory=list)
-    combined: Combined | None = None
+    combined: Combined | None = None  # inverse-variance mean of the crossings
+    paired: Paired | None = None  # crossings with misalignment and lag removed
+    regression: RegressionFit | None = None  # every steady sample: the headline C2n
+
+    @property
+    def headline(self) -> Headline | None:
+        if self.regression is not None:
+            return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
+        if self.paired is not None:
+            return Headline(self.paired.c2n, self.paired.ci95, "paired crossings")
+        if self.combined is not None:
+            return Headline(self.combined.c2n, self.combined.ci95, "crossings")
+        return None
 
 
 class Pipeline:
@@ -40,7 +65,9 @@ class Pipeline:
         self.filter = MotionFilter(config.filter, config.vehicle.sensor_lateral_m, frozenset(config.roles))
         self.gate = SteadyStateGate(config.detector)
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
+        self.regression = SampleRegression(config.vehicle.gravity_mps2)
         self.state = SessionState()
+        self._last_fit = -float("inf")
 
     def process(self, msg: can.Message) -> Record | None:
         """Take one frame; return its Record (None for frames that carry no role value)."""
@@ -65,6 +92,11 @@ class Pipeline:
         steady = self.gate.step(record.t, estimate, state.latest.get("steer"), state.sensor_problem)
         events = self.detector.step(record.t, estimate, steady)
         self._collect(events)
+        if steady.steady and estimate.r_radps is not None and estimate.v_meas_mps is not None:
+            self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
+        if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
+            self._last_fit = record.t
+            state.regression = self.regression.fit()
         record = replace(record, estimate=estimate, steady=steady, events=tuple(events))
         state.last = record
         return record
@@ -73,12 +105,15 @@ class Pipeline:
         """End of input: fit pending sign changes. Returns the events this produced."""
         events = self.detector.finish()
         self._collect(events)
+        self.state.regression = self.regression.fit()
         return events
 
     def _collect(self, events: list[Event]) -> None:
         for event in events:
             if isinstance(event, Crossing):
-                self.state.crossings.append(event)
-                self.state.combined = combine(self.state.crossings)
+                state = self.state
+                state.crossings.append(event)
+                state.combined = combine(state.crossings)
+                state.paired = pair(state.crossings, self.config.d_m, self.config.vehicle.gravity_mps2)
             elif isinstance(event, CrossingRejected):
                 self.state.rejections.append(event)

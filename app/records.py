@@ -60,6 +60,8 @@ class Crossing:
     c2n_se: float  # standard error, autocorrelation-corrected
     ci95: tuple[float, float]
     ay_mps2: float  # steady lateral acceleration at the crossing
+    radius_m: float  # signed path radius at the crossing (+ left)
+    sweep_rate_mps2: float  # mean du/dt over the fitted samples (+ up)
     n_samples: int
     method: Literal["v/r", "beta"]  # fitted quantity against u²
 

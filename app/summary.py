@@ -11,8 +11,10 @@ from typing import Any
 from app import __version__
 from app.config import Config
 from app.errors import C2nError
+from app.pairing import Paired
 from app.pipeline import Pipeline
 from app.records import Crossing
+from app.regression import RegressionFit
 from app.sources import LogReport
 
 REQUIRED_ROLES = (("vx",), ("vy", "beta"))
@@ -79,6 +81,26 @@ def warnings(pipeline: Pipeline, reports: Sequence[LogReport] = ()) -> list[str]
             f"the optical data stopped {f.resets - f.time_jumps} times for over "
             f"{config.filter.gap_reset_s:g} s: the filter restarted"
         )
+    fit = pipeline.state.regression
+    if fit is not None and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
+        low, high = fit.d_ci95
+        out.append(
+            f"the fitted sensor position d = {fit.d_m:.3f} m [{low:.3f}, {high:.3f}] disagrees with the "
+            f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
+            "with d; the regression's does not)"
+        )
+    if fit is not None and fit.model == "softening":
+        out.append(
+            f"the tyres soften with slip (t = {fit.softening_t:.1f}): C2n is extrapolated to zero lateral "
+            f"acceleration ({fit.c2n:.3f}; a straight-line fit would give {fit.c2n_linear_model:.3f})"
+        )
+    paired = pipeline.state.paired
+    yaw, yaw_se = (paired.misalignment_rad, paired.misalignment_se) if paired is not None else (None, None)
+    if yaw is not None and yaw_se is not None and abs(yaw) > max(1.96 * yaw_se, math.radians(0.1)):
+        out.append(
+            f"the sensor head looks yawed by {math.degrees(yaw):+.2f}° (left and right turns disagree); "
+            "pairing and the regression remove it, but align the head"
+        )
     rejected = pipeline.state.rejections
     if rejected:
         out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
@@ -110,8 +132,66 @@ def _crossing(c: Crossing, t0: float) -> dict[str, Any]:
         "direction": c.direction,
         "sweep": c.sweep,
         "ay_mps2": _round(c.ay_mps2, 3),
+        "radius_m": _round(c.radius_m, 2),
+        "sweep_rate_mps2": _round(c.sweep_rate_mps2, 3),
         "n_samples": c.n_samples,
         "method": c.method,
+    }
+
+
+def _pair(
+    values: tuple[float, float] | None, scale: float = 1.0, digits: int = 4
+) -> list[float | None] | None:
+    return None if values is None else [_round(v * scale, digits) for v in values]
+
+
+def _regression(fit: RegressionFit | None) -> dict[str, Any] | None:
+    if fit is None:
+        return None
+    deg = math.degrees(1.0)
+    return {
+        "c2n": _round(fit.c2n),
+        "c2n_ci95": _pair(fit.c2n_ci95),
+        "d_m": _round(fit.d_m),
+        "d_ci95": _pair(fit.d_ci95),
+        "psi0_deg": _round(fit.psi0_rad * deg) if fit.psi0_rad is not None else None,
+        "psi0_ci95_deg": _pair(fit.psi0_ci95, deg),
+        "model": fit.model,
+        "softening_t": _round(fit.softening_t, 2),
+        "softening_per_mps2_2": _round(fit.softening_per_mps2_2, 6)
+        if fit.softening_per_mps2_2 is not None
+        else None,
+        "c2n_linear_model": _round(fit.c2n_linear_model),
+        "c2n_softening_model": _round(fit.c2n_softening_model)
+        if fit.c2n_softening_model is not None
+        else None,
+        "n_samples": fit.n_samples,
+        "ay_range_mps2": _pair(fit.ay_range, digits=3),
+    }
+
+
+def _paired(paired: Paired | None) -> dict[str, Any] | None:
+    if paired is None:
+        return None
+    deg = math.degrees(1.0)
+
+    def ci(value: float | None, se: float | None, scale: float = 1.0) -> list[float | None] | None:
+        if value is None or se is None:
+            return None
+        return [_round((value - 1.96 * se) * scale), _round((value + 1.96 * se) * scale)]
+
+    return {
+        "c2n": _round(paired.c2n),
+        "c2n_ci95": _pair(paired.ci95),
+        "misalignment_deg": _round(paired.misalignment_rad * deg)
+        if paired.misalignment_rad is not None
+        else None,
+        "misalignment_ci95_deg": ci(paired.misalignment_rad, paired.misalignment_se, deg),
+        "lag_s": _round(paired.lag_s) if paired.lag_s is not None else None,
+        "lag_ci95_s": ci(paired.lag_s, paired.lag_se),
+        "cells": {key: _round(value) for key, value in paired.cells.items()},
+        "n": paired.n,
+        "birge_ratio": _round(paired.birge_ratio, 3),
     }
 
 
@@ -120,14 +200,17 @@ def build(pipeline: Pipeline, inputs: Sequence[str], reports: Sequence[LogReport
     config = pipeline.config
     t0 = state.t_first or 0.0
     combined = state.combined
+    headline = state.headline
     g, d = config.vehicle.gravity_mps2, config.d_m
     counts = pipeline.decoder.counts
     return {
-        "c2n": _round(combined.c2n) if combined else None,
-        "c2n_ci95": [_round(v) for v in combined.ci95] if combined else None,
-        "u0_mps": _round(math.sqrt(combined.c2n * g * d)) if combined else None,
+        "c2n": _round(headline.c2n) if headline else None,
+        "c2n_ci95": _pair(headline.ci95) if headline else None,
+        "c2n_method": headline.method if headline else None,
+        "u0_mps": _round(math.sqrt(headline.c2n * g * d)) if headline else None,
         "crossings": [_crossing(c, t0) for c in state.crossings],
-        "regression": None,
+        "regression": _regression(state.regression),
+        "paired": _paired(state.paired),
         "frames": counts.as_dict(),
         "warnings": warnings(pipeline, reports),
         "combined": {

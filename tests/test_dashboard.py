@@ -7,7 +7,7 @@ from app.pipeline import Pipeline
 from app.records import SteadyState
 
 
-def render(dashboard: Dashboard, width: int = 130) -> str:
+def render(dashboard: Dashboard, width: int = 200) -> str:
     console = Console(record=True, width=width, force_terminal=False)
     console.print(dashboard)
     return console.export_text()
@@ -27,7 +27,10 @@ def test_dashboard_after_a_drive(analysed: Pipeline) -> None:
         "Frames",
     ):
         assert label in text, label
-    assert "C2n = " in text and "from 4 crossings" in text
+    assert "C2n = " in text and "regression over" in text and "4 paired crossings" in text
+    fit = analysed.state.regression
+    assert fit is not None and f"d {fit.d_m:.3f} m" in text and "(config 1.11)" in text
+    assert "pairing: head misalignment" in text and "lag" in text
     assert "0x7E5" in text and "Correvit" in text and "0x415" in text and "BrakeSysFeatures" in text
     assert f"total {analysed.decoder.counts.total}" in text
     last = analysed.state.crossings[-1]

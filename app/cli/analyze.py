@@ -41,9 +41,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     result = summary.build(pipeline, [str(p) for p in args.logs], source.reports)
     if args.json:
         summary.write(args.json, result)
-    console.print(
-        Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold")
-    )
+    console.print(Text(result_line(pipeline.state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
     errors = error_console()
     for warning in result["warnings"]:
         errors.print(f"c2n: warning: {warning}", markup=False)

@@ -96,10 +96,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 player.join(timeout=5.0)
     if player.error is not None:
         raise C2nError(f"the replay failed: {player.error}")
-    combined = pipeline.state.combined
-    console.print(Text(result_line(combined, config.vehicle.gravity_mps2, config.d_m), style="bold"))
-    if combined is not None:
-        error = 100.0 * (combined.c2n / truth["c2n"] - 1.0)
+    headline = pipeline.state.headline
+    console.print(Text(result_line(pipeline.state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    if headline is not None:
+        error = 100.0 * (headline.c2n / truth["c2n"] - 1.0)
         console.print(
             Text(
                 f"simulated truth C2n = {truth['c2n']:.3f} 1/rad (u0 = {truth['u0_mps']:.3f} m/s): "

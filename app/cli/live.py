@@ -93,9 +93,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             recorder.close(result)
         if args.json:
             summary.write(args.json, result)
-    console.print(
-        Text(result_line(pipeline.state.combined, config.vehicle.gravity_mps2, config.d_m), style="bold")
-    )
+    console.print(Text(result_line(pipeline.state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
     if recorder is not None:
         console.print(f"session saved in {recorder.folder}", style="dim")
     return 0

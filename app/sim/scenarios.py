@@ -55,6 +55,22 @@ def constant_radius(plan: SweepPlan, radius_m: float | None = None) -> Scenario:
     return _sweeps("constant_radius", plan, lambda sign: Steer("radius", sign * radius))
 
 
+def radii(plan: SweepPlan, factors: tuple[float, ...] = (1.0, 2.0)) -> Scenario:
+    """Constant-radius sweeps at several radii (multiples of the radius whose top speed gives
+    ay_max): lateral acceleration spans a wider range, so tyre softening shows (DESIGN §1)."""
+    base = plan.speed_hi_mps**2 / plan.ay_max_mps2
+    segments: list[Segment] = []
+    for factor in factors:
+        radius = factor * base
+
+        def turn(sign: int, radius: float = radius) -> Steer:
+            return Steer("radius", sign * radius)
+
+        part = _sweeps("radii", plan, turn)
+        segments += part.segments if not segments else part.segments[1:]
+    return Scenario("radii", plan.speed_lo_mps, tuple(segments))
+
+
 def constant_steer(plan: SweepPlan, wheel_deg: float | None = None) -> Scenario:
     """Constant steering-wheel angle, speed swept up then down (the paper's Fig. 2)."""
     if wheel_deg is None:
@@ -120,6 +136,7 @@ def step_steer(
 
 SCENARIOS: dict[str, Callable[[SweepPlan], Scenario]] = {
     "constant_radius": constant_radius,
+    "radii": radii,
     "constant_steer": constant_steer,
     "step_steer": step_steer,
 }

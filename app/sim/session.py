@@ -12,7 +12,7 @@ from app import paper
 from app.config import Config
 from app.dbc import load_dbc
 from app.errors import C2nError, LogFileError
-from app.sim.drive import simulate
+from app.sim.drive import DriveTrace, simulate
 from app.sim.scenarios import SCENARIOS, SweepPlan
 from app.sim.sensors import SensorSetup, frames
 from app.sim.vehicle_model import BicycleParams, TyreModel
@@ -39,6 +39,7 @@ class DriveOptions:
 class SimulatedDrive:
     messages: list[can.Message]
     truth: dict[str, Any]
+    trace: DriveTrace | None = None  # the motion itself, for checking estimates against it
 
 
 def simulate_drive(config: Config, options: DriveOptions = DriveOptions()) -> SimulatedDrive:
@@ -93,7 +94,7 @@ def simulate_drive(config: Config, options: DriveOptions = DriveOptions()) -> Si
             "c2_n_per_rad": params.c2_n_per_rad,
         },
     }
-    return SimulatedDrive(messages, truth)
+    return SimulatedDrive(messages, truth, trace)
 
 
 def truth_path(log: Path) -> Path:

@@ -98,6 +98,7 @@ class RoleSpec:
     unit: str  # the decoded unit (from [units] or the DBC)
     si_factor: float  # unit conversion to the role's internal unit
     channel: ChannelSpec | None
+    resolution: float = 0.0  # one DBC bit in the role's SI unit
 
     @property
     def name(self) -> str:
@@ -348,7 +349,10 @@ def _roles(path: Path, table: dict[str, Any], dbcs: tuple[Dbc, ...]) -> dict[str
         channel = value.get("channel", dbc.channel)
         if channel is not None and (not isinstance(channel, int | str) or isinstance(channel, bool)):
             raise ConfigError(f"{path}: {where} channel must be a channel name or number, got {channel!r}")
-        roles[role] = RoleSpec(role, message.name, signal.name, float(scale), unit, factor, channel)
+        resolution = abs(float(signal.scale) * float(scale) * factor) if not signal.is_float else 0.0
+        roles[role] = RoleSpec(
+            role, message.name, signal.name, float(scale), unit, factor, channel, resolution
+        )
     return roles
 
 

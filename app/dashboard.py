@@ -100,6 +100,10 @@ class Dashboard:
         steer = state.latest.get("steer")
         table.add_row("steering", f"{math.degrees(steer):+6.1f}°" if steer is not None else "—")
         table.add_row("filter health", f"{e.health:5.2f}")
+        noise = self.pipeline.filter.noise_sigma()
+        table.add_row(
+            "optical noise", f"σ {noise['vx_mps'] * 1000:.0f} / {noise['lateral_mps'] * 1000:.0f} mm/s"
+        )
         return Panel(table, title="Motion")
 
     def _status(self) -> RenderableType:
@@ -159,12 +163,16 @@ class Dashboard:
                 )
             )
         paired = state.paired
-        if paired is not None and (paired.misalignment_rad is not None or paired.lag_s is not None):
+        if paired is not None:
             parts = []
             if paired.misalignment_rad is not None:
                 parts.append(f"head misalignment {math.degrees(paired.misalignment_rad):+.2f}°")
+            else:
+                parts.append("misalignment not removed yet (turn the other way too)")
             if paired.lag_s is not None:
                 parts.append(f"lag {paired.lag_s * 1000:+.0f} ms")
+            else:
+                parts.append("lag not removed yet (sweep the other way too)")
             lines.append(Text("pairing: " + ", ".join(parts)))
         rejected = len(state.rejections)
         if rejected:

@@ -28,6 +28,8 @@ _YAW_TIMEOUT_S = 0.5  # yaw information older than this leaves r unobserved
 _HEALTH_ALPHA = 0.02  # memory of the health figure: about 50 updates
 _MIN_SPEED_FOR_ANGLE = 1.0  # m/s: below this the angle says nothing about v
 _MAX_CONSECUTIVE_REJECTS = 3  # a sensor rejected this often in a row is right and the model wrong
+_NOISE_ALPHA = 0.002  # memory of the measured noise: about 500 optical frames
+_NOISE_CEILING = 5.0  # the measured noise may grow to this many times the configured σ
 
 
 @dataclass
@@ -39,9 +41,20 @@ class FilterCounts:
 
 
 class MotionFilter:
-    def __init__(self, settings: FilterSettings, sensor_lateral_m: float, roles: frozenset[str]) -> None:
+    def __init__(
+        self,
+        settings: FilterSettings,
+        sensor_lateral_m: float,
+        roles: frozenset[str],
+        resolutions: dict[str, float] | None = None,
+    ) -> None:
         self.settings = settings
         self.roles = roles
+        # Noise model: the measured noise of each optical channel (velocity-equivalent, m²/s²),
+        # never below the quantisation of one DBC bit (res²/12).
+        self.resolutions = resolutions or {}
+        sigma2 = settings.sigma_velocity_mps**2
+        self.noise_var = {"vx": sigma2, "lateral": sigma2}
         self.has_yaw = "yaw_rate" in roles or "ay" in roles
         # Without yaw information the lateral offset cannot be corrected (r is not observable).
         self.y_s = sensor_lateral_m if self.has_yaw else 0.0
@@ -53,6 +66,8 @@ class MotionFilter:
         self._t_yaw = -math.inf
         self._last_ay: float | None = None
         self._rejects: dict[str, int] = {}  # consecutive gate rejections per sensor
+        self._angle = False  # this frame's lateral measurement is the angle
+        self.last_transition: tuple[np.ndarray, np.ndarray] = _IDENTITY  # F, Q of the last step (smoother)
 
     # -- time ------------------------------------------------------------------------------
     def _reset(self) -> None:
@@ -85,6 +100,7 @@ class MotionFilter:
             dt, self.settings.q_u, self.settings.q_v, self.settings.q_r if self.has_yaw else 0.0
         )
         self.kf.predict(F=f, Q=q)
+        self.last_transition = (f, q)
 
     # -- one frame -------------------------------------------------------------------------
     def step(self, record: Record) -> Estimate | None:
@@ -109,6 +125,7 @@ class MotionFilter:
                 self._t_yaw = t
             return self._estimate(t, None, s.get("ay"))
         dt = t - self._t
+        self.last_transition = _IDENTITY  # no time passed, unless predicted below
         if dt < 0:
             self.counts.late_frames += 1
         elif dt > 0:
@@ -126,27 +143,26 @@ class MotionFilter:
         u, v, r = x[0], x[2], x[4]
         u_s = u - r * self.y_s  # the head's own longitudinal velocity
         rows: list[tuple[float, np.ndarray, float, str]] = []  # (z, H row, R, kind)
-        sigma_v = self.settings.sigma_velocity_mps
         if "vx" in s:
-            rows.append((s["vx"], _row(u=1.0, r=-self.y_s), sigma_v**2, "vx"))
+            rows.append((s["vx"], _row(u=1.0, r=-self.y_s), self._variance("vx", "vx", 1.0), "vx"))
         lateral = self._lateral_source(s, u_s)
+        self._angle = lateral == "beta"
         v_meas = None
         if lateral == "vy":
             v_meas = s["vy"]
-            rows.append((v_meas, _row(v=1.0), sigma_v**2, "lateral"))
+            rows.append((v_meas, _row(v=1.0), self._variance("lateral", "vy", 1.0), "lateral"))
         elif lateral == "beta":
             beta = s["beta"]
             v_meas = u_s * math.tan(beta)
             n2 = u_s * u_s + v * v
             h = math.atan2(v, u_s)
             jac = _row(u=-v / n2, v=u_s / n2, r=v * self.y_s / n2)
-            sigma_b = (
-                math.radians(self.settings.sigma_beta_deg)
-                if self.settings.sigma_beta_deg is not None
-                else sigma_v / abs(u_s)
-            )
+            if self.settings.sigma_beta_deg is not None:
+                variance = math.radians(self.settings.sigma_beta_deg) ** 2
+            else:  # the angle's noise is the lateral velocity's over the speed
+                variance = self._variance("lateral", "beta", abs(u_s)) / (u_s * u_s)
             # pseudo-measurement: filterpy forms y = z − Hx, the EKF needs y = z − h(x)
-            rows.append((beta - h + float(jac @ x), jac, sigma_b**2, "lateral"))
+            rows.append((beta - h + float(jac @ x), jac, variance, "lateral"))
         if "speed" in s:
             rows.append((s["speed"], _row(u=1.0), self.settings.sigma_speed_mps**2, "speed"))
         if "yaw_rate" in s:
@@ -171,6 +187,22 @@ class MotionFilter:
             return "vy"
         return None
 
+    def _variance(self, kind: str, role: str, speed: float) -> float:
+        """Measured noise variance (velocity-equivalent), floored at one DBC bit's quantisation."""
+        floor = (self.resolutions.get(role, 0.0) * speed) ** 2 / 12.0
+        return max(self.noise_var[kind], floor)
+
+    def _learn_noise(self, kind: str, innovation2: float, hph: float, speed: float) -> None:
+        """E[y²] = HPHᵀ + R: follow R from the innovations (velocity-equivalent units)."""
+        sample = (innovation2 - hph) * (speed * speed if kind == "lateral" and self._angle else 1.0)
+        ceiling = (_NOISE_CEILING * self.settings.sigma_velocity_mps) ** 2
+        value = self.noise_var[kind] + _NOISE_ALPHA * (sample - self.noise_var[kind])
+        self.noise_var[kind] = min(max(value, 0.0), ceiling)
+
+    def noise_sigma(self) -> dict[str, float]:
+        """The measured noise of the optical channels (standard deviations, m/s)."""
+        return {f"{kind}_mps": math.sqrt(value) for kind, value in self.noise_var.items()}
+
     def _gate(
         self, rows: list[tuple[float, np.ndarray, float, str]]
     ) -> list[tuple[float, np.ndarray, float, str]]:
@@ -183,7 +215,8 @@ class MotionFilter:
         for row in rows:
             z, h, r, kind = row
             innovation = z - float(h @ x)
-            nis = innovation * innovation / (float(h @ p @ h) + r)
+            hph = float(h @ p @ h)
+            nis = innovation * innovation / (hph + r)
             if nis > self.settings.innovation_gate and self._rejects.get(kind, 0) < _MAX_CONSECUTIVE_REJECTS:
                 self.counts.outliers += 1
                 self._rejects[kind] = self._rejects.get(kind, 0) + 1
@@ -192,6 +225,8 @@ class MotionFilter:
             kept.append(row)
             if kind in ("vx", "lateral"):
                 optical_nis.append(nis)
+                if self.settings.sigma_beta_deg is None or kind == "vx" or not self._angle:
+                    self._learn_noise(kind, innovation * innovation, hph, abs(x[0] - x[4] * self.y_s))
         if optical_nis:
             self.health += _HEALTH_ALPHA * (sum(optical_nis) / len(optical_nis) - self.health)
         return kept
@@ -222,6 +257,9 @@ class MotionFilter:
             v_meas_mps=v_meas,
             sideslip_meas_rad=sideslip_meas,
         )
+
+
+_IDENTITY = (np.eye(6), np.zeros((6, 6)))
 
 
 def transition(dt: float, q_u: float, q_v: float, q_r: float) -> tuple[np.ndarray, np.ndarray]:

@@ -33,6 +33,15 @@ class Paired:
     birge_ratio: float
 
     @property
+    def cancels(self) -> tuple[str, ...]:
+        """What the pairing removed: a misalignment needs both directions, a lag both sweeps."""
+        return tuple(
+            name
+            for name, value in (("misalignment", self.misalignment_rad), ("lag", self.lag_s))
+            if value is not None
+        )
+
+    @property
     def ci95(self) -> tuple[float, float]:
         return (self.c2n - 1.96 * self.se, self.c2n + 1.96 * self.se)
 

@@ -62,7 +62,12 @@ class Pipeline:
     def __init__(self, config: Config) -> None:
         self.config = config
         self.decoder = Decoder(config)
-        self.filter = MotionFilter(config.filter, config.vehicle.sensor_lateral_m, frozenset(config.roles))
+        self.filter = MotionFilter(
+            config.filter,
+            config.vehicle.sensor_lateral_m,
+            frozenset(config.roles),
+            {role: spec.resolution for role, spec in config.roles.items()},
+        )
         self.gate = SteadyStateGate(config.detector)
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
         self.regression = SampleRegression(config.vehicle.gravity_mps2)

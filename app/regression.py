@@ -105,11 +105,10 @@ class SampleRegression:
         if not self._open:
             return
         xtx, xty = self._open_stats()
+        if self._blocks >= self.max_blocks:
+            self._merge_pairs()
         if self._blocks == len(self._n):
-            if self._blocks >= self.max_blocks:
-                self._merge_pairs()
-            else:
-                self._grow()
+            self._grow()
         i = self._blocks
         self._xtx[i] = xtx
         self._xty[i] = xty

@@ -189,6 +189,7 @@ def _paired(paired: Paired | None) -> dict[str, Any] | None:
         "misalignment_ci95_deg": ci(paired.misalignment_rad, paired.misalignment_se, deg),
         "lag_s": _round(paired.lag_s) if paired.lag_s is not None else None,
         "lag_ci95_s": ci(paired.lag_s, paired.lag_se),
+        "cancels": list(paired.cancels),
         "cells": {key: _round(value) for key, value in paired.cells.items()},
         "n": paired.n,
         "birge_ratio": _round(paired.birge_ratio, 3),
@@ -241,7 +242,11 @@ def build(pipeline: Pipeline, inputs: Sequence[str], reports: Sequence[LogReport
                 counts.by_id.items(), key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])
             )
         ],
-        "filter": asdict(pipeline.filter.counts) | {"health": _round(pipeline.filter.health, 3)},
+        "filter": asdict(pipeline.filter.counts)
+        | {
+            "health": _round(pipeline.filter.health, 3),
+            "noise": {k: _round(v, 5) for k, v in pipeline.filter.noise_sigma().items()},
+        },
         "version": __version__,
     }
 

@@ -215,4 +215,8 @@ def test_a_role_can_name_its_own_channel(write_config: Callable[[str], Path]) ->
     assert rec is not None and rec.signals["yaw_rate"] == pytest.approx(math.radians(5.0))
     assert decoder.counts.role_frames["yaw_rate"] == 1
     counts = decoder.counts
-    assert (counts.other_channel, counts.used, counts.unused) == (1, 1, 1)  # no [sensor_status]: Status unused
+    assert (counts.other_channel, counts.used, counts.unused) == (
+        1,
+        1,
+        1,
+    )  # no [sensor_status]: Status unused

@@ -116,3 +116,23 @@ def test_bad_sensor_status_is_never_used(config: Config) -> None:
     assert len(crossings) == 3
     assert pipeline.decoder.counts.rejected["Status.HeadStatus=0 (needs 1) (vx, vy, beta)"] > 500
     assert pipeline.state.combined is not None and abs(pipeline.state.combined.c2n / 14.0 - 1) <= 0.01
+
+
+def test_misaligned_head_on_two_radii(config: Config) -> None:
+    """A head yawed 0.3° left: raw left and right crossings are tens of per cent off; the regression
+    (ψ0 = −0.3°) and the paired crossings (misalignment +0.3°) are within 1 %."""
+    drive = cached_drive("radii", 25, 14.6, yaw_misalignment_deg=0.3)
+    pipeline = run_pipeline(config, drive)
+    fit, paired = pipeline.state.regression, pipeline.state.paired
+    assert fit is not None and paired is not None
+    assert abs(fit.c2n / 14.6 - 1) <= 0.01 and fit.c2n_ci95[0] <= 14.6 <= fit.c2n_ci95[1]
+    assert fit.psi0_rad is not None and math.degrees(fit.psi0_rad) == pytest.approx(-0.3, abs=0.01)
+    assert abs(fit.d_m - 1.11) < 0.02
+    assert abs(paired.c2n / 14.6 - 1) <= 0.01
+    assert paired.misalignment_rad is not None and math.degrees(paired.misalignment_rad) == pytest.approx(
+        0.3, abs=0.02
+    )
+    lefts = [c.c2n for c in pipeline.state.crossings if c.direction == "left"]
+    rights = [c.c2n for c in pipeline.state.crossings if c.direction == "right"]
+    assert max(lefts) < 0.8 * 14.6 and min(rights) > 1.2 * 14.6
+    assert pipeline.state.headline is not None and pipeline.state.headline.method == "regression"

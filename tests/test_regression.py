@@ -1,0 +1,111 @@
+"""The every-sample regression against eq. 6 (with offset and softening) in closed form."""
+
+import math
+
+import numpy as np
+import pytest
+
+from app import paper
+from app.regression import SampleRegression
+
+G = 9.81
+
+
+def sweep_samples(
+    c2n: float, d: float, psi0: float, radii: tuple[float, ...], softening: float = 0.0, hz: float = 50.0
+):
+    """(t, u, r, v) for speed sweeps up and down on each signed radius, with the sideslip at the
+    sensor β = ψ0 + d·κ − α2, α2 = a_y/(g·C2n)·(1 + s·a_y²) (eq. 6 with offset and softening)."""
+    u0 = paper.crossing_speed(c2n, d, G)
+    t = 0.0
+    for radius in radii:
+        speeds = np.concatenate(
+            [np.linspace(0.6 * u0, 1.4 * u0, int(40 * hz)), np.linspace(1.4 * u0, 0.6 * u0, int(40 * hz))]
+        )
+        for u in speeds:
+            r = u / radius
+            ay = u * r
+            beta = psi0 + d * r / u - ay / (G * c2n) * (1 + softening * ay * ay)
+            yield t, float(u), float(r), float(u * beta)
+            t += 1.0 / hz
+        t += 5.0
+
+
+def fitted(samples, **kwargs):
+    regression = SampleRegression(G, **kwargs)
+    for t, u, r, v in samples:
+        regression.add(t, u, r, v)
+    return regression.fit()
+
+
+def test_recovers_c2n_d_and_offset_exactly() -> None:
+    fit = fitted(sweep_samples(14.99, 1.11, math.radians(-0.3), (80.0, -80.0)))
+    assert fit is not None and fit.model == "linear"
+    assert fit.c2n == pytest.approx(14.99, rel=1e-9)
+    assert fit.d_m == pytest.approx(1.11, rel=1e-9)
+    assert fit.psi0_rad == pytest.approx(math.radians(-0.3), abs=1e-12)
+    assert fit.ay_range[1] == pytest.approx((1.4 * paper.crossing_speed(14.99, 1.11)) ** 2 / 80.0, rel=1e-6)
+
+
+def test_softening_is_found_and_c2n_is_the_slope_at_zero() -> None:
+    """A tyre that softens with slip: the straight line reads low, the fit extrapolates to a_y = 0."""
+    rng = np.random.default_rng(5)
+    samples = [
+        (t, u, r, v + rng.normal(0, 0.005))
+        for t, u, r, v in sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0, 120.0, -120.0), softening=0.002)
+    ]
+    fit = fitted(samples)
+    assert fit is not None and fit.model == "softening" and fit.softening_t < -5
+    assert fit.c2n == pytest.approx(12.0, rel=0.005)
+    assert fit.softening_per_mps2_2 == pytest.approx(0.002, rel=0.1)
+    assert fit.c2n_linear_model < 0.98 * 12.0  # what ignoring it would have said
+
+
+def test_stiffening_is_not_taken_for_softening() -> None:
+    fit = fitted(sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0), softening=-0.002))
+    assert fit is not None and fit.model == "linear"
+
+
+def test_one_direction_one_radius_cannot_tell_offset_from_d() -> None:
+    fit = fitted(sweep_samples(14.0, 1.0, 0.0, (70.0,)))
+    assert fit is not None and fit.psi0_rad is None
+    assert fit.c2n == pytest.approx(14.0, rel=1e-9) and fit.d_m == pytest.approx(1.0, rel=1e-9)
+
+
+def test_two_radii_one_direction_do_tell_them_apart() -> None:
+    fit = fitted(sweep_samples(14.0, 1.0, math.radians(0.2), (70.0, 140.0)))
+    assert fit is not None and fit.psi0_rad == pytest.approx(math.radians(0.2), abs=1e-12)
+
+
+def test_too_little_data_gives_no_fit() -> None:
+    assert fitted(list(sweep_samples(14.0, 1.0, 0.0, (70.0,)))[:100]) is None
+
+
+def test_merging_old_blocks_keeps_the_estimate() -> None:
+    """Memory is bounded by merging the oldest blocks; the sums, so the fit, do not change."""
+    rng = np.random.default_rng(2)
+    samples = [
+        (t, u, r, v + rng.normal(0, 0.01)) for t, u, r, v in sweep_samples(13.0, 1.1, 0.0, (80.0, -80.0))
+    ]
+    full = fitted(samples, max_blocks=4096)
+    merged = fitted(samples, max_blocks=64)
+    assert full is not None and merged is not None
+    assert merged.n_blocks <= 64 < full.n_blocks
+    assert merged.c2n == pytest.approx(full.c2n, rel=1e-12)
+    assert merged.c2n_se == pytest.approx(full.c2n_se, rel=0.5)  # coarser blocks, similar honesty
+
+
+def test_interval_covers_the_truth_with_autocorrelated_noise() -> None:
+    covered = 0
+    trials = 60
+    for seed in range(trials):
+        rng = np.random.default_rng(seed)
+        samples = list(sweep_samples(13.0, 1.1, 0.0, (80.0, -80.0)))
+        noise = np.zeros(len(samples))
+        white = rng.normal(0, 0.02, len(samples))
+        for i in range(1, len(noise)):
+            noise[i] = 0.7 * noise[i - 1] + white[i]
+        fit = fitted([(t, u, r, v + e) for (t, u, r, v), e in zip(samples, noise, strict=True)])
+        assert fit is not None
+        covered += fit.c2n_ci95[0] <= 13.0 <= fit.c2n_ci95[1]
+    assert 0.88 <= covered / trials <= 1.0

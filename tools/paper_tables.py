@@ -46,26 +46,28 @@ def paper_car_config() -> Config:
     return dataclasses.replace(config, vehicle=vehicle)
 
 
-def constant_steer_sweep(wheel_road_deg: float, plan: SweepPlan) -> Scenario:
-    """Fixed road-wheel angle, speed swept up and down through u0, left then right."""
+def constant_steer_sweep(road_wheel_deg: tuple[float, ...], plan: SweepPlan) -> Scenario:
+    """Fixed road-wheel angles one after another (Fig. 2), the speed swept up and down through u0
+    at each, left then right."""
     lo, hi = plan.speed_lo_mps, plan.speed_hi_mps
     sweep_s = (hi - lo) / plan.sweep_mps2
     segments = [Segment(3.0, lo, Steer("straight"))]
-    for sign in (1, -1):
-        turn = Steer("wheel", sign * math.radians(wheel_road_deg) * plan.steering_ratio)
-        segments += [
-            Segment(6.0, lo, turn),
-            Segment(sweep_s, hi, turn),
-            Segment(2.0, hi, turn),
-            Segment(sweep_s, lo, turn),
-            Segment(2.0, lo, turn),
-            Segment(4.0, lo, Steer("straight")),
-        ]
+    for angle in road_wheel_deg:
+        for sign in (1, -1):
+            turn = Steer("wheel", sign * math.radians(angle) * plan.steering_ratio)
+            segments += [
+                Segment(6.0, lo, turn),
+                Segment(sweep_s, hi, turn),
+                Segment(2.0, hi, turn),
+                Segment(sweep_s, lo, turn),
+                Segment(2.0, lo, turn),
+                Segment(4.0, lo, Steer("straight")),
+            ]
     return Scenario("constant_steer", lo, tuple(segments))
 
 
-def run_paper_car(job: tuple[str, float, int]) -> tuple[str, float, SessionState]:
-    kind, value, seed = job
+def run_paper_car(job: tuple[str, tuple[float, ...], int]) -> tuple[str, tuple[float, ...], SessionState]:
+    kind, angles, seed = job
     from app.sim.vehicle_model import BicycleParams
 
     config = paper_car_config()
@@ -73,10 +75,10 @@ def run_paper_car(job: tuple[str, float, int]) -> tuple[str, float, SessionState
     u0 = paper.crossing_speed(C2N_TRUTH, D2)
     plan = SweepPlan(params, 15.0, 0.55 * u0, 1.45 * u0, sweep_mps2=0.3)
     if kind == "constant steering":
-        scenario = constant_steer_sweep(value, plan)
+        scenario = constant_steer_sweep(angles, plan)
     else:
         speeds = tuple(float(s) for s in np.arange(4.0, 16.01, 1.0))
-        scenario = step_steer(plan, speeds_mps=speeds, wheel_deg=value * plan.steering_ratio)
+        scenario = step_steer(plan, speeds_mps=speeds, wheel_deg=angles[0] * plan.steering_ratio)
     trace = simulate(params, scenario, 15.0)
     setup = SensorSetup(d_m=D2)
     kistler = load_dbc(DBC_DIR / "kistler_smotion.dbc").database
@@ -85,7 +87,7 @@ def run_paper_car(job: tuple[str, float, int]) -> tuple[str, float, SessionState
     for message in frames(trace, setup, kistler, ford, np.random.default_rng(seed)):
         pipeline.process(message)
     pipeline.finish()
-    return kind, value, pipeline.state
+    return kind, angles, pipeline.state
 
 
 def run_mondeo(job: tuple[float, int]) -> tuple[float, SessionState]:
@@ -114,33 +116,35 @@ def describe(state: SessionState) -> str:
 
 def main() -> None:
     angles = (1.0, 2.0, 3.0, 5.0)
-    jobs = [("constant steering", a, 1) for a in angles] + [("step steer", 2.0, 2)]
+    jobs = [("constant steering", angles, 1), ("step steer", (2.0,), 2)]
+    jobs += [("constant steering", (a,), 10 + i) for i, a in enumerate(angles)]  # each angle alone
     with ProcessPoolExecutor(2) as pool:
         table1 = list(pool.map(run_paper_car, jobs))
         table2 = list(pool.map(run_mondeo, [(14.87, 3), (15.63, 4)]))
 
     print(f"Table 1 — simulated car, tyre model C2n = {C2N_TRUTH:.2f} 1/rad (truth), d2 = {D2:.3f} m")
-    print(f"{'method':<32}{'paper':>8}   ours (error against the truth)")
-    print(f"{'tyre model (eqs. 8–9)':<32}{11.37:>8.2f}   {C2N_TRUTH:.2f}")
-    best = {}
-    for kind, value, state in table1:
-        label = f"{kind}, {value:g}° road wheel"
+    print(f"{'':<40}{'paper':>8}   ours: session headline, and the crossings (error against the truth)")
+    print(f"{'tyre model (eqs. 8–9)':<40}{11.37:>8.2f}   {C2N_TRUTH:.2f}")
+    for kind, used, state in table1:
         paper_value = 10.97 if kind == "constant steering" else 11.60
-        print(f"{label:<32}{paper_value:>8.2f}   {describe(state)}")
-        head = state.headline
-        if head is not None:
-            best.setdefault(kind, []).append(head.c2n)
-    for kind, paper_value in (("constant steering", 10.97), ("step steer", 11.60)):
-        ours = best.get(kind)
-        if ours:
-            value = float(np.median(ours))
-            closer = abs(value - C2N_TRUTH) < abs(paper_value - C2N_TRUTH)
-            paper_error, our_error = 100 * (paper_value / C2N_TRUTH - 1), 100 * (value / C2N_TRUTH - 1)
-            verdict = "closer to" if closer else "NOT closer to"
-            print(
-                f"{kind}: paper {paper_value:.2f} ({paper_error:+.1f} %), ours {value:.2f} "
-                f"({our_error:+.1f} %, median headline over the angles) — {verdict} {C2N_TRUTH:.2f}"
+        if len(used) > 1 or kind == "step steer":
+            label = f"{kind}, {'/'.join(f'{a:g}' for a in used)}° road wheel"
+            head = state.headline
+            if head is None:
+                print(f"{label:<40}{paper_value:>8.2f}   no result")
+                continue
+            error, paper_error = 100 * (head.c2n / C2N_TRUTH - 1), 100 * (paper_value / C2N_TRUTH - 1)
+            verdict = (
+                "closer to the truth"
+                if abs(head.c2n - C2N_TRUTH) < abs(paper_value - C2N_TRUTH)
+                else "NOT closer"
             )
+            comparison = f"({error:+.1f} % vs the paper's {paper_error:+.1f} %: {verdict})"
+            print(f"{label:<40}{paper_value:>8.2f}   {head.c2n:6.2f} {comparison}")
+            print(f"{'':<48}   {describe(state)}")
+        else:
+            alone = f"  at {used[0]:g}° alone (crossings at its a_y)"
+            print(f"{alone:<40}{'':>8}   {describe(state)}")
     print()
     print("Table 2 — Ford Mondeo, d = 1.11 m")
     columns = f"{'tyre':<10}{'paper estimated':>16}{'eq. 10 here':>13}{'test rig':>10}{'paper error':>13}"

@@ -152,8 +152,12 @@ _SECTIONS = {
 }
 
 
-def load_config(path: Path | str = DEFAULT_CONFIG) -> Config:
-    """Read, validate and resolve a vehicle config (and load its DBCs)."""
+def load_config(path: Path | str = DEFAULT_CONFIG, dbc_dir: Path | None = None) -> Config:
+    """Read, validate and resolve a vehicle config (and load its DBCs).
+
+    ``dbc_dir`` takes each DBC by its file name from that folder instead of the path the config
+    gives: a recorded session keeps copies of the config and its DBCs side by side.
+    """
     path = Path(path)
     try:
         with path.open("rb") as file:
@@ -164,10 +168,10 @@ def load_config(path: Path | str = DEFAULT_CONFIG) -> Config:
         raise ConfigError(f"{path}: not valid TOML ({error}) — fix the syntax") from None
     except OSError as error:
         raise ConfigError(f"{path}: cannot read ({error.strerror})") from None
-    return _build(path, table)
+    return _build(path, table, dbc_dir)
 
 
-def _build(path: Path, table: dict[str, Any]) -> Config:
+def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Config:
     _check_keys(path, "", table, _SECTIONS)
     vehicle = _dataclass_from(path, "vehicle", Vehicle, _section(path, table, "vehicle", required=True))
     if vehicle.sensor_ahead_of_rear_axle_m <= 0:
@@ -178,7 +182,7 @@ def _build(path: Path, table: dict[str, Any]) -> Config:
     tyres = _dataclass_from(path, "tyres", Tyres, _section(path, table, "tyres"))
     detector = _dataclass_from(path, "detector", DetectorSettings, _section(path, table, "detector"))
     filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
-    dbcs = _load_dbcs(path, table)
+    dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(
         path, table, "beta_status", ("beta",), dbcs
@@ -246,16 +250,20 @@ def _type_name(option: Any) -> str:
     return {float: "a number", int: "an integer", str: "a string"}.get(option, str(option))
 
 
-def _load_dbcs(path: Path, table: dict[str, Any]) -> tuple[Dbc, ...]:
+def _load_dbcs(path: Path, table: dict[str, Any], dbc_dir: Path | None) -> tuple[Dbc, ...]:
     section = _section(path, table, "dbc", required=True)
     _check_keys(path, "dbc", section, ["files"])
     files = section.get("files")
     if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
         raise ConfigError(f'{path}: [dbc] files must be a list of DBC paths, e.g. files = ["../dbc/x.dbc"]')
     channels = _section(path, table, "channels")
-    resolved = {name: (path.parent / name).resolve() for name in files}
+
+    def locate(name: str) -> Path:
+        return (dbc_dir / Path(name).name).resolve() if dbc_dir else (path.parent / name).resolve()
+
+    resolved = {name: locate(name) for name in files}
     for key, channel in channels.items():
-        if key not in resolved and (path.parent / key).resolve() not in resolved.values():
+        if key not in resolved and locate(key) not in resolved.values():
             raise ConfigError(
                 f"{path}: [channels] names '{key}', which is not in [dbc] files — use one of {files}"
             )
@@ -263,7 +271,7 @@ def _load_dbcs(path: Path, table: dict[str, Any]) -> tuple[Dbc, ...]:
             raise ConfigError(f"{path}: [channels] '{key}' must be a channel name or number, got {channel!r}")
     dbcs = []
     for dbc_path in resolved.values():
-        channel = next((c for k, c in channels.items() if (path.parent / k).resolve() == dbc_path), None)
+        channel = next((c for k, c in channels.items() if locate(k) == dbc_path), None)
         dbcs.append(load_dbc(dbc_path, channel))
     _check_id_collisions(path, dbcs)
     return tuple(dbcs)

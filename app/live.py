@@ -15,7 +15,7 @@ from rich.text import Text
 from app.event_line import crossing_line, rejected_line
 from app.pipeline import Pipeline
 from app.recorder import SessionRecorder
-from app.records import Crossing, CrossingRejected, Event
+from app.records import Crossing, CrossingRejected, Event, Record
 
 
 class EventPrinter:
@@ -31,10 +31,12 @@ class EventPrinter:
         for event in events:
             if isinstance(event, Crossing):
                 self.console.print(Text(crossing_line(event, t0), style="bold green"), soft_wrap=True)
-                if self.recorder is not None:
-                    self.recorder.on_crossing(event, t0)
             elif isinstance(event, CrossingRejected):
                 self.console.print(Text(rejected_line(event, t0), style="dim"), soft_wrap=True)
+            else:
+                continue
+            if self.recorder is not None:
+                self.recorder.on_event(event, t0)
 
 
 def run(
@@ -47,32 +49,39 @@ def run(
     clock: Callable[[], float] = time.monotonic,
     refresh_s: float = 0.1,
     transient: bool = False,
+    on_record: Callable[[Record], None] | None = None,
+    flush_s: float = 0.05,
 ) -> bool:
     """Run until the source ends (True) or Ctrl-C / SIGTERM (False); then fit what is pending.
 
     The display (dashboard, progress) is drawn only on a terminal; elsewhere the printed lines
-    are all there is. A transient display is cleared at the end.
+    are all there is. A transient display is cleared at the end. The recording is flushed every
+    ``flush_s`` and whenever the source is idle (it yields None). ``on_record`` sees every record.
     """
     live: Any = nullcontext()
     if display is not None and console is not None and console.is_terminal:
         live = Live(display, console=console, auto_refresh=False, transient=transient, redirect_stdout=False)
     completed = True
     with live:
-        next_refresh = clock()
+        next_refresh = next_flush = clock()
         try:
             for msg in source:
                 if msg is not None:
                     if recorder is not None:
                         recorder.on_message(msg)
                     record = pipeline.process(msg)
-                    if record is not None and record.events:
-                        printer(record.events)
+                    if record is not None:
+                        if on_record is not None:
+                            on_record(record)
+                        if record.events:
+                            printer(record.events)
                 now = clock()
+                if recorder is not None and (msg is None or now >= next_flush):
+                    recorder.flush()
+                    next_flush = now + flush_s
                 if now >= next_refresh:
                     if isinstance(live, Live):
                         live.refresh()
-                    if recorder is not None:
-                        recorder.flush()
                     next_refresh = now + refresh_s
         except KeyboardInterrupt:
             completed = False

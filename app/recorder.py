@@ -1,34 +1,50 @@
 """The session folder: raw frames as they arrive, the config and DBCs used, events and summary.
 
 The raw log is written with python-can's writer for its suffix (a writer is a Listener, so
-recording is one more sink) and flushed by the live loop at least every 100 ms.
+recording is one more sink). The live loop calls ``flush`` at least every 50 ms and whenever the
+bus is idle, so after a crash (even ``kill -9``) the log reads back up to the last flush.
 """
 
-import csv
+import io
 import shutil
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import can
 
 from app.config import Config
 from app.errors import C2nError
-from app.records import Crossing
+from app.events import EventsTable
+from app.records import Crossing, CrossingRejected
 from app.summary import write as write_summary
 
 RAW_FORMATS = (".log", ".asc", ".blf")
-EVENT_FIELDS = (
-    "t",
-    "direction",
-    "sweep",
-    "u0_mps",
-    "u0_kmh",
-    "ay_mps2",
-    "c2n",
-    "ci95_low",
-    "ci95_high",
-    "n_samples",
-)
+CONFIG_FOLDER = "config"
+_TEXT_WRITERS: dict[str, Any] = {".log": can.CanutilsLogWriter, ".asc": can.ASCWriter}
+
+
+class _Spool(io.StringIO):
+    """What a python-can text writer writes, held in memory until ``drain`` hands it to the file
+    in one unbuffered write: the file on disk always ends at a frame boundary, even after
+    ``kill -9``, and never with half a line."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self._file = path.open("wb", buffering=0)
+
+    def drain(self) -> None:
+        data = memoryview(self.getvalue().encode())
+        while data:
+            written = self._file.write(data)
+            data = data[written or 0 :]
+        self.seek(0)
+        self.truncate()
+
+    def close(self) -> None:  # the writer's stop(): keep what it wrote last
+        if not self.closed:
+            self.drain()
+            self._file.close()
+        super().close()
 
 
 class SessionRecorder:
@@ -38,50 +54,61 @@ class SessionRecorder:
         self.folder = folder
         try:
             folder.mkdir(parents=True, exist_ok=False)
-            copies = folder / "config"
+            copies = folder / CONFIG_FOLDER
             copies.mkdir()
             shutil.copy2(config.path, copies / config.path.name)
             for dbc in config.dbcs:
                 shutil.copy2(dbc.path, copies / dbc.path.name)
             self.raw_path = folder / f"frames{raw_format}"
-            self._writer: Any = can.Logger(self.raw_path)
-            self._events: IO[str] = (folder / "events.csv").open("w", newline="")
+            self._spool = _Spool(self.raw_path) if raw_format in _TEXT_WRITERS else None
+            self._writer: Any = (
+                _TEXT_WRITERS[raw_format](self._spool) if self._spool else can.BLFWriter(self.raw_path)
+            )
         except OSError as error:
             raise C2nError(
                 f"{folder}: cannot record the session ({error.strerror}) — use --record DIR"
             ) from None
-        self._csv = csv.writer(self._events)
-        self._csv.writerow(EVENT_FIELDS)
+        self._events = EventsTable(folder / "events.csv")
         self.frames = 0
+        self._unflushed = 0
 
     def on_message(self, msg: can.Message) -> None:
         self._writer.on_message_received(msg)
         self.frames += 1
+        self._unflushed += 1
 
-    def on_crossing(self, c: Crossing, t0: float) -> None:
-        lo, hi = c.ci95
-        self._csv.writerow(
-            [
-                f"{c.t - t0:.3f}",
-                c.direction,
-                c.sweep,
-                f"{c.u0_mps:.4f}",
-                f"{c.u0_kmh:.3f}",
-                f"{c.ay_mps2:.3f}",
-                f"{c.c2n:.4f}",
-                f"{lo:.4f}",
-                f"{hi:.4f}",
-                c.n_samples,
-            ]
-        )
-        self._events.flush()
+    def on_event(self, event: Crossing | CrossingRejected, t0: float) -> None:
+        self._events.add(event, t0)
 
     def flush(self) -> None:
-        file = getattr(self._writer, "file", None)
-        if file is not None and not file.closed:
-            file.flush()
+        """Hand everything received so far to the operating system."""
+        if not self._unflushed:
+            return
+        if self._spool is not None:
+            self._spool.drain()
+        else:
+            # BLF buffers frames into compressed containers of 128 KiB; python-can has no public
+            # call that writes a partial one, and its reader needs whole containers.
+            self._writer._flush()
+            self._writer.file.flush()
+        self._unflushed = 0
 
     def close(self, summary: dict[str, Any]) -> None:
         self._writer.stop()
         self._events.close()
         write_summary(self.folder / "summary.json", summary)
+
+
+def read_session(folder: Path) -> tuple[Path, Path]:
+    """A recorded session folder's raw log and config copy (whose DBCs lie beside it)."""
+    logs = [folder / f"frames{suffix}" for suffix in RAW_FORMATS if (folder / f"frames{suffix}").exists()]
+    configs = sorted((folder / CONFIG_FOLDER).glob("*.toml"))
+    if not logs:
+        raise C2nError(
+            f"{folder}: not a c2n session folder (no frames.log/.asc/.blf) — give a session folder or a log"
+        )
+    if len(configs) != 1:
+        raise C2nError(
+            f"{folder / CONFIG_FOLDER}: expected one config copy, found {len(configs)} — pass --config F"
+        )
+    return logs[0], configs[0]

@@ -7,6 +7,7 @@ says where it stopped.
 
 import heapq
 import logging
+import os
 import queue
 import re
 import threading
@@ -33,6 +34,25 @@ class LogReport:
     path: Path
     frames: int = 0
     stopped: str | None = None  # why reading stopped before the end, if it did
+    done: bool = False
+    reader: object = None  # the python-can reader while the file is open
+
+    def bytes_read(self) -> int | None:
+        """How far into the file the reader is (None where the reader does not say)."""
+        if self.done:
+            return _size(self.path)
+        file = getattr(self.reader, "file", None)
+        try:
+            return os.lseek(file.fileno(), 0, os.SEEK_CUR) if file is not None else None
+        except (OSError, ValueError, AttributeError):
+            return None
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
 
 
 def open_log(path: Path) -> Iterable[can.Message]:
@@ -98,6 +118,7 @@ def _sniff(path: Path) -> str | None:
 def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
     """Frames of one log file, in file order; damage ends the file, noted in ``report``."""
     reader = open_log(path)
+    report.reader = reader
     iterator = iter(reader)
     try:
         while True:
@@ -112,6 +133,7 @@ def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
             report.frames += 1
             yield message
     finally:
+        report.done, report.reader = True, None
         stop = getattr(reader, "stop", None)
         if callable(stop):
             stop()
@@ -130,6 +152,23 @@ class LogSource:
             stop = getattr(reader, "stop", None)
             if callable(stop):
                 stop()
+
+    @property
+    def total_bytes(self) -> int:
+        return sum(_size(p) for p in self.paths)
+
+    def bytes_read(self) -> int | None:
+        """Bytes read so far over all files; None while a file is open whose reader does not say
+        (MF4 is read by asammdf as a whole)."""
+        done = 0
+        for report in self.reports:
+            if report.reader is None and not report.done:
+                continue  # not opened yet
+            position = report.bytes_read()
+            if position is None:
+                return None
+            done += position
+        return done
 
     def __iter__(self) -> Iterator[can.Message]:
         streams = [read_log(p, r) for p, r in zip(self.paths, self.reports, strict=True)]
@@ -206,7 +245,7 @@ class BusSource:
         buses: Sequence[can.BusABC],
         stop: threading.Event,
         finished: threading.Event | None = None,
-        idle_s: float = 0.1,
+        idle_s: float = 0.05,
     ) -> None:
         self.buses = list(buses)
         self.stop = stop

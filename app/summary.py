@@ -117,7 +117,7 @@ def format_id(frame_id: int, extended: bool) -> str:
 
 
 def _round(value: float, digits: int = 4) -> float | None:
-    return round(value, digits) if math.isfinite(value) else None
+    return round(float(value), digits) if math.isfinite(value) else None
 
 
 def _crossing(c: Crossing, t0: float) -> dict[str, Any]:

@@ -233,7 +233,7 @@ def test_live_records_every_frame_and_writes_the_summary(
     summary = json.loads((session / "summary.json").read_text())
     assert summary["frames"]["total"] == len(frames)
     assert json.loads((tmp_path / "s.json").read_text())["frames"] == summary["frames"]
-    assert (session / "events.csv").read_text().startswith("t,direction,sweep,u0_mps")
+    assert (session / "events.csv").read_text().startswith("t,event,direction,sweep,u0_mps")
     assert f"session saved in {session}" in capsys.readouterr().out
 
 

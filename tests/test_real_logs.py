@@ -330,3 +330,54 @@ def test_each_warning_is_one_stderr_line(
     assert any(len(f"c2n: warning: {w}") > 80 for w in run.warnings), "needs a long warning to test"
     missing = [w for w in run.warnings if f"c2n: warning: {w}" not in run.lines]
     assert not missing, run.stderr
+
+
+# -- export ---------------------------------------------------------------------------------------
+
+EXPORTED = {"channels.csv", "channels.parquet", "channels.mf4", "events.csv", "summary.json", "report.html"}
+
+
+def export(log: Path, config: Path, out: Path) -> tuple[int, str]:
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with redirect_stdout(stdout), redirect_stderr(stderr):
+        code = main(["export", str(log), "--config", str(config), "--out", str(out)])
+    return code, stderr.getvalue()
+
+
+def assert_exported(out: Path, code: int, stderr: str, channel: str | None) -> None:
+    """Exit 0 (export converts what there is), every file written, the vehicle channel filled."""
+    assert code == 0, stderr
+    assert "Traceback" not in stderr and "no frames for role 'vx'" in stderr
+    assert {p.name for p in out.iterdir()} >= EXPORTED
+    assert len(list(out.glob("*.png"))) == 4
+    with (out / "channels.csv").open() as file:
+        header = file.readline().strip().split(",")
+        rows = [line.split(",") for line in file]
+    if channel is None:
+        assert rows == []
+        return
+    column = next(i for i, name in enumerate(header) if name.strip('"').startswith(f"{channel} ["))
+    values = [float(row[column]) for row in rows if row[column].strip()]
+    assert len(values) > 100 and any(v != 0 for v in values)
+
+
+@pytest.mark.parametrize(
+    ("log", "template", "channel"),
+    [
+        (RAV4_LOG, "comma2k19_rav4.toml", "vehicle_speed"),
+        (CAR_MF4, "canedge_car_gps.toml", "vehicle_speed"),
+        (J1939_MF4, "canedge_j1939.toml", None),
+    ],
+    ids=["rav4-candump", "canedge-car-mf4", "canedge-j1939-mf4"],
+)
+def test_real_logs_export(tmp_path: Path, log: tuple[str, str], template: str, channel: str | None) -> None:
+    out = tmp_path / "export"
+    code, stderr = export(real_path(*log), config_from_template(template, tmp_path), out)
+    assert_exported(out, code, stderr, channel)
+
+
+def test_logan_exports_with_repaired_dbc(tmp_path: Path, logan_log: Path, fixed_logan_dbc: Path) -> None:
+    config = config_from_template("nemodrive_logan.toml", tmp_path, LOGAN_DBC=fixed_logan_dbc)
+    out = tmp_path / "export"
+    code, stderr = export(logan_log, config, out)
+    assert_exported(out, code, stderr, "steer")

@@ -36,7 +36,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     config = load_config(args.config)
     source = LogSource(args.logs, merge=args.merge)
     pipeline = Pipeline(config)
-    progress = ReadProgress(pipeline, ", ".join(p.name for p in args.logs))
+    progress = ReadProgress(pipeline, source, ", ".join(p.name for p in args.logs))
     run_pipeline(source, pipeline, EventPrinter(console, pipeline), progress, console, transient=True)
     result = summary.build(pipeline, [str(p) for p in args.logs], source.reports)
     if args.json:

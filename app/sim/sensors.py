@@ -53,8 +53,8 @@ def frames(
     ]
     messages = [m for source in sources for m in source]
     jitter = rng.uniform(0.0, setup.jitter_s, len(messages))
-    for message, delay in zip(messages, jitter, strict=True):
-        message.timestamp += delay
+    for message, delay in zip(messages, jitter.tolist(), strict=True):
+        message.timestamp += delay  # a Python float: log writers print its repr
     messages.sort(key=lambda m: m.timestamp)
     return messages
 

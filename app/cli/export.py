@@ -1,0 +1,113 @@
+"""``c2n export LOG_OR_SESSION``: decoded and filtered channels (CSV, Parquet, MF4), the events
+table, the summary, plots and one self-contained HTML report."""
+
+import argparse
+from pathlib import Path
+
+from rich.console import Console
+from rich.text import Text
+
+from app import events, summary
+from app.cli.common import error_console
+from app.config import DEFAULT_CONFIG, Config, load_config
+from app.errors import C2nError
+from app.event_line import result_line
+from app.live import EventPrinter
+from app.live import run as run_pipeline
+from app.pipeline import Pipeline
+from app.progress import ReadProgress
+from app.recorder import read_session
+from app.sources import LogSource
+from app.trace import TraceRecorder
+
+FORMATS = ("csv", "parquet", "mf4")  # app.export.FORMATS; pyarrow and asammdf load only when used
+
+
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "export", help="channels, events, plots and a report from a log or session", description=__doc__
+    )
+    parser.add_argument(
+        "input", type=Path, metavar="LOG_OR_SESSION", help="a CAN log, or a session folder of c2n live"
+    )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        metavar="F",
+        help="vehicle config (default: a session's own copy, else config/mondeo.toml)",
+    )
+    parser.add_argument(
+        "--format",
+        action="append",
+        choices=FORMATS,
+        help="channel file format; repeat for several (default: all of csv, parquet, mf4)",
+    )
+    parser.add_argument(
+        "--out", type=Path, metavar="DIR", help="output folder (default: SESSION/export or LOG-export)"
+    )
+    parser.add_argument("--no-plots", action="store_true", help="no PNG plots and no HTML report")
+    parser.set_defaults(run=run)
+    return parser
+
+
+def _inputs(args: argparse.Namespace) -> tuple[Path, Config, Path]:
+    """The log, the config and the output folder."""
+    path: Path = args.input
+    if path.is_dir():
+        log, copy = read_session(path)
+        config = load_config(args.config) if args.config else load_config(copy, dbc_dir=copy.parent)
+        return log, config, args.out or path / "export"
+    config = load_config(args.config or DEFAULT_CONFIG)
+    return path, config, args.out or path.with_name(f"{path.name.split('.')[0]}-export")
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    from app import export
+
+    log, config, out = _inputs(args)
+    source = LogSource([log])
+    pipeline = Pipeline(config)
+    trace_recorder = TraceRecorder(config.roles)
+    progress = ReadProgress(pipeline, source, log.name)
+    run_pipeline(
+        source,
+        pipeline,
+        EventPrinter(console, pipeline),
+        progress,
+        console,
+        transient=True,
+        on_record=trace_recorder,
+    )
+    state = pipeline.state
+    t0 = state.t_first or 0.0
+    trace = trace_recorder.trace(t0)
+    result = summary.build(pipeline, [str(log)], source.reports)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise C2nError(f"{out}: cannot create the output folder ({error.strerror})") from None
+    written: list[Path] = []
+    with console.status("writing the exports…"):
+        for fmt in args.format or FORMATS:
+            path = out / f"channels.{fmt}"
+            export.write(trace, fmt, path)
+            written.append(path)
+        events.write(out / "events.csv", [*state.crossings, *state.rejections], t0)
+        summary.write(out / "summary.json", result)
+        written += [out / "events.csv", out / "summary.json"]
+        if not args.no_plots:
+            from app.plots import write_plots
+            from app.report import write_report
+
+            plots = write_plots(trace, result, out)
+            report = out / "report.html"
+            write_report(result, plots, report, title=f"c2n — {log.name}")
+            written += [*plots, report]
+    console.print(Text(result_line(state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    errors = error_console()
+    for warning in result["warnings"]:
+        errors.print(f"c2n: warning: {warning}", markup=False)
+    console.print(f"{len(trace):,} rows × {len(trace.channels)} channels → {out}", style="dim")
+    for path in written:
+        console.print(f"  {path.name}", style="dim")
+    return 0

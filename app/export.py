@@ -1,0 +1,94 @@
+"""Channel files of ``c2n export``: the trace's columns with their units, in the formats people
+open — CSV (a spreadsheet), Parquet (pandas, polars, Spark) and MF4 (asammdf's GUI, CANape,
+DIAdem).
+
+CSV and Parquet are written with pyarrow (fast, columnar; NaN becomes an empty cell / null), MF4
+with asammdf: one channel group on the trace's time base, each channel named, unit-tagged and
+commented.
+"""
+
+import datetime
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv
+import pyarrow.parquet
+
+from app import __version__
+from app.errors import C2nError
+from app.trace import TIME, Trace
+
+FORMATS = ("csv", "parquet", "mf4")
+
+
+def csv_header(name: str, unit: str) -> str:
+    """A CSV column name carries its unit: ``speed [m/s]`` (``steady`` has none)."""
+    return f"{name} [{unit}]" if unit else name
+
+
+def _table(trace: Trace, names: Callable[[str, str], str]) -> pa.Table:
+    arrays = [pa.array(trace[c.name], type=pa.float64(), from_pandas=True) for c in trace.channels]
+    fields = [
+        pa.field(
+            names(c.name, c.unit),
+            pa.float64(),
+            metadata={"unit": c.unit, "description": c.description},
+        )
+        for c in trace.channels
+    ]
+    schema = pa.schema(fields, metadata={"t0": repr(trace.t0), "source": f"c2n {__version__}"})
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def write_csv(trace: Trace, path: Path) -> None:
+    pyarrow.csv.write_csv(_table(trace, csv_header), str(path))
+
+
+def write_parquet(trace: Trace, path: Path) -> None:
+    """Column names without units; each field's metadata holds ``unit`` and ``description``."""
+    pyarrow.parquet.write_table(_table(trace, lambda name, unit: name), str(path), compression="zstd")
+
+
+def write_mf4(trace: Trace, path: Path) -> None:
+    from asammdf import MDF, Signal
+
+    time = trace[TIME.name]
+    mdf = MDF(version="4.10")
+    if trace.t0 > 1e8:  # an absolute (epoch) timestamp: the measurement's start
+        mdf.header.start_time = datetime.datetime.fromtimestamp(trace.t0, datetime.UTC)
+    signals = [
+        Signal(
+            samples=np.ascontiguousarray(trace[c.name]),
+            timestamps=time,
+            name=c.name,
+            unit=c.unit,
+            comment=c.description,
+        )
+        for c in trace.channels
+        if c.name != TIME.name
+    ]
+    if len(time):
+        mdf.append(signals, comment=f"c2n {__version__}: decoded and filtered channels")
+    mdf.save(path, overwrite=True)
+    mdf.close()
+
+
+WRITERS: dict[str, Callable[[Trace, Path], None]] = {
+    "csv": write_csv,
+    "parquet": write_parquet,
+    "mf4": write_mf4,
+}
+
+
+def write(trace: Trace, fmt: str, path: Path) -> None:
+    """Write atomically (a temporary file renamed into place), translating OS errors."""
+    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")  # asammdf insists on the suffix
+    try:
+        WRITERS[fmt](trace, tmp)
+        os.replace(tmp, path)
+    except OSError as error:
+        tmp.unlink(missing_ok=True)
+        raise C2nError(f"{path}: cannot write ({error.strerror or error})") from None

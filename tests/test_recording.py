@@ -1,0 +1,106 @@
+"""Recording in `c2n live`: nothing lost on a clean stop or a crash."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import can
+import pytest
+
+from app.cli import main
+from tests.simulated import REPO, cached_drive
+
+FLUSH_DEADLINE_S = 0.1  # every frame sent this long before a crash must be on disk
+
+
+def start_live(tmp_path: Path, raw_format: str) -> tuple[subprocess.Popen[bytes], Path, Path]:
+    record, sent = tmp_path / "sessions", tmp_path / "sent.txt"
+    child = subprocess.Popen(
+        [
+            sys.executable,
+            str(REPO / "tests" / "live_child.py"),
+            f"kill-{uuid.uuid4().hex}",
+            str(record),
+            str(sent),
+            raw_format,
+        ],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    return child, record, sent
+
+
+def wait_for_lines(path: Path, n: int, child: subprocess.Popen[bytes], timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if path.exists() and path.read_bytes().count(b"\n") >= n:
+            return
+        assert child.poll() is None, child.stderr.read().decode() if child.stderr else ""
+        time.sleep(0.02)
+    pytest.fail(f"the live process sent fewer than {n} frames in {timeout_s} s")
+
+
+@pytest.mark.parametrize("raw_format", [".log", ".asc", ".blf"])
+def test_sigkill_loses_no_frame_sent_100ms_before_it(tmp_path: Path, raw_format: str) -> None:
+    child, record, sent_file = start_live(tmp_path, raw_format)
+    try:
+        wait_for_lines(sent_file, 3000, child)
+        killed_at = time.monotonic()
+        os.kill(child.pid, signal.SIGKILL)
+    finally:
+        child.kill()
+        child.wait()
+    sent_times = [float(line.split()[1]) for line in sent_file.read_text().splitlines() if " " in line]
+    must_have = sum(t < killed_at - FLUSH_DEADLINE_S for t in sent_times)
+    [session] = list(record.glob("20*"))
+    recorded = list(can.LogReader(session / f"frames{raw_format}"))
+    expected = cached_drive("constant_radius", 41, 15.1).messages
+    assert must_have >= 2500
+    assert len(recorded) >= must_have
+    # what is on disk is exactly the frames sent, in order: nothing lost, nothing garbled
+    got = [(m.arbitration_id, bytes(m.data)) for m in recorded]
+    assert got == [(m.arbitration_id, bytes(m.data)) for m in expected[: len(recorded)]]
+    assert (session / "config" / "mondeo.toml").exists()
+    assert (session / "events.csv").read_text().startswith("t,event,")
+
+
+def test_analyze_accepts_the_log_of_a_killed_session(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    child, record, sent_file = start_live(tmp_path, ".log")
+    try:
+        wait_for_lines(sent_file, 2000, child)
+        os.kill(child.pid, signal.SIGKILL)
+    finally:
+        child.kill()
+        child.wait()
+    [session] = list(record.glob("20*"))
+    recorded = list(can.LogReader(session / "frames.log"))
+    out = tmp_path / "summary.json"
+    assert main(["analyze", str(session / "frames.log"), "--json", str(out)]) == 0
+    summary = json.loads(out.read_text())
+    assert summary["frames"]["total"] == len(recorded) > 0
+    assert not any("stopped after frame" in w for w in summary["warnings"])
+
+
+def test_sigterm_finishes_every_file(tmp_path: Path) -> None:
+    child, record, sent_file = start_live(tmp_path, ".blf")
+    try:
+        wait_for_lines(sent_file, 2000, child)
+        child.send_signal(signal.SIGTERM)
+        assert child.wait(timeout=30) == 0
+    finally:
+        child.kill()
+        child.wait()
+    [session] = list(record.glob("20*"))
+    summary = json.loads((session / "summary.json").read_text())
+    recorded = list(can.LogReader(session / "frames.blf"))
+    assert summary["frames"]["total"] == len(recorded) >= 2000
+    with can.BLFReader(session / "frames.blf") as reader:  # the header is finished too
+        assert reader.object_count == len(recorded)

@@ -59,7 +59,10 @@ _POLICY = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-
 
 def write_report(summary: Summary, plots: Sequence[Path], path: Path, title: str) -> None:
     """Write the report atomically: a crash leaves the old file or the new one."""
-    document = render(summary, [(plot.name, _read(plot)) for plot in plots], title)
+    write_html(render(summary, [(plot.name, read_plot(plot)) for plot in plots], title), path)
+
+
+def write_html(document: str, path: Path) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".tmp")
@@ -69,7 +72,7 @@ def write_report(summary: Summary, plots: Sequence[Path], path: Path, title: str
         raise C2nError(f"{path}: cannot write the report ({error.strerror})") from None
 
 
-def _read(plot: Path) -> bytes:
+def read_plot(plot: Path) -> bytes:
     try:
         return plot.read_bytes()
     except OSError as error:
@@ -78,17 +81,24 @@ def _read(plot: Path) -> bytes:
 
 def render(summary: Summary, images: Sequence[tuple[str, bytes]], title: str) -> str:
     """The HTML document; ``images`` are (name, PNG bytes) in display order."""
-    sections = (
-        _header(summary, title),
-        _headline(summary),
-        _warnings(summary.get("warnings")),
-        _regression(_block(summary.get("regression"))),
-        _paired(_block(summary.get("paired"))),
-        _crossings(summary.get("crossings")),
-        _rejected(summary.get("rejected_crossings")),
-        _frames(_block(summary.get("frames"))),
-        _plots(images),
+    return page(
+        title,
+        (
+            _header(summary, title),
+            _headline(summary),
+            _warnings(summary.get("warnings")),
+            _regression(_block(summary.get("regression"))),
+            _paired(_block(summary.get("paired"))),
+            _crossings(summary.get("crossings")),
+            _rejected(summary.get("rejected_crossings")),
+            _frames(_block(summary.get("frames"))),
+            _plots(images),
+        ),
     )
+
+
+def page(title: str, sections: Sequence[str]) -> str:
+    """A self-contained HTML document of sections (HTML already)."""
     return "\n".join(
         (
             "<!DOCTYPE html>",
@@ -163,7 +173,7 @@ def _rows(value: Any) -> list[Mapping[str, Any]]:
 # --- markup -------------------------------------------------------------------------------------
 
 
-def _section(heading: str, *body: str) -> str:
+def section(heading: str, *body: str) -> str:
     return "\n".join((f"<section>\n<h2>{html.escape(heading)}</h2>", *body, "</section>"))
 
 
@@ -171,13 +181,13 @@ def _none(message: str) -> str:
     return f'<p class="none">{html.escape(message)}</p>'
 
 
-def _fields(pairs: Iterable[tuple[str, str]]) -> str:
+def fields(pairs: Iterable[tuple[str, str]]) -> str:
     """A two-column table of a block's fields; the values are HTML already."""
     rows = "\n".join(f"<tr><th>{html.escape(name)}</th><td>{value}</td></tr>" for name, value in pairs)
     return f'<table class="fields">\n{rows}\n</table>'
 
 
-def _table(headers: Sequence[str], rows: Iterable[Sequence[str]], numeric: Sequence[bool]) -> str:
+def table(headers: Sequence[str], rows: Iterable[Sequence[str]], numeric: Sequence[bool]) -> str:
     """A table with a header row; cells are HTML already; numeric columns align right."""
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
     body = "\n".join(
@@ -222,31 +232,31 @@ def _headline(summary: Summary) -> str:
         f"95 % {interval(summary.get('c2n_ci95'))} "
         f'<span class="method">({text(summary.get("c2n_method"))})</span></p>'
     )
-    fields = _fields(
+    values = fields(
         (
             ("u0", f"{text(u0)} m/s = {_fixed(u0_kmh, 2)} km/h"),
             ("d (sensor ahead of the rear axle)", f"{text(summary.get('d_m'))} m"),
             ("g", f"{text(summary.get('g_mps2'))} m/s²"),
         )
     )
-    return _section("Cornering stiffness C2n", headline, fields)
+    return section("Cornering stiffness C2n", headline, values)
 
 
 def _warnings(warnings: Any) -> str:
     items = _texts(warnings)
     if not items:
-        return _section("Warnings", '<p class="ok">No warnings.</p>')
+        return section("Warnings", '<p class="ok">No warnings.</p>')
     listed = "\n".join(f"<li>{item}</li>" for item in items)
-    return _section(f"Warnings ({len(items)})", f'<ul class="warnings">\n{listed}\n</ul>')
+    return section(f"Warnings ({len(items)})", f'<ul class="warnings">\n{listed}\n</ul>')
 
 
 def _regression(fit: Mapping[str, Any] | None) -> str:
     if fit is None:
-        return _section("Regression over every steady sample", _none("no regression: too few steady samples"))
+        return section("Regression over every steady sample", _none("no regression: too few steady samples"))
     ay_range = interval(fit.get("ay_range_mps2"))
-    return _section(
+    return section(
         "Regression over every steady sample",
-        _fields(
+        fields(
             (
                 ("C2n", _with_interval(fit.get("c2n"), fit.get("c2n_ci95"))),
                 ("d", _with_interval(fit.get("d_m"), fit.get("d_ci95"), " m")),
@@ -267,12 +277,12 @@ def _regression(fit: Mapping[str, Any] | None) -> str:
 
 def _paired(paired: Mapping[str, Any] | None) -> str:
     if paired is None:
-        return _section("Paired crossings", _none("no pairs: needs crossings up and down, left and right"))
+        return section("Paired crossings", _none("no pairs: needs crossings up and down, left and right"))
     cancels = _texts(paired.get("cancels"))
     cells = _block(paired.get("cells")) or {}
-    return _section(
+    return section(
         "Paired crossings",
-        _fields(
+        fields(
             (
                 ("C2n", _with_interval(paired.get("c2n"), paired.get("c2n_ci95"))),
                 (
@@ -292,14 +302,14 @@ def _paired(paired: Mapping[str, Any] | None) -> str:
 def _crossings(crossings: Any) -> str:
     rows = _rows(crossings)
     if not rows:
-        return _section(
+        return section(
             "Crossings", _none("no crossings: the sideslip never changed sign in steady cornering")
         )
     headers = ("t [s]", "direction", "sweep", "u0 [km/h]", "a_y [m/s²]", "C2n", "95 % CI", "samples")
     numeric = (True, False, False, True, True, True, False, True)
-    return _section(
+    return section(
         f"Crossings ({len(rows)})",
-        _table(
+        table(
             headers,
             (
                 (
@@ -328,11 +338,11 @@ def _kmh(kmh: Any, mps: Any) -> float | None:
 def _rejected(rejected: Any) -> str:
     rows = _rows(rejected)
     if not rows:
-        return _section("Rejected sign changes", _none("none"))
+        return section("Rejected sign changes", _none("none"))
     headers = ("t [s]", "direction", "sweep", "u [km/h]", "reason")
-    return _section(
+    return section(
         f"Rejected sign changes ({len(rows)})",
-        _table(
+        table(
             headers,
             (
                 (
@@ -351,10 +361,10 @@ def _rejected(rejected: Any) -> str:
 
 def _frames(frames: Mapping[str, Any] | None) -> str:
     if not frames:
-        return _section("Frames", _none("no frame counts"))
-    return _section(
+        return section("Frames", _none("no frame counts"))
+    return section(
         "Frames",
-        _table(
+        table(
             ("", "frames"),
             ((html.escape(str(name).replace("_", " ")), text(n)) for name, n in frames.items()),
             (False, True),
@@ -364,12 +374,12 @@ def _frames(frames: Mapping[str, Any] | None) -> str:
 
 def _plots(images: Sequence[tuple[str, bytes]]) -> str:
     if not images:
-        return _section("Plots", _none("no plots"))
-    figures = "\n".join(_figure(name, data) for name, data in images)
-    return _section("Plots", figures)
+        return section("Plots", _none("no plots"))
+    figures = "\n".join(figure(name, data) for name, data in images)
+    return section("Plots", figures)
 
 
-def _figure(name: str, png: bytes) -> str:
+def figure(name: str, png: bytes) -> str:
     uri = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
     caption = html.escape(name)
     return f'<figure>\n<img src="{uri}" alt="{caption}">\n<figcaption>{caption}</figcaption>\n</figure>'

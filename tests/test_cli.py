@@ -286,3 +286,11 @@ def test_live_ends_cleanly_on_ctrl_c_and_sigterm_and_writes_the_summary(tmp_path
     summary = json.loads((session / "summary.json").read_text())
     assert summary["frames"]["total"] == 0 and summary["c2n"] is None
     assert "session saved in" in out and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "command", ["live", "replay", "analyze", "export", "simulate", "gap", "gap-check", "demo"]
+)
+def test_every_command_has_help(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([command, "--help"]) == 0
+    assert f"usage: c2n {command}" in capsys.readouterr().out

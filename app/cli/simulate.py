@@ -1,23 +1,84 @@
-"""``c2n simulate``: a bicycle-model test drive written as a CAN log, with its truth beside it."""
+"""``c2n simulate``: a simulated test drive written as a CAN log, with its truth beside it.
+
+``--scenario`` drives the bicycle model; ``--session standard`` drives the standard test session on
+the two-track model with one unmodelled effect (``--effect``); ``--pack N`` writes N such sessions,
+each with a random effect, as a blind pack whose truth is sealed in DIR/sealed/.
+"""
 
 import argparse
 from pathlib import Path
 
 from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from app.cli.common import add_config
 from app.config import load_config
+from app.errors import C2nError
+from app.sim.effects import EFFECT_NAMES, EFFECTS, Effect
+from app.sim.pack import CaseResult, write_pack
 from app.sim.scenarios import SCENARIOS
 from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
+from app.sim.standard import QUICK_PLAN, STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
+
+SESSIONS = ("standard",)
+# options of the bicycle-model path, with their defaults: sessions take effects instead
+_SCENARIO_ONLY = {
+    "tyre": "linear",
+    "mu": 1.0,
+    "sweep_rate": 0.3,
+    "ay_max": 3.5,
+    "misalignment": 0.0,
+    "speed_scale": 1.0,
+    "speed_latency": 0.0,
+}
+# options of a single drive that a pack does not take (its cases all use the config as it is)
+_DRIVE_ONLY = {
+    "c2n": None,
+    "optical_hz": 100.0,
+    "noise": 0.02,
+    "sensor_lateral": None,
+    "single_channel": False,
+    "effect": None,
+    "effect_size": None,
+}
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "simulate", help="write a simulated test drive as a CAN log", description=__doc__
     )
-    parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="constant_radius")
     parser.add_argument(
-        "--out", type=Path, metavar="LOG", help="log to write (.blf, .asc, .log, .csv, .mf4, .trc)"
+        "--scenario", choices=sorted(SCENARIOS), help="bicycle-model manoeuvre (default: constant_radius)"
+    )
+    parser.add_argument(
+        "--session", choices=SESSIONS, help="the standard test session on the two-track model"
+    )
+    parser.add_argument(
+        "--pack", type=int, metavar="N", help="write N standard sessions with random effects into --out DIR"
+    )
+    parser.add_argument(
+        "--effect",
+        choices=EFFECT_NAMES,
+        metavar="NAME",
+        help=f"unmodelled effect of the session: {', '.join(EFFECT_NAMES)}",
+    )
+    parser.add_argument(
+        "--effect-size",
+        type=float,
+        metavar="X",
+        help="its size in its unit ("
+        + ", ".join(f"{name} {spec.unit}".replace("%", "%%") for name, spec in EFFECTS.items() if spec.unit)
+        + "; default: the middle of its range)",
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="a shortened session (smoke tests; too coarse for a diagnosis)"
+    )
+    parser.add_argument("--workers", type=int, metavar="N", help="pack: processes (default: CPU count)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        metavar="LOG",
+        help="log to write (.blf, .asc, .log, .csv, .mf4, .trc); with --pack a new folder",
     )
     parser.add_argument("--seed", type=int, default=0, metavar="N")
     add_config(parser)
@@ -50,6 +111,12 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    if args.pack is not None or args.session is not None:
+        _check_session_options(args)
+        return _run_pack(args, console) if args.pack is not None else _run_session(args, console)
+    if args.effect is not None or args.effect_size is not None or args.quick:
+        raise C2nError("--effect, --effect-size and --quick need --session standard or --pack N")
+    args.scenario = args.scenario or "constant_radius"
     config = load_config(args.config)
     sensor: dict[str, object] = {
         "optical_hz": args.optical_hz,
@@ -76,4 +143,71 @@ def run(args: argparse.Namespace, console: Console) -> int:
     drive = simulate_drive(config, options)
     truth = write_drive(drive, out)
     console.print(f"wrote {out} and {truth.name}: {describe(drive.truth)}")
+    return 0
+
+
+def _check_session_options(args: argparse.Namespace) -> None:
+    if args.scenario is not None:
+        raise C2nError("--scenario drives the bicycle model: leave it out with --session or --pack")
+    for option, default in _SCENARIO_ONLY.items():
+        if getattr(args, option) != default:
+            flag = "--" + option.replace("_", "-")
+            raise C2nError(f"{flag} is for --scenario; sessions take --effect NAME --effect-size X")
+    if args.pack is not None:
+        for option, default in _DRIVE_ONLY.items():
+            if getattr(args, option) != default:
+                flag = "--" + option.replace("_", "-")
+                raise C2nError(f"{flag} is for a single --session; a pack's cases use the config as it is")
+    if args.effect_size is not None and args.effect is None:
+        raise C2nError("--effect-size needs --effect NAME")
+
+
+def _plan(args: argparse.Namespace) -> StandardPlan:
+    return QUICK_PLAN if args.quick else STANDARD_PLAN
+
+
+def _run_session(args: argparse.Namespace, console: Console) -> int:
+    config = load_config(args.config)
+    effect = Effect.of(args.effect or "none", 0.0 if args.effect in (None, "none") else args.effect_size)
+    sensor: dict[str, object] = {"optical_hz": args.optical_hz, "sigma_velocity_mps": args.noise}
+    if args.sensor_lateral is not None:
+        sensor["lateral_m"] = args.sensor_lateral
+    if args.single_channel:
+        sensor["sensor_channel"] = 0
+    options = StandardOptions(seed=args.seed, effect=effect, c2n=args.c2n, plan=_plan(args), sensor=sensor)
+    out = args.out or Path(f"sim-{args.session}-seed{args.seed}.blf")
+    drive = simulate_standard(config, options)
+    truth = write_drive(drive, out)
+    console.print(f"wrote {out} and {truth.name}: {effect.describe()}, {describe(drive.truth)}")
+    return 0
+
+
+def _run_pack(args: argparse.Namespace, console: Console) -> int:
+    if args.pack < 1:
+        raise C2nError(f"--pack needs at least one case, not {args.pack}")
+    out = args.out or Path(f"pack-seed{args.seed}")
+    progress = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        disable=not console.is_terminal,
+    )
+    task = progress.add_task("simulating", total=args.pack)
+
+    def done(case: CaseResult) -> None:
+        # nothing about the effect: whoever makes the pack stays blind too
+        progress.console.print(
+            f"{out / case.name}: {case.duration_s:.0f} s of driving, {case.frames:,} frames "
+            f"({case.elapsed_s:.1f} s)"
+        )
+        progress.advance(task)
+
+    with progress:
+        result = write_pack(out, args.pack, args.seed, args.config, _plan(args), args.workers, done)
+    console.print(
+        f"wrote {len(result.cases)} cases to {out} in {result.elapsed_s:.1f} s; "
+        f"truth sealed in {result.truth_path}"
+    )
     return 0

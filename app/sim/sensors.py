@@ -3,6 +3,9 @@
 The optical sensor (Kistler S-Motion layout) sits d ahead of the rear axle and y_s left of the
 centre line on its own channel; the vehicle's frames (Ford layout) on another. Every value goes
 through cantools' encoder, so the log carries exactly the DBCs' resolution.
+
+A two-track trace (two_track.py) brings more physics: the optical head at its height sees the
+roll rate, the accelerometer reads roll and road slope, and both gyros carry the roll rate.
 """
 
 import math
@@ -14,6 +17,7 @@ import can
 import numpy as np
 
 from app.sim.drive import DriveTrace
+from app.sim.two_track import TwoTrackTrace
 
 LOG_START = 1_763_900_000.0  # 2025-11-23, so logs carry plausible absolute times
 
@@ -32,7 +36,10 @@ class SensorSetup:
     sigma_speed_kph: float = 0.05
     yaw_misalignment_deg: float = 0.0  # sensor head turned left by this much
     speed_scale: float = 1.0  # vehicle speed scale error (tyre radius)
-    speed_latency_s: float = 0.0  # vehicle speed delay
+    speed_latency_s: float = 0.0  # vehicle speed delay (on top of vehicle_latency_s)
+    vehicle_latency_s: float = 0.0  # every vehicle-bus signal carries the value of this long ago
+    wheel_speed_scale: float = 1.0  # wheel speeds' scale error (true rolling radius / nominal)
+    height_m: float = 0.0  # optical head above the ground (two-track traces: roll rate share)
     angle_cutoff_mps: float = 1.4  # the sensor forces Angle to 0 below this (AngleSwitchedOff)
     steering_ratio: float = 15.0
     track_m: float = 1.5
@@ -92,7 +99,10 @@ def _optical(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
     x_s = s.d_m - trace.params.b_m  # ahead of the CG
     u, r = _at(trace, t, trace.u), _at(trace, t, trace.r)
     vx = u - r * s.lateral_m
-    vy = _at(trace, t, trace.lateral_velocity_at(x_s))
+    if isinstance(trace, TwoTrackTrace):
+        vy = _at(trace, t, trace.lateral_velocity_at(x_s, s.height_m))
+    else:
+        vy = _at(trace, t, trace.lateral_velocity_at(x_s))
     psi = math.radians(s.yaw_misalignment_deg)  # head turned left: it sees the velocity turned right
     vx, vy = vx * math.cos(psi) + vy * math.sin(psi), -vx * math.sin(psi) + vy * math.cos(psi)
     vx = vx + rng.normal(0.0, s.sigma_velocity_mps, len(t))
@@ -103,6 +113,9 @@ def _optical(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
     velocity = {"vx": vx * kmh, "vy": vy * kmh, "vel": np.hypot(vx, vy) * kmh}
     yaw = np.degrees(r) + rng.normal(0.0, s.sigma_yaw_rate_degps, len(t))
     zeros = np.zeros(len(t))
+    roll = zeros
+    if isinstance(trace, TwoTrackTrace):
+        roll = np.degrees(_at(trace, t, trace.roll_rate)) + rng.normal(0.0, s.sigma_yaw_rate_degps, len(t))
     channel = s.sensor_channel
     yield from _encode(
         db.get_message_by_name("Correvit"),
@@ -125,7 +138,7 @@ def _optical(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         db.get_message_by_name("AngVelHor"),
         channel,
         t,
-        {"AngVelX_hor": zeros, "AngVelY_hor": zeros, "AngVelZ_hor": yaw},
+        {"AngVelX_hor": roll, "AngVelY_hor": zeros, "AngVelZ_hor": yaw},
     )
 
 
@@ -150,8 +163,9 @@ def _status(trace: DriveTrace, s: SensorSetup, db: Any) -> Iterator[can.Message]
 
 def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generator) -> Iterator[can.Message]:
     channel = s.vehicle_channel
+    lag = s.vehicle_latency_s
     t_speed = _times(trace, s.speed_hz)
-    speed = _at(trace, t_speed - s.speed_latency_s, trace.u) * s.speed_scale * 3.6
+    speed = _at(trace, t_speed - lag - s.speed_latency_s, trace.u) * s.speed_scale * 3.6
     speed = speed + rng.normal(0.0, s.sigma_speed_kph, len(t_speed))
     yield from _encode(
         db.get_message_by_name("BrakeSysFeatures"),
@@ -161,7 +175,13 @@ def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
     )
     t = _times(trace, s.vehicle_hz)
     n = len(t)
-    u, r = _at(trace, t, trace.u), _at(trace, t, trace.r)
+    sampled = t - lag  # the values the frames at t carry
+    u, r = _at(trace, sampled, trace.u), _at(trace, sampled, trace.r)
+    if isinstance(trace, TwoTrackTrace):  # the body-fixed sensors feel roll and the road's slope
+        ay, ax = trace.ay_accelerometer, trace.ax_accelerometer
+        roll_rate = _at(trace, sampled, trace.roll_rate)
+    else:
+        ay, ax, roll_rate = trace.ay, trace.u_dot, np.zeros(n)
     qf_ok = np.full(n, 3.0)
     yield from _encode(
         db.get_message_by_name("Yaw_Data_FD1"),
@@ -169,7 +189,7 @@ def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         t,
         {
             "VehYaw_W_Actl": r + rng.normal(0.0, math.radians(s.sigma_yaw_rate_degps), n),
-            "VehRol_W_Actl": np.zeros(n),
+            "VehRol_W_Actl": roll_rate,
             "VehYawWActl_D_Qf": qf_ok,
             "VehRolWActl_D_Qf": qf_ok,
         },
@@ -179,8 +199,8 @@ def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         channel,
         t,
         {
-            "VehLat2_A_Actl": _at(trace, t, trace.ay) + rng.normal(0.0, s.sigma_ay_mps2, n),
-            "VehLong2_A_Actl": _at(trace, t, trace.u_dot),
+            "VehLat2_A_Actl": _at(trace, sampled, ay) + rng.normal(0.0, s.sigma_ay_mps2, n),
+            "VehLong2_A_Actl": _at(trace, sampled, ax),
             "VehLatAActl_D_Qf": qf_ok,
             "VehLongAActl_D_Qf": qf_ok,
         },
@@ -190,12 +210,13 @@ def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         channel,
         t,
         {
-            "StePinComp_An_Est": np.degrees(_at(trace, t, trace.delta)) * s.steering_ratio,
+            "StePinComp_An_Est": np.degrees(_at(trace, sampled, trace.delta)) * s.steering_ratio,
             "StePinCompAnEst_D_Qf": qf_ok,
         },
     )
     half_track = 0.5 * s.track_m
-    left, right = (u - r * half_track) / s.tyre_radius_m, (u + r * half_track) / s.tyre_radius_m
+    scale, radius = s.wheel_speed_scale, s.tyre_radius_m
+    left, right = (u - r * half_track) * scale / radius, (u + r * half_track) * scale / radius
     yield from _encode(
         db.get_message_by_name("WheelSpeed"),
         channel,

@@ -1,0 +1,68 @@
+"""``c2n gap-check PACK``: diagnose every case of a blind pack from its log and config alone, then
+open the seal and print the confusion matrix, the accuracy, the false-alarm rate on 'none' cases
+and the held-out shrink."""
+
+import argparse
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from app.cli.gap import write_json
+
+
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "gap-check", help="score the gap diagnosis on a blind pack", description=__doc__
+    )
+    parser.add_argument("pack", type=Path, metavar="PACK", help="a folder written by c2n simulate --pack")
+    parser.add_argument("--workers", type=int, metavar="N", help="parallel cases (default: the CPU count)")
+    parser.add_argument("--json", type=Path, metavar="OUT", help="write the scores here")
+    parser.set_defaults(run=run)
+    return parser
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    from app.gap import check
+
+    folders = check.cases(args.pack)
+    out = args.pack / check.OUT
+    done = 0
+
+    def on_case(answer: check.CaseAnswer) -> None:
+        nonlocal done
+        done += 1
+        said = answer.result["diagnosis"] if answer.result else f"error: {answer.error}"
+        console.print(f"[{done}/{len(folders)}] {answer.case}: {said}", highlight=False)
+        if answer.result:
+            write_json(out / f"{answer.case}.json", answer.result)
+
+    answers = check.run_cases(folders, args.workers or check.default_workers(), on_case)
+    scores = check.score(answers, check.open_seal(args.pack))  # the seal opens only now
+    effects = sorted(
+        {row["truth"] for row in scores["cases"]} | {row["diagnosis"] for row in scores["cases"]}
+    )
+    table = Table(title="truth (rows) × diagnosis (columns)")
+    table.add_column("truth")
+    for effect in effects:
+        table.add_column(effect.replace("_", " "), justify="right")
+    for truth in effects:
+        counts = [
+            sum(1 for r in scores["cases"] if r["truth"] == truth and r["diagnosis"] == e) for e in effects
+        ]
+        if any(counts):
+            table.add_row(truth, *(str(c) if c else "·" for c in counts))
+    console.print(table)
+    alarm = scores["false_alarm_rate"]
+    shrink = scores["shrink_heldout_median"]
+    console.print(
+        f"accuracy {scores['accuracy']:.0%} of {scores['n']} cases; false alarms on 'none' "
+        + (f"{alarm:.0%} of {scores['none_cases']}" if alarm is not None else "— (no 'none' case)")
+        + "; median held-out shrink "
+        + (f"{shrink:.0%}" if shrink is not None else "—")
+    )
+    if args.json:
+        write_json(args.json, scores)
+    else:
+        write_json(out / "scores.json", scores)
+    return 0

@@ -1,0 +1,140 @@
+"""A measured drive on a uniform time grid: what the model is driven by and compared with.
+
+The logs go through the one pipeline (decode, filter, steady-state gate); the trace's columns are
+averaged into bins of ``dt``. Inputs of the model (vehicle speed, steering, lateral acceleration)
+come from the vehicle bus where the config maps them; the comparison is with the optical sensor's
+sideslip and the yaw rate.
+"""
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from app.config import Config
+from app.errors import NoResultError
+from app.pipeline import Pipeline
+from app.records import Crossing
+from app.regression import RegressionFit
+from app.sources import LogSource
+from app.summary import build as build_summary
+from app.trace import Trace, TraceRecorder
+
+DT_S = 0.02
+
+
+@dataclass(frozen=True)
+class Measured:
+    """Per grid step (``dt``): the measured drive. Angles in rad, the rest SI; NaN where missing."""
+
+    dt: float
+    t: np.ndarray
+    u_vehicle: np.ndarray  # the model's speed input: vehicle speed, else the optical speed
+    u_optical: np.ndarray
+    delta: np.ndarray  # road-wheel steer angle (steering-wheel angle / ratio), NaN without steer
+    ay: np.ndarray  # u·r from the optical speed and the yaw rate (no roll or slope in it)
+    r: np.ndarray  # measured yaw rate
+    beta: np.ndarray  # measured sideslip at the sensor (optical)
+    steady: np.ndarray  # bool: the steady-state gate held
+    speed_source: str
+    vehicle_roles: frozenset[str]  # roles read from the vehicle bus (they share its latency)
+    crossings: tuple[Crossing, ...]
+    regression: RegressionFit | None
+    summary: dict[str, object]
+
+    @property
+    def heading(self) -> np.ndarray:
+        """Heading from the integrated yaw rate (rad, 0 at the start)."""
+        return np.cumsum(np.nan_to_num(self.r)) * self.dt
+
+
+def _binned(time: np.ndarray, values: np.ndarray, index: np.ndarray, n: int) -> np.ndarray:
+    ok = np.isfinite(values)
+    total = np.bincount(index[ok], values[ok], minlength=n)
+    count = np.bincount(index[ok], minlength=n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def _fill(values: np.ndarray) -> np.ndarray:
+    """Hold the last value over gaps (a held CAN signal), the first one before it."""
+    ok = np.isfinite(values)
+    if not ok.any():
+        return values
+    index = np.where(ok, np.arange(len(values)), 0)
+    np.maximum.accumulate(index, out=index)
+    filled = values[index]
+    filled[: np.argmax(ok)] = values[np.argmax(ok)]
+    return filled
+
+
+def _vehicle_roles(config: Config) -> frozenset[str]:
+    """Roles whose DBC is not the optical sensor's: they ride the vehicle bus."""
+
+    def dbc_of(role: str) -> Path | None:
+        message = config.roles[role].message
+        return next(
+            (dbc.path for dbc in config.dbcs if any(m.name == message for m in dbc.database.messages)),
+            None,
+        )
+
+    optical = dbc_of("vx") if "vx" in config.roles else None
+    return frozenset(role for role in config.roles if dbc_of(role) != optical)
+
+
+def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
+    source = LogSource(logs, merge=len(logs) > 1)
+    pipeline = Pipeline(config)
+    recorder = TraceRecorder(config.roles)
+    for message in source:
+        record = pipeline.process(message)
+        if record is not None:
+            recorder(record)
+    pipeline.finish()
+    state = pipeline.state
+    trace = recorder.trace(state.t_first or 0.0)
+    if not len(trace) or not np.isfinite(trace["sideslip_measured"]).any():
+        raise NoResultError(
+            f"{', '.join(map(str, logs))}: no optical sideslip — the gap needs the optical sensor's frames"
+        )
+    return _on_grid(trace, config, pipeline, logs, dt)
+
+
+def _on_grid(trace: Trace, config: Config, pipeline: Pipeline, logs: Sequence[Path], dt: float) -> Measured:
+    time = trace["time"]
+    n = int(time[-1] / dt) + 1
+    index = np.minimum((time / dt).astype(np.int64), n - 1)
+    deg = math.pi / 180.0
+
+    def column(name: str, scale: float = 1.0) -> np.ndarray:
+        if name not in trace.columns:
+            return np.full(n, np.nan)
+        return _fill(_binned(time, trace[name] * scale, index, n))
+
+    u_optical = column("speed")
+    has_speed = "vehicle_speed" in trace.columns and np.isfinite(trace["vehicle_speed"]).any()
+    u_vehicle = column("vehicle_speed") if has_speed else u_optical
+    r = column("yaw_rate_measured", deg) if "yaw_rate_measured" in trace.columns else column("yaw_rate", deg)
+    ratio = config.vehicle.steering_ratio or 15.0
+    delta = column("steer", deg / ratio)
+    ay = u_optical * r  # steady lateral acceleration: an accelerometer also reads roll and slope
+    beta = _binned(time, trace["sideslip_measured"] * deg, index, n)
+    steady = _binned(time, trace["steady"], index, n) > 0.5
+    return Measured(
+        dt=dt,
+        t=np.arange(n) * dt,
+        u_vehicle=u_vehicle,
+        u_optical=u_optical,
+        delta=delta,
+        ay=ay,
+        r=r,
+        beta=beta,
+        steady=steady,
+        speed_source="vehicle speed" if has_speed else "optical speed",
+        vehicle_roles=_vehicle_roles(config),
+        crossings=tuple(pipeline.state.crossings),
+        regression=pipeline.state.regression,
+        summary=build_summary(pipeline, [str(p) for p in logs]),
+    )

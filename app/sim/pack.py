@@ -1,0 +1,168 @@
+"""Blind packs: N standard sessions on the two-track model, each with one effect drawn at random.
+
+    DIR/case_001/drive.blf        the drive; nothing in the folder tells its effect
+    DIR/case_001/config.toml      only when the pack was made with a config other than the default
+    DIR/sealed/truth.json         every case's effect, size, unit, true C2n, true d, seed, …
+
+Case i is seeded from the pack seed and i alone, so a pack is reproducible and its first cases do
+not depend on N; ``c2n simulate --session standard --effect E --effect-size X --seed <case seed>``
+writes the same drive as the pack's case.
+"""
+
+import json
+import os
+import time
+import tomllib
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+import numpy as np
+
+from app.config import DEFAULT_CONFIG, load_config
+from app.errors import C2nError, ConfigError, LogFileError
+from app.sim.effects import Effect, draw_effect
+from app.sim.standard import STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
+
+LOG_NAME = "drive.blf"
+_EFFECT_STREAM = 0xEFFEC7  # the effect's draw has a random stream of its own, apart from the noise
+
+
+@dataclass(frozen=True)
+class CaseSpec:
+    name: str
+    seed: int
+    effect: Effect
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    name: str
+    log: Path
+    duration_s: float
+    frames: int
+    elapsed_s: float
+    truth: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class PackResult:
+    out: Path
+    cases: tuple[CaseResult, ...]
+    truth_path: Path
+    elapsed_s: float
+
+
+def case_seed(pack_seed: int, index: int) -> int:
+    """The seed of case ``index`` (1-based) of a pack."""
+    return int(np.random.SeedSequence([pack_seed, index]).generate_state(1)[0])
+
+
+def plan_pack(n: int, pack_seed: int) -> list[CaseSpec]:
+    cases = []
+    for index in range(1, n + 1):
+        seed = case_seed(pack_seed, index)
+        effect = draw_effect(np.random.default_rng([seed, _EFFECT_STREAM]))
+        cases.append(CaseSpec(f"case_{index:03d}", seed, effect))
+    return cases
+
+
+def write_pack(
+    out: Path,
+    n: int,
+    pack_seed: int,
+    config_path: Path = DEFAULT_CONFIG,
+    plan: StandardPlan = STANDARD_PLAN,
+    workers: int | None = None,
+    on_case: Callable[[CaseResult], None] | None = None,
+    clock: Callable[[], float] = time.perf_counter,
+) -> PackResult:
+    """Write the pack into ``out`` (new or empty); ``on_case`` hears of each case as it is done."""
+    if n < 1:
+        raise C2nError(f"a pack needs at least one case, not {n}")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise C2nError(f"{out}: exists and is not an empty folder — choose a new one")
+    config_text = _portable_config(Path(config_path))
+    load_config(config_path)  # a bad config fails here, once, not in every worker
+    specs = plan_pack(n, pack_seed)
+    start = clock()
+    jobs = [(Path(config_path), out / spec.name, spec, plan, config_text) for spec in specs]
+    workers = max(1, min(workers or os.cpu_count() or 1, n))
+    results: list[CaseResult] = []
+    if workers == 1:
+        for job in jobs:
+            results.append(_write_case(*job))
+            if on_case:
+                on_case(results[-1])
+    else:
+        executor = ProcessPoolExecutor(max_workers=workers)
+        try:
+            futures: list[Future[CaseResult]] = [executor.submit(_write_case, *job) for job in jobs]
+            for future in as_completed(futures):
+                results.append(future.result())
+                if on_case:
+                    on_case(results[-1])
+        finally:
+            executor.shutdown(wait=True, cancel_futures=True)
+    results.sort(key=lambda result: result.name)
+    sealed = out / "sealed"
+    sealed.mkdir(parents=True, exist_ok=True)
+    truth_path = sealed / "truth.json"
+    truth = {
+        "pack_seed": pack_seed,
+        "n": n,
+        "config": str(Path(config_path).resolve()),
+        "cases": {result.name: result.truth for result in results},
+    }
+    truth_path.write_text(json.dumps(truth, indent=2) + "\n")
+    return PackResult(out, tuple(results), truth_path, clock() - start)
+
+
+def _write_case(
+    config_path: Path, folder: Path, spec: CaseSpec, plan: StandardPlan, config_text: str | None
+) -> CaseResult:
+    start = time.perf_counter()
+    config = load_config(config_path)
+    drive = simulate_standard(config, StandardOptions(seed=spec.seed, effect=spec.effect, plan=plan))
+    folder.mkdir(parents=True, exist_ok=True)
+    log = folder / LOG_NAME
+    write_log(drive.messages, log)
+    if config_text is not None:
+        (folder / "config.toml").write_text(config_text)
+    truth = {"case": spec.name, "log": f"{spec.name}/{LOG_NAME}"} | drive.truth
+    return CaseResult(
+        spec.name, log, float(truth["duration_s"]), len(drive.messages), time.perf_counter() - start, truth
+    )
+
+
+def write_log(messages: list[can.Message], log: Path) -> None:
+    """The frames alone, in the format the suffix names (no truth, no comments)."""
+    try:
+        with can.Logger(log) as writer:
+            for message in messages:
+                writer.on_message_received(message)
+    except OSError as error:
+        raise LogFileError(f"{log}: cannot write ({error.strerror})") from None
+
+
+def _portable_config(path: Path) -> str | None:
+    """None for the default config (cases need no config of their own); otherwise its text with
+    the DBC paths made absolute, so it works from the case's folder."""
+    if path.resolve() == DEFAULT_CONFIG.resolve():
+        return None
+    try:
+        text = path.read_text()
+        table = tomllib.loads(text)
+    except (OSError, tomllib.TOMLDecodeError) as error:
+        raise ConfigError(f"{path}: cannot read ({error})") from None
+    files = table.get("dbc", {}).get("files", [])
+    for name in files if isinstance(files, list) else []:
+        if isinstance(name, str) and not Path(name).is_absolute():
+            absolute = (path.parent / name).resolve()
+            text = text.replace(f'"{name}"', json.dumps(str(absolute))).replace(
+                f"'{name}'", json.dumps(str(absolute))
+            )
+    return text

@@ -1,0 +1,193 @@
+"""The standard test session, driven by the two-track model with one effect (or none).
+
+What a diagnosis needs, in an order a test driver can drive on a proving ground (speeds relative
+to the config's nominal crossing speed u0 = √(C2n·g·d), radii from the top speed):
+
+1. straight: 5 s at the low speed, up to u0 at 0.5 m/s², 30 s at u0 (sideslip offset, speed
+   scale, the road's cross slope at a known heading), back down to the low speed;
+2. constant-radius sweeps on 3 radii (R1 = u_hi²/4 m/s², 1.4·R1, 2·R1), each left then right:
+   turn in and settle at the low speed (6 s), speed swept up through u0 to u_hi at 0.3 m/s², held
+   3 s, swept down, held 3 s, 4 s straight;
+3. step steers at 0.8·u0 and 1.2·u0, left then right at each: straight 2 s, the wheel stepped to
+   the angle that gives 3 m/s² at the higher speed and held 6 s, 3 s straight.
+
+With the Mondeo config: u0 12.7 m/s, speeds 7.6–16.5 m/s, radii 68/96/137 m, 9.4 minutes of driving.
+"""
+
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from app import paper
+from app.config import Config
+from app.dbc import load_dbc
+from app.sim.effects import NO_EFFECT, Effect, apply_to_sensor, apply_to_vehicle
+from app.sim.scenarios import Scenario, Segment, Steer
+from app.sim.sensors import SensorSetup, frames
+from app.sim.session import DBC_DIR, SimulatedDrive
+from app.sim.two_track import TwoTrackParams, simulate_two_track
+from app.sim.vehicle_model import BicycleParams
+
+
+@dataclass(frozen=True)
+class StandardPlan:
+    speed_lo_factor: float = 0.6  # of the nominal u0
+    speed_hi_factor: float = 1.3
+    ay_top_mps2: float = 4.0  # at the top speed of the smallest radius
+    radius_factors: tuple[float, ...] = (1.0, 1.4, 2.0)
+    sweep_mps2: float = 0.3
+    settle_s: float = 6.0  # after turning in
+    hold_s: float = 3.0  # at the ends of a sweep
+    straight_s: float = 30.0
+    straight_accel_mps2: float = 0.5
+    step_speed_factors: tuple[float, ...] = (0.8, 1.2)
+    step_ay_mps2: float = 3.0  # steady lateral acceleration of the step at the highest speed
+    step_hold_s: float = 6.0
+
+
+STANDARD_PLAN = StandardPlan()
+
+# A short session for smoke tests (one radius, fast sweeps): too coarse for a diagnosis.
+QUICK_PLAN = StandardPlan(
+    radius_factors=(1.0,),
+    sweep_mps2=1.0,
+    settle_s=4.0,
+    hold_s=1.0,
+    straight_s=5.0,
+    straight_accel_mps2=1.0,
+    step_speed_factors=(1.2,),
+    step_hold_s=4.0,
+)
+
+
+@dataclass(frozen=True)
+class Part:
+    """One manoeuvre of the session and when it runs."""
+
+    kind: str  # "straight", "sweep", "step_steer"
+    start_s: float
+    end_s: float
+    direction: int = 0  # +1 left, −1 right, 0 straight
+    radius_m: float | None = None
+    speed_mps: float | None = None
+
+
+@dataclass(frozen=True)
+class StandardSession:
+    scenario: Scenario
+    parts: tuple[Part, ...]
+
+
+def standard_session(
+    u0_mps: float, params: BicycleParams, steering_ratio: float, plan: StandardPlan = STANDARD_PLAN
+) -> StandardSession:
+    """The session for a car whose expected crossing speed is ``u0_mps`` (radii rounded to metres,
+    as a test area marks them)."""
+    lo, hi = plan.speed_lo_factor * u0_mps, plan.speed_hi_factor * u0_mps
+    segments: list[Segment] = []
+    parts: list[Part] = []
+    clock = [0.0]
+
+    def add(duration: float, speed: float, steer: Steer) -> None:
+        segments.append(Segment(duration, speed, steer))
+        clock[0] += duration
+
+    straight = Steer("straight")
+    add(5.0, lo, straight)
+    ramp = max(abs(u0_mps - lo) / plan.straight_accel_mps2, 1.0)
+    add(ramp, u0_mps, straight)
+    steady = clock[0]
+    add(plan.straight_s, u0_mps, straight)
+    parts.append(Part("straight", steady, clock[0], speed_mps=u0_mps))
+    add(ramp, lo, straight)
+
+    base = hi * hi / plan.ay_top_mps2
+    sweep_s = (hi - lo) / plan.sweep_mps2
+    for factor in plan.radius_factors:
+        radius = float(round(factor * base))
+        for sign in (1, -1):
+            turn = Steer("radius", sign * radius)
+            begin = clock[0]
+            add(plan.settle_s, lo, turn)
+            add(sweep_s, hi, turn)
+            add(plan.hold_s, hi, turn)
+            add(sweep_s, lo, turn)
+            add(plan.hold_s, lo, turn)
+            parts.append(Part("sweep", begin, clock[0], sign, radius))
+            add(4.0, lo, straight)
+
+    top = max(plan.step_speed_factors) * u0_mps
+    wheel = params.steady_steer(top, top * top / plan.step_ay_mps2) * steering_ratio
+    previous = lo
+    for factor in plan.step_speed_factors:
+        speed = factor * u0_mps
+        for sign in (1, -1):
+            add(max(abs(speed - previous) / 1.0, 2.0), speed, straight)  # 1 m/s² between steps
+            add(2.0, speed, straight)
+            begin = clock[0]
+            add(plan.step_hold_s, speed, Steer("wheel", sign * wheel))
+            parts.append(Part("step_steer", begin, clock[0], sign, speed_mps=speed))
+            add(3.0, speed, straight)
+            previous = speed
+    return StandardSession(Scenario("standard", lo, tuple(segments)), tuple(parts))
+
+
+@dataclass(frozen=True)
+class StandardOptions:
+    seed: int = 0
+    effect: Effect = NO_EFFECT
+    c2n: float | None = None  # truth; None: the config's [tyres] c2n_per_rad
+    c1n: float | None = None
+    plan: StandardPlan = STANDARD_PLAN
+    dt_s: float = 0.002
+    sensor: Mapping[str, Any] = field(default_factory=dict)  # SensorSetup overrides (the effect wins)
+
+
+def simulate_standard(config: Config, options: StandardOptions = StandardOptions()) -> SimulatedDrive:
+    """The standard session on the two-track model with the options' effect, as CAN frames + truth."""
+    nominal = TwoTrackParams.from_config(config, options.c2n, options.c1n)
+    params = apply_to_vehicle(options.effect, nominal)
+    ratio = config.vehicle.steering_ratio or 15.0
+    g = config.vehicle.gravity_mps2
+    planning_c2n = config.tyres.c2n_per_rad or nominal.c2n  # the test plan knows only the config
+    u0_plan = paper.crossing_speed(planning_c2n, config.d_m, g)
+    session = standard_session(u0_plan, nominal.bicycle(), ratio, options.plan)
+    trace = simulate_two_track(params, session.scenario, ratio, options.dt_s)
+    setup = SensorSetup(
+        d_m=config.d_m,
+        lateral_m=config.vehicle.sensor_lateral_m,
+        steering_ratio=ratio,
+        track_m=config.vehicle.track_m or 1.5,
+        tyre_radius_m=config.vehicle.tyre_radius_m or 0.31,
+        height_m=config.vehicle.sensor_height_m,
+    )
+    setup = apply_to_sensor(options.effect, replace(setup, **options.sensor))
+    kistler = load_dbc(DBC_DIR / "kistler_smotion.dbc").database
+    ford = load_dbc(DBC_DIR / "vehicle_ford.dbc").database
+    messages = frames(trace, setup, kistler, ford, np.random.default_rng(options.seed))
+    truth: dict[str, Any] = {
+        "session": "standard",
+        "model": "two_track",
+        "effect": {"name": options.effect.name, "size": options.effect.size, "unit": options.effect.unit},
+        "c2n": params.c2n,
+        "c1n": params.c1n,
+        "d_m": setup.d_m,
+        "config_d_m": config.d_m,
+        "u0_mps": paper.crossing_speed(params.c2n, setup.d_m, g),
+        "g_mps2": g,
+        "understeer_rad_per_mps2": params.understeer_rad_per_mps2,
+        "c2n_load_transfer_ratio_at_3mps2": params.rear_stiffness_ratio(3.0),
+        "seed": options.seed,
+        "duration_s": float(trace.t[-1]),
+        "frames": len(messages),
+        "max_ay_mps2": float(np.max(np.abs(trace.ay))),
+        "max_roll_deg": math.degrees(float(np.max(np.abs(trace.roll)))),
+        "sensor": asdict(setup),
+        "vehicle": asdict(params),
+        "plan": asdict(options.plan),
+        "parts": [asdict(part) for part in session.parts],
+    }
+    return SimulatedDrive(messages, truth, trace)

@@ -1,0 +1,160 @@
+"""`c2n gap`: the nominal model against the paper's closed form, effects found in simulated drives,
+and the blind check's scoring."""
+
+import io
+import json
+import math
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app import paper
+from app.cli import main
+from app.config import load_config
+from app.gap.check import CaseAnswer, score
+from app.gap.diagnose import diagnose
+from app.gap.measured import Measured, measure
+from app.gap.model import Mods, simulate
+from app.sim.session import DriveOptions, simulate_drive, write_drive
+from app.sim.vehicle_model import BicycleParams
+from tests.simulated import FAST_SENSORS
+
+
+def steady_drive(u: float, delta: float, seconds: float = 20.0, dt: float = 0.02) -> Measured:
+    """Constant speed and steering: what the model is driven by, with nothing to compare."""
+    n = int(seconds / dt)
+    ones = np.ones(n)
+    return Measured(
+        dt=dt,
+        t=np.arange(n) * dt,
+        u_vehicle=u * ones,
+        u_optical=u * ones,
+        delta=delta * ones,
+        ay=np.zeros(n),
+        r=np.zeros(n),
+        beta=np.zeros(n),
+        steady=np.ones(n, dtype=bool),
+        speed_source="vehicle speed",
+        vehicle_roles=frozenset({"speed", "steer"}),
+        crossings=(),
+        regression=None,
+        summary={},
+    )
+
+
+@pytest.mark.parametrize("u", [9.0, 12.7, 16.0])
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_nominal_model_settles_on_the_papers_steady_state(u: float, side: float) -> None:
+    """β_d = d/R − u²/(R·g·C2n) (eq. 6) on the radius the model drives, and R = (L + K·u²)/δ."""
+    config = load_config()
+    p = BicycleParams.from_config(config)
+    delta = side * math.radians(2.0)
+    sim = simulate(p, steady_drive(u, delta), config.d_m)
+    radius = u / sim.r[-1]
+    assert radius == pytest.approx((p.wheelbase_m + p.understeer_rad_per_mps2 * u * u) / delta, rel=1e-6)
+    expected = paper.sideslip_at_sensor(u, radius, config.d_m, p.c2n, p.g)
+    assert sim.beta[-1] == pytest.approx(math.atan(expected), abs=1e-6)
+    assert np.sign(sim.beta[-1]) == (side if u < paper.crossing_speed(p.c2n, config.d_m, p.g) else -side)
+
+
+def test_output_effects_move_the_sideslip_as_their_closed_forms_say() -> None:
+    config = load_config()
+    p = BicycleParams.from_config(config)
+    drive = steady_drive(12.0, math.radians(1.5))
+    base = simulate(p, drive, config.d_m)
+    yawed = simulate(p, drive, config.d_m, Mods(misalignment_rad=math.radians(0.4)))
+    moved = simulate(p, drive, config.d_m, Mods(d_error_m=0.2))
+    assert yawed.beta[-1] - base.beta[-1] == pytest.approx(-math.radians(0.4), abs=1e-9)
+    # the sensor 0.2 m further forward sees 0.2·r more lateral velocity: Δβ ≈ 0.2·κ
+    assert moved.beta[-1] - base.beta[-1] == pytest.approx(0.2 * base.r[-1] / 12.0, rel=1e-3)
+
+
+def measured_drive(tmp_path: Path, **sensor: float) -> Measured:
+    config = load_config()
+    drive = simulate_drive(config, DriveOptions(scenario="radii", seed=11, sensor=FAST_SENSORS | sensor))
+    log = tmp_path / "drive.blf"
+    write_drive(drive, log)
+    return measure([log], config)
+
+
+def test_a_yawed_sensor_head_is_named_and_sized(tmp_path: Path) -> None:
+    result = diagnose(measured_drive(tmp_path, yaw_misalignment_deg=0.5), load_config()).result
+    assert result["diagnosis"] == "sensor_yaw_misalignment"
+    best = result["candidates"][0]
+    assert best["params"]["misalignment_deg"] == pytest.approx(0.5, abs=0.02)
+    assert result["shrink_heldout"] > 0.7
+    assert result["located"][0]["share"] > 0
+
+
+def test_a_drive_the_model_explains_is_none(tmp_path: Path) -> None:
+    result = diagnose(measured_drive(tmp_path), load_config()).result
+    assert result["diagnosis"] == "none" and result["confounded_with"] == []
+    assert result["shrink_heldout"] == 0.0
+    assert result["c2n"]["sim"] == pytest.approx(load_config().tyres.c2n_per_rad, rel=0.01)
+
+
+def test_gap_check_scoring() -> None:
+    truth = {
+        "cases": {
+            name: {"effect": {"name": effect, "size": 1.0}}
+            for name, effect in [
+                ("case_001", "none"),
+                ("case_002", "none"),
+                ("case_003", "roll_steer"),
+                ("case_004", "speed_scale_error"),
+                ("case_005", "signal_latency"),
+            ]
+        }
+    }
+
+    def said(effect: str, confounded: list[str] | None = None, shrink: float = 0.8) -> dict[str, object]:
+        return {"diagnosis": effect, "confounded_with": confounded or [], "shrink_heldout": shrink}
+
+    answers = [
+        CaseAnswer("case_001", said("none", shrink=0.0)),
+        CaseAnswer("case_002", said("tyre_ply_steer", shrink=0.1)),  # a false alarm
+        CaseAnswer("case_003", said("speed_scale_error", ["roll_steer"], 0.6)),  # right, confounded
+        CaseAnswer("case_004", said("speed_scale_error", shrink=0.9)),
+        CaseAnswer("case_005", said("none", shrink=0.0)),  # missed
+    ]
+    scores = score(answers, truth)
+    assert scores["accuracy"] == pytest.approx(3 / 5)
+    assert scores["false_alarm_rate"] == pytest.approx(1 / 2)
+    assert scores["shrink_heldout_median"] == pytest.approx(0.6)
+    assert scores["confusion"]["none -> tyre_ply_steer"] == 1
+
+
+def run_cli(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        code = main(argv)
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_gap_cli_writes_json_and_report(tmp_path: Path) -> None:
+    config = load_config()
+    drive = simulate_drive(
+        config,
+        DriveOptions(scenario="constant_radius", seed=4, sensor=FAST_SENSORS | {"yaw_misalignment_deg": 0.6}),
+    )
+    log = tmp_path / "drive.blf"
+    write_drive(drive, log)
+    code, out, err = run_cli(
+        ["gap", str(log), "--json", str(tmp_path / "gap.json"), "--report", str(tmp_path / "gap.html")]
+    )
+    assert code == 0, err
+    result = json.loads((tmp_path / "gap.json").read_text())
+    assert set(result) >= {"diagnosis", "confounded_with", "located", "candidates", "c2n", "shrink_heldout"}
+    assert result["diagnosis"] == "sensor_yaw_misalignment" and "gap: sensor_yaw_misalignment" in out
+    html = (tmp_path / "gap.html").read_text()
+    assert html.count("<img") == 5 and "http" not in html.replace("http-equiv", "")
+
+
+def test_gap_on_a_log_without_the_optical_sensor_is_one_error_line(tmp_path: Path) -> None:
+    log = tmp_path / "vehicle.log"
+    log.write_text("(1700000000.000000) can0 415#0000000000000000\n" * 50)
+    code, _, err = run_cli(["gap", str(log)])
+    assert code == 1
+    assert err.strip().startswith("c2n: error: ") and "optical" in err and "\n" not in err.strip()

@@ -10,12 +10,13 @@ roll rate, the accelerometer reads roll and road slope, and both gyros carry the
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import can
 import numpy as np
 
+from app.config import Config
 from app.sim.drive import DriveTrace
 from app.sim.two_track import TwoTrackTrace
 
@@ -47,6 +48,20 @@ class SensorSetup:
     sensor_channel: int = 1
     vehicle_channel: int = 0
     jitter_s: float = 0.0002  # transmission delay after the sample, uniform
+
+    @classmethod
+    def from_config(cls, config: Config, **overrides: Any) -> "SensorSetup":
+        """The sensors where the config says they are (the truth, unless an effect moves them)."""
+        v = config.vehicle
+        setup = cls(
+            d_m=config.d_m,
+            lateral_m=v.sensor_lateral_m,
+            steering_ratio=v.steering_ratio or 15.0,
+            track_m=v.track_m or 1.5,
+            tyre_radius_m=v.tyre_radius_m or 0.31,
+            height_m=v.sensor_height_m,
+        )
+        return replace(setup, **overrides)
 
 
 def frames(

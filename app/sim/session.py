@@ -1,7 +1,7 @@
 """A simulated test drive: manoeuvre → bicycle model → sensor frames → CAN log + truth."""
 
 import json
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -59,14 +59,7 @@ def simulate_drive(config: Config, options: DriveOptions = DriveOptions()) -> Si
     )
     scenario = SCENARIOS[options.scenario](plan)
     trace = simulate(params, scenario, ratio)
-    setup = SensorSetup(
-        d_m=config.d_m,
-        lateral_m=config.vehicle.sensor_lateral_m,
-        steering_ratio=ratio,
-        track_m=config.vehicle.track_m or 1.5,
-        tyre_radius_m=config.vehicle.tyre_radius_m or 0.31,
-    )
-    setup = replace(setup, **options.sensor)
+    setup = SensorSetup.from_config(config, **options.sensor)
     kistler = load_dbc(DBC_DIR / "kistler_smotion.dbc").database
     ford = load_dbc(DBC_DIR / "vehicle_ford.dbc").database
     rng = np.random.default_rng(options.seed)

@@ -16,7 +16,7 @@ With the Mondeo config: u0 12.7 m/s, speeds 7.6–16.5 m/s, radii 68/96/137 m, 9
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -156,15 +156,7 @@ def simulate_standard(config: Config, options: StandardOptions = StandardOptions
     u0_plan = paper.crossing_speed(planning_c2n, config.d_m, g)
     session = standard_session(u0_plan, nominal.bicycle(), ratio, options.plan)
     trace = simulate_two_track(params, session.scenario, ratio, options.dt_s)
-    setup = SensorSetup(
-        d_m=config.d_m,
-        lateral_m=config.vehicle.sensor_lateral_m,
-        steering_ratio=ratio,
-        track_m=config.vehicle.track_m or 1.5,
-        tyre_radius_m=config.vehicle.tyre_radius_m or 0.31,
-        height_m=config.vehicle.sensor_height_m,
-    )
-    setup = apply_to_sensor(options.effect, replace(setup, **options.sensor))
+    setup = apply_to_sensor(options.effect, SensorSetup.from_config(config, **options.sensor))
     kistler = load_dbc(DBC_DIR / "kistler_smotion.dbc").database
     ford = load_dbc(DBC_DIR / "vehicle_ford.dbc").database
     messages = frames(trace, setup, kistler, ford, np.random.default_rng(options.seed))

@@ -38,7 +38,7 @@ import numpy as np
 from app.config import Config
 from app.sim.drive import _KI, _KP, _MAX_STEER_RATE, DriveTrace, _speed_profile, _steer_commands
 from app.sim.scenarios import Scenario
-from app.sim.vehicle_model import BicycleParams
+from app.sim.vehicle_model import Axles, BicycleParams
 
 # Defaults where the config has no value; typical of a mid-size front-drive saloon (Mondeo Mk3).
 DEFAULT_CG_HEIGHT_M = 0.55
@@ -55,7 +55,7 @@ WHEELS = ("FL", "FR", "RL", "RR")
 
 
 @dataclass(frozen=True)
-class TwoTrackParams:
+class TwoTrackParams(Axles):
     """The car, its tyres, and the vehicle/road effects (all zero: none of them)."""
 
     mass_kg: float
@@ -105,18 +105,6 @@ class TwoTrackParams:
             track_rear_m=track,
             g=bicycle.g,
         )
-
-    @property
-    def wheelbase_m(self) -> float:
-        return self.a_m + self.b_m
-
-    @property
-    def w1_n(self) -> float:
-        return self.mass_kg * self.g * self.b_m / self.wheelbase_m
-
-    @property
-    def w2_n(self) -> float:
-        return self.mass_kg * self.g * self.a_m / self.wheelbase_m
 
     @property
     def roll_axis_height_m(self) -> float:

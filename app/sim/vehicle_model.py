@@ -16,19 +16,13 @@ from app.errors import ConfigError
 TyreModel = Literal["linear", "magic"]
 
 
-@dataclass(frozen=True)
-class BicycleParams:
+class Axles:
+    """Axle geometry and static loads of a model with ``mass_kg``, ``g``, ``a_m`` and ``b_m``."""
+
     mass_kg: float
-    yaw_inertia_kgm2: float
+    g: float
     a_m: float  # CG to front axle
     b_m: float  # CG to rear axle
-    c1_n_per_rad: float  # front axle cornering stiffness
-    c2_n_per_rad: float  # rear axle cornering stiffness
-    g: float = 9.81
-    tyre: TyreModel = "linear"
-    mu: float = 1.0  # peak friction for the saturating tyre
-    shape: float = 1.3  # Magic Formula C (lateral)
-    curvature: float = -1.0  # Magic Formula E
 
     @property
     def wheelbase_m(self) -> float:
@@ -41,6 +35,21 @@ class BicycleParams:
     @property
     def w2_n(self) -> float:
         return self.mass_kg * self.g * self.a_m / self.wheelbase_m
+
+
+@dataclass(frozen=True)
+class BicycleParams(Axles):
+    mass_kg: float
+    yaw_inertia_kgm2: float
+    a_m: float  # CG to front axle
+    b_m: float  # CG to rear axle
+    c1_n_per_rad: float  # front axle cornering stiffness
+    c2_n_per_rad: float  # rear axle cornering stiffness
+    g: float = 9.81
+    tyre: TyreModel = "linear"
+    mu: float = 1.0  # peak friction for the saturating tyre
+    shape: float = 1.3  # Magic Formula C (lateral)
+    curvature: float = -1.0  # Magic Formula E
 
     @property
     def c1n(self) -> float:

@@ -42,16 +42,15 @@ def run(args: argparse.Namespace, console: Console) -> int:
     effects = sorted(
         {row["truth"] for row in scores["cases"]} | {row["diagnosis"] for row in scores["cases"]}
     )
-    table = Table(title="truth (rows) × diagnosis (columns)")
+    table = Table(title="truth (rows) × diagnosis (columns, numbered as the rows)")
     table.add_column("truth")
-    for effect in effects:
-        table.add_column(effect.replace("_", " "), justify="right")
-    for truth in effects:
+    for number in range(1, len(effects) + 1):
+        table.add_column(str(number), justify="right")
+    for number, truth in enumerate(effects, start=1):
         counts = [
             sum(1 for r in scores["cases"] if r["truth"] == truth and r["diagnosis"] == e) for e in effects
         ]
-        if any(counts):
-            table.add_row(truth, *(str(c) if c else "·" for c in counts))
+        table.add_row(f"{number} {truth}", *(str(c) if c else "·" for c in counts))
     console.print(table)
     alarm = scores["false_alarm_rate"]
     shrink = scores["shrink_heldout_median"]

@@ -264,9 +264,17 @@ def test_bad_role_in_the_config_is_one_line(
     assert str(config) in line and "[roles] vy names signal 'Correvit.VelY' that no DBC has" in line
 
 
-@pytest.mark.parametrize("signal", ["SIGINT", "SIGTERM"])
-def test_live_ends_cleanly_on_ctrl_c_and_sigterm_and_writes_the_summary(tmp_path: Path, signal: str) -> None:
+@pytest.mark.parametrize(
+    ("signal", "ignored_at_start"), [("SIGINT", False), ("SIGINT", True), ("SIGTERM", False)]
+)
+def test_live_ends_cleanly_on_ctrl_c_and_sigterm_and_writes_the_summary(
+    tmp_path: Path, signal: str, ignored_at_start: bool
+) -> None:
+    """Also when started with SIGINT ignored, as a shell starts background jobs."""
     import signal as signals
+
+    def ignore_sigint() -> None:
+        signals.signal(signals.SIGINT, signals.SIG_IGN)
 
     process = subprocess.Popen(
         [sys.executable, "-m", "app", "live", "-i", "virtual", "-c", "nobody", "--record", str(tmp_path)],
@@ -274,6 +282,7 @@ def test_live_ends_cleanly_on_ctrl_c_and_sigterm_and_writes_the_summary(tmp_path
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=ignore_sigint if ignored_at_start else None,
     )
     assert process.stdout is not None
     prompt = process.stdout.readline()  # the user presses Ctrl-C once the session says how to end it

@@ -69,7 +69,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     )
     stop = threading.Event()
     timer = threading.Timer(args.duration, stop.set) if args.duration else None
-    previous = signal.signal(signal.SIGTERM, _interrupt)
+    # Ctrl-C and SIGTERM both end the session cleanly, also where SIGINT was inherited ignored
+    # (a shell starts background jobs so, and Python then leaves it ignored).
+    previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
     console.print(f"c2n live on {title} — Ctrl-C ends the session", style="dim")
     try:
         if timer is not None:
@@ -83,7 +85,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             recorder,
         )
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         if timer is not None:
             timer.cancel()
         for bus in buses:

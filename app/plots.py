@@ -188,18 +188,7 @@ def draw_sideslip_vs_speed(figure: Figure, trace: Trace, summary: Summary) -> No
         rows = np.flatnonzero(usable & (direction == sign))
         rows = rows[stride(len(rows), MAX_SCATTER_POINTS)]
         plotted += len(rows)
-        if len(rows):
-            ax.plot(
-                speed[rows],
-                sideslip[rows],
-                linestyle="none",
-                marker=".",
-                markersize=2,
-                color=colour,
-                alpha=0.6,
-                rasterized=True,
-                label=f"{name} turns",
-            )
+        _dots(ax, speed[rows], sideslip[rows], colour, f"{name} turns", alpha=0.6)
     ax.axhline(0.0, color="black", linewidth=0.8)
     _mark_crossings_at_zero(ax, _crossings(summary))
     if not plotted:
@@ -207,6 +196,22 @@ def draw_sideslip_vs_speed(figure: Figure, trace: Trace, summary: Summary) -> No
     ax.secondary_xaxis("top", functions=(_to_kmh, _to_mps)).set_xlabel("speed [km/h]")
     ax.grid(alpha=0.3)
     _legend(ax)
+
+
+def _dots(ax: Axes, x: np.ndarray, y: np.ndarray, colour: str, label: str, alpha: float) -> None:
+    """A rasterised scatter of small dots (fast for many points); nothing for no points."""
+    if len(x):
+        ax.plot(
+            x,
+            y,
+            linestyle="none",
+            marker=".",
+            markersize=2,
+            color=colour,
+            alpha=alpha,
+            rasterized=True,
+            label=label,
+        )
 
 
 def draw_vr_vs_u2(figure: Figure, trace: Trace, summary: Summary) -> None:
@@ -236,18 +241,7 @@ def draw_vr_vs_u2(figure: Figure, trace: Trace, summary: Summary) -> None:
     for name, sign, colour in _DIRECTIONS:
         mine = np.flatnonzero(direction[rows] == sign)
         mine = mine[stride(len(mine), MAX_SCATTER_POINTS)]
-        if len(mine):
-            ax.plot(
-                x[mine],
-                y[mine],
-                linestyle="none",
-                marker=".",
-                markersize=2,
-                color=colour,
-                alpha=0.5,
-                rasterized=True,
-                label=f"{name} turns",
-            )
+        _dots(ax, x[mine], y[mine], colour, f"{name} turns", alpha=0.5)
     c2n = (_number(fit.get("c2n_linear_model")) or _number(fit.get("c2n"))) if fit else None
     d = _number(fit.get("d_m")) if fit else None
     g = _number(summary.get("g_mps2")) or 9.81

@@ -90,6 +90,7 @@ class Problem:
     params: BicycleParams
     measured: Measured
     d_m: float
+    cg_height_m: float | None  # for the longitudinal load transfer
     rows: np.ndarray  # usable grid steps
     sigma_beta: float
     sigma_r: float
@@ -110,20 +111,26 @@ class Problem:
         return float(np.mean(2.0 * ROBUST_SCALE**2 * (np.sqrt(1.0 + z * z) - 1.0))) if len(z) else 0.0
 
     def rms_beta_deg(self, sim: Simulated, rows: np.ndarray) -> float:
-        """The sideslip gap: RMS of the residual's 1-s means (averaging takes the sensor noise out,
-        which no model can explain)."""
+        """The sideslip gap: the systematic part of the residual, which a model could explain.
+
+        The residual is averaged over 1-s blocks and each block's mean counts by its samples (a
+        block cut short by a fold boundary holds few samples and mostly noise); the white sensor
+        noise left in a mean of n samples, σ²/n, is taken out of its square. The result is the
+        RMS over samples of the residual's slow part, with the noise removed rather than averaged
+        down.
+        """
         m = self.measured
-        keep = rows
-        if not keep.any():
+        if not rows.any():
             return 0.0
-        block = (m.t[keep] // GAP_BLOCK_S).astype(np.int64)
-        res = (m.beta - sim.beta)[keep]
+        block = (m.t[rows] // GAP_BLOCK_S).astype(np.int64)
+        res = (m.beta - sim.beta)[rows]
         sums, counts = np.bincount(block, res), np.bincount(block)
-        means = sums[counts > 0] / counts[counts > 0]
-        return math.degrees(float(np.sqrt(np.mean(means * means))))
+        filled = counts > 0
+        square = float(np.sum(sums[filled] ** 2 / counts[filled])) - filled.sum() * self.sigma_beta**2
+        return math.degrees(math.sqrt(max(square, 0.0) / rows.sum()))
 
     def simulate(self, mods: Mods | None = None) -> Simulated:
-        return simulate(self.params, self.measured, self.d_m, mods or NOMINAL)
+        return simulate(self.params, self.measured, self.d_m, mods or NOMINAL, self.cg_height_m)
 
     def fit(self, candidate: Candidate, rows: np.ndarray) -> tuple[float, ...]:
         scales = np.array([p.scale for p in candidate.params])
@@ -152,10 +159,11 @@ class Problem:
 def problem(m: Measured, config: Config) -> Problem:
     params = BicycleParams.from_config(config)
     rows = _usable(m)
-    base = simulate(params, m, config.d_m)
+    cg_height = config.vehicle.cg_height_m
+    base = simulate(params, m, config.d_m, cg_height_m=cg_height)
     sigma_beta = _noise(m.beta - base.beta)
     sigma_r = _noise(base.r_measured - base.r)
-    return Problem(params, m, config.d_m, rows, sigma_beta, sigma_r)
+    return Problem(params, m, config.d_m, cg_height, rows, sigma_beta, sigma_r)
 
 
 def score(pb: Problem, fold: np.ndarray) -> list[Scored]:

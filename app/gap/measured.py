@@ -9,6 +9,7 @@ sideslip and the yaw rate.
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from app.summary import build as build_summary
 from app.trace import Trace, TraceRecorder
 
 DT_S = 0.02
+ACCEL_SMOOTHING_S = 0.5  # the speed is averaged over this before it is differentiated
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,15 @@ class Measured:
     def heading(self) -> np.ndarray:
         """Heading from the integrated yaw rate (rad, 0 at the start)."""
         return np.cumsum(np.nan_to_num(self.r)) * self.dt
+
+    @cached_property
+    def ax(self) -> np.ndarray:
+        """Longitudinal acceleration from the optical speed (m/s², smoothed over 0.5 s)."""
+        width = max(1, round(ACCEL_SMOOTHING_S / self.dt))
+        u = _fill(self.u_optical)
+        padded = np.pad(np.nan_to_num(u), width // 2, mode="edge")
+        smooth = np.convolve(padded, np.ones(width) / width, mode="valid")[: len(u)]
+        return np.gradient(smooth, self.dt) if len(u) > 1 else np.zeros(len(u))
 
 
 def _binned(time: np.ndarray, values: np.ndarray, index: np.ndarray, n: int) -> np.ndarray:

@@ -1,6 +1,10 @@
 """The nominal bicycle model driven by the measured inputs, with each candidate effect as a
 modification (DESIGN §6 vocabulary).
 
+Each axle's cornering stiffness is its normalised stiffness times its load, and the load moves
+rearward by m·h·a_x/L when the car speeds up (longitudinal load transfer: the CG height is the
+config's ``cg_height_m``; without it the loads stay static).
+
 Linear tyres make the lateral dynamics a linear time-varying system in x = [v, r] (lateral velocity
 at the CG and yaw rate): ẋ = M(u)·x + f(δ, …). It is discretised per grid step (fourth-order
 series of exp(M·h), forcing held over the step) and stepped in one tight loop, so a whole session
@@ -53,7 +57,9 @@ def _shift(values: np.ndarray, t: np.ndarray, by_s: float) -> np.ndarray:
     return np.asarray(np.interp(t + by_s, t, values))
 
 
-def simulate(p: BicycleParams, m: Measured, d_m: float, mods: Mods = NOMINAL) -> Simulated:
+def simulate(
+    p: BicycleParams, m: Measured, d_m: float, mods: Mods = NOMINAL, cg_height_m: float | None = None
+) -> Simulated:
     t, h = m.t, m.dt
     late = m.vehicle_roles
 
@@ -67,8 +73,9 @@ def simulate(p: BicycleParams, m: Measured, d_m: float, mods: Mods = NOMINAL) ->
     r_meas = vehicle(m.r, "yaw_rate")
     heading = np.cumsum(np.nan_to_num(r_meas)) * h
 
-    c1 = p.c1_n_per_rad * np.clip(1.0 - mods.softening1_per_mps4 * ay * ay, 0.2, 2.0)
-    c2 = p.c2_n_per_rad * np.clip(1.0 - mods.softening2_per_mps4 * ay * ay, 0.2, 2.0)
+    transfer = p.mass_kg * cg_height_m * m.ax / p.wheelbase_m if cg_height_m else 0.0  # N, to the rear
+    c1 = p.c1n * (p.w1_n - transfer) * np.clip(1.0 - mods.softening1_per_mps4 * ay * ay, 0.2, 2.0)
+    c2 = p.c2n * (p.w2_n + transfer) * np.clip(1.0 - mods.softening2_per_mps4 * ay * ay, 0.2, 2.0)
     a, b, mass, iz = p.a_m, p.b_m, p.mass_kg, p.yaw_inertia_kgm2
     delta1 = delta
     delta2 = mods.roll_steer_rad_per_mps2 * ay + mods.ply_rad

@@ -4,7 +4,9 @@ Nothing here reads a clock or the bus: it renders what the pipeline has seen (fr
 test renders it into ``Console(record=True)`` and reads the text.
 """
 
+import heapq
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from rich.console import Group, RenderableType
@@ -58,6 +60,37 @@ class _RateMeter:
         self.last_counts = dict(counts)
 
 
+def columns(rows: Sequence[Sequence[str]], left: frozenset[int] | set[int] = frozenset()) -> Text:
+    """A table as aligned text: the header row bold, columns right-aligned except ``left``.
+
+    rich's Table measures every cell on every refresh (tens of ms at 10 Hz on a slow laptop,
+    tools/bench.py); these tables are a few short strings, so plain padding does.
+    """
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    lines = [
+        "  ".join(
+            cell.ljust(w) if i in left else cell.rjust(w)
+            for i, (cell, w) in enumerate(zip(row, widths, strict=True))
+        )
+        for row in rows
+    ]
+    text = Text(lines[0], style="bold")
+    for line in lines[1:]:
+        text.append("\n" + line)
+    return text
+
+
+def _pairs(rows: list[tuple[str, str]]) -> Text:
+    """Label (bold) and value (right-aligned) per line."""
+    label_width = max(len(label) for label, _ in rows)
+    value_width = max(len(value) for _, value in rows)
+    text = Text()
+    for k, (label, value) in enumerate(rows):
+        text.append(("\n" if k else "") + label.ljust(label_width + 1), style="bold")
+        text.append(value.rjust(value_width))
+    return text
+
+
 class Dashboard:
     def __init__(self, pipeline: Pipeline, title: str, max_ids: int = 10, max_crossings: int = 8) -> None:
         self.pipeline = pipeline
@@ -83,28 +116,24 @@ class Dashboard:
 
     def _motion(self) -> RenderableType:
         state = self.pipeline.state
-        table = Table.grid(padding=(0, 1))
-        table.add_column(style="bold")
-        table.add_column(justify="right")
         record = state.last
         e = record.estimate if record else None
         if e is None:
-            table.add_row("speed", "—")
-            return Panel(table, title="Motion")
+            return Panel(_pairs([("speed", "—")]), title="Motion")
         sigma = math.degrees(e.sideslip_sigma_rad)
-        table.add_row("speed", f"{e.u_mps * 3.6:6.1f} km/h  {e.u_mps:6.2f} m/s")
-        table.add_row("sweep", f"{e.u_dot_mps2:+6.2f} m/s²")
-        table.add_row("sideslip", f"{math.degrees(e.sideslip_rad):+7.3f}° ± {sigma:.3f}")
-        table.add_row("lat. acc.", f"{e.ay_mps2:+6.2f} m/s²" if e.ay_mps2 is not None else "—")
-        table.add_row("yaw rate", f"{math.degrees(e.r_radps):+6.2f} °/s" if e.r_radps is not None else "—")
         steer = state.latest.get("steer")
-        table.add_row("steering", f"{math.degrees(steer):+6.1f}°" if steer is not None else "—")
-        table.add_row("filter health", f"{e.health:5.2f}")
         noise = self.pipeline.filter.noise_sigma()
-        table.add_row(
-            "optical noise", f"σ {noise['vx_mps'] * 1000:.0f} / {noise['lateral_mps'] * 1000:.0f} mm/s"
-        )
-        return Panel(table, title="Motion")
+        rows = [
+            ("speed", f"{e.u_mps * 3.6:6.1f} km/h  {e.u_mps:6.2f} m/s"),
+            ("sweep", f"{e.u_dot_mps2:+6.2f} m/s²"),
+            ("sideslip", f"{math.degrees(e.sideslip_rad):+7.3f}° ± {sigma:.3f}"),
+            ("lat. acc.", f"{e.ay_mps2:+6.2f} m/s²" if e.ay_mps2 is not None else "—"),
+            ("yaw rate", f"{math.degrees(e.r_radps):+6.2f} °/s" if e.r_radps is not None else "—"),
+            ("steering", f"{math.degrees(steer):+6.1f}°" if steer is not None else "—"),
+            ("filter health", f"{e.health:5.2f}"),
+            ("optical noise", f"σ {noise['vx_mps'] * 1000:.0f} / {noise['lateral_mps'] * 1000:.0f} mm/s"),
+        ]
+        return Panel(_pairs(rows), title="Motion")
 
     def _status(self) -> RenderableType:
         state = self.pipeline.state
@@ -133,22 +162,23 @@ class Dashboard:
     def _crossings(self) -> RenderableType:
         state = self.pipeline.state
         config = self.pipeline.config
-        table = Table(expand=True, box=None, padding=(0, 1))
-        for name in ("t [s]", "dir", "sweep", "u0 [m/s]", "u0 [km/h]", "a_y [m/s²]", "C2n [1/rad]", "95 %"):
-            table.add_column(name, justify="right")
+        rows = [("t [s]", "dir", "sweep", "u0 [m/s]", "u0 [km/h]", "a_y [m/s²]", "C2n [1/rad]", "95 %")]
         t0 = state.t_first or 0.0
         for c in state.crossings[-self.max_crossings :]:
             lo, hi = c.ci95
-            table.add_row(
-                f"{c.t - t0:.1f}",
-                c.direction,
-                c.sweep,
-                f"{c.u0_mps:.3f}",
-                f"{c.u0_kmh:.2f}",
-                f"{c.ay_mps2:.2f}",
-                f"{c.c2n:.3f}",
-                f"{lo:.3f}–{hi:.3f}",
+            rows.append(
+                (
+                    f"{c.t - t0:.1f}",
+                    c.direction,
+                    c.sweep,
+                    f"{c.u0_mps:.3f}",
+                    f"{c.u0_kmh:.2f}",
+                    f"{c.ay_mps2:.2f}",
+                    f"{c.c2n:.3f}",
+                    f"{lo:.3f}–{hi:.3f}",
+                )
             )
+        table = columns(rows)
         result = Text(result_line(state, config.vehicle.gravity_mps2, config.d_m), style="bold")
         lines: list[RenderableType] = [table, result]
         fit = state.regression
@@ -181,16 +211,15 @@ class Dashboard:
 
     def _frames(self) -> RenderableType:
         counts = self.pipeline.decoder.counts
-        table = Table(box=None, padding=(0, 2))
-        for name in ("channel", "id", "message", "frames", "rate [1/s]"):
-            table.add_column(name, justify="left" if name == "message" else "right")
-        busiest = sorted(counts.by_id.items(), key=lambda kv: -kv[1])[: self.max_ids]
+        rows = [("channel", "id", "message", "frames", "rate [1/s]")]
+        busiest = heapq.nlargest(self.max_ids, counts.by_id.items(), key=lambda kv: kv[1])
         for key, n in sorted(busiest, key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])):
             channel, frame_id, extended = key
             rate = self._rates.rates.get(key)
             name = self.pipeline.decoder.message_name(frame_id, extended) or "(unknown)"
             rate_text = f"{rate:.0f}" if rate is not None else "—"
-            table.add_row(str(channel), format_id(frame_id, extended), name, str(n), rate_text)
+            rows.append((str(channel), format_id(frame_id, extended), name, str(n), rate_text))
+        table = columns(rows, left={2})
         bad = (
             f"total {counts.total}  used {counts.used}  unknown id {counts.unknown_id}  "
             f"bad length {counts.bad_length}  error {counts.error_frames}  remote {counts.remote_frames}  "

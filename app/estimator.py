@@ -1,4 +1,4 @@
-"""Kalman filter (filterpy) on longitudinal velocity, lateral velocity and yaw rate, with their rates.
+"""Kalman filter on longitudinal velocity, lateral velocity and yaw rate, with their rates.
 
 State x = [u, u̇, v, v̇, r, ṙ] (ISO 8855): u the longitudinal velocity, v the lateral velocity at
 the sensor's longitudinal position (d ahead of the rear axle) on the centre line, r the yaw rate.
@@ -11,16 +11,19 @@ Measurement models (y_s: sensor's lateral offset, + left):
     optical angle β = atan2(v, u − r·y_s)       (linearised about the prior, as in an EKF)
     vehicle speed   = u                         (weak: wheel-speed scale errors and lags)
     yaw rate        = r                         (or ay/u without a gyro)
+
+The arithmetic is ``app.kalman``'s: a fast kernel for this structure, with filterpy's
+``KalmanFilter`` as the reference it is tested equal to (``kalman=FilterpyKalman``).
 """
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 
 from app.config import FilterSettings
+from app.kalman import H, Kalman, PairKalman, Row, transition
 from app.records import Estimate, Record
 
 _LATE_TOLERANCE_S = 0.05  # frames up to this much out of order are applied at the current time
@@ -47,6 +50,7 @@ class MotionFilter:
         sensor_lateral_m: float,
         roles: frozenset[str],
         resolutions: dict[str, float] | None = None,
+        kalman: Callable[[float, float, float], Kalman] = PairKalman,
     ) -> None:
         self.settings = settings
         self.roles = roles
@@ -59,7 +63,8 @@ class MotionFilter:
         # Without yaw information the lateral offset cannot be corrected (r is not observable).
         self.y_s = sensor_lateral_m if self.has_yaw else 0.0
         self.counts = FilterCounts()
-        self.kf = KalmanFilter(dim_x=6, dim_z=1)
+        self.q = (settings.q_u, settings.q_v, settings.q_r if self.has_yaw else 0.0)
+        self.kalman: Kalman = kalman(*self.q)
         self.health = 1.0
         self._t: float | None = None
         self._t_optical = -math.inf
@@ -67,7 +72,7 @@ class MotionFilter:
         self._last_ay: float | None = None
         self._rejects: dict[str, int] = {}  # consecutive gate rejections per sensor
         self._angle = False  # this frame's lateral measurement is the angle
-        self.last_transition: tuple[np.ndarray, np.ndarray] = _IDENTITY  # F, Q of the last step (smoother)
+        self.last_dt: float | None = None  # the time the last step predicted over (None: none)
 
     # -- time ------------------------------------------------------------------------------
     def _reset(self) -> None:
@@ -87,20 +92,16 @@ class MotionFilter:
         else:
             v = 0.0
         r = s.get("yaw_rate", 0.0)
-        self.kf.x = np.array([[u + r * self.y_s], [0.0], [v], [0.0], [r], [0.0]])
-        self.kf.P = (
-            np.diag([0.1, 1.0, 0.1, 0.5, 0.05 if self.has_yaw else 0.0, 0.1 if self.has_yaw else 0.0]) ** 2
-        )
+        sigmas = (0.1, 1.0, 0.1, 0.5, 0.05 if self.has_yaw else 0.0, 0.1 if self.has_yaw else 0.0)
+        self.kalman.reset((u + r * self.y_s, 0.0, v, 0.0, r, 0.0), [sigma * sigma for sigma in sigmas])
         self._t = record.t
         self.health = 1.0
         return True
 
-    def _predict(self, dt: float) -> None:
-        f, q = transition(
-            dt, self.settings.q_u, self.settings.q_v, self.settings.q_r if self.has_yaw else 0.0
-        )
-        self.kf.predict(F=f, Q=q)
-        self.last_transition = (f, q)
+    @property
+    def last_transition(self) -> tuple[np.ndarray, np.ndarray]:
+        """F and Q of the last step (identity and zero when it did not predict): the smoother's."""
+        return _IDENTITY if self.last_dt is None else transition(self.last_dt, *self.q)
 
     # -- one frame -------------------------------------------------------------------------
     def step(self, record: Record) -> Estimate | None:
@@ -125,11 +126,12 @@ class MotionFilter:
                 self._t_yaw = t
             return self._estimate(t, None, s.get("ay"))
         dt = t - self._t
-        self.last_transition = _IDENTITY  # no time passed, unless predicted below
+        self.last_dt = None  # no time passed, unless predicted below
         if dt < 0:
             self.counts.late_frames += 1
         elif dt > 0:
-            self._predict(dt)
+            self.kalman.predict(dt)
+            self.last_dt = dt
             self._t = t
         v_meas = self._update(record)
         if optical:
@@ -139,10 +141,10 @@ class MotionFilter:
     def _update(self, record: Record) -> float | None:
         """Update with every measurement in the record; return the measured v if there was one."""
         s = record.signals
-        x = self.kf.x[:, 0]
-        u, v, r = x[0], x[2], x[4]
+        kalman = self.kalman
+        u, v, r = kalman.value(0), kalman.value(2), kalman.value(4)
         u_s = u - r * self.y_s  # the head's own longitudinal velocity
-        rows: list[tuple[float, np.ndarray, float, str]] = []  # (z, H row, R, kind)
+        rows: list[tuple[float, H, float, str]] = []  # (z, H, R, kind)
         if "vx" in s:
             rows.append((s["vx"], _row(u=1.0, r=-self.y_s), self._variance("vx", "vx", 1.0), "vx"))
         lateral = self._lateral_source(s, u_s)
@@ -162,7 +164,7 @@ class MotionFilter:
             else:  # the angle's noise is the lateral velocity's over the speed
                 variance = self._variance("lateral", "beta", abs(u_s)) / (u_s * u_s)
             # pseudo-measurement: filterpy forms y = z − Hx, the EKF needs y = z − h(x)
-            rows.append((beta - h + float(jac @ x), jac, variance, "lateral"))
+            rows.append((beta - h + jac[0] * u + jac[1] * v + jac[2] * r, jac, variance, "lateral"))
         if "speed" in s:
             rows.append((s["speed"], _row(u=1.0), self.settings.sigma_speed_mps**2, "speed"))
         if "yaw_rate" in s:
@@ -171,12 +173,7 @@ class MotionFilter:
         elif "ay" in s and "yaw_rate" not in self.roles and u > _MIN_SPEED_FOR_ANGLE:
             rows.append((s["ay"] / u, _row(r=1.0), (self.settings.sigma_ay_mps2 / u) ** 2, "yaw"))
             self._t_yaw = record.t
-        rows = self._gate(rows)
-        if rows:
-            z = np.array([[row[0]] for row in rows])
-            h_matrix = np.array([row[1] for row in rows])
-            r_matrix = np.diag([row[2] for row in rows])
-            self.kf.update(z, R=r_matrix, H=h_matrix)
+        self.kalman.update(self._gate(rows))
         return v_meas
 
     def _lateral_source(self, s: Mapping[str, float], u_s: float) -> str | None:
@@ -203,53 +200,51 @@ class MotionFilter:
         """The measured noise of the optical channels (standard deviations, m/s)."""
         return {f"{kind}_mps": math.sqrt(value) for kind, value in self.noise_var.items()}
 
-    def _gate(
-        self, rows: list[tuple[float, np.ndarray, float, str]]
-    ) -> list[tuple[float, np.ndarray, float, str]]:
+    def _gate(self, rows: list[tuple[float, H, float, str]]) -> list[Row]:
         """Drop measurements whose normalised innovation² exceeds the gate (outliers), unless the
         same sensor was dropped several times running: then the model has lost the car, and the
         sensor is believed. The optical rows' normalised innovation² is the health figure."""
-        x, p = self.kf.x[:, 0], self.kf.P
-        kept = []
+        kalman = self.kalman
+        speed = abs(kalman.value(0) - kalman.value(4) * self.y_s)
+        kept: list[Row] = []
         optical_nis = []
         for row in rows:
             z, h, r, kind = row
-            innovation = z - float(h @ x)
-            hph = float(h @ p @ h)
+            innovation, hph = kalman.innovation(z, h)
             nis = innovation * innovation / (hph + r)
             if nis > self.settings.innovation_gate and self._rejects.get(kind, 0) < _MAX_CONSECUTIVE_REJECTS:
                 self.counts.outliers += 1
                 self._rejects[kind] = self._rejects.get(kind, 0) + 1
                 continue
             self._rejects[kind] = 0
-            kept.append(row)
+            kept.append((z, h, r))
             if kind in ("vx", "lateral"):
                 optical_nis.append(nis)
                 if self.settings.sigma_beta_deg is None or kind == "vx" or not self._angle:
-                    self._learn_noise(kind, innovation * innovation, hph, abs(x[0] - x[4] * self.y_s))
+                    self._learn_noise(kind, innovation * innovation, hph, speed)
         if optical_nis:
             self.health += _HEALTH_ALPHA * (sum(optical_nis) / len(optical_nis) - self.health)
         return kept
 
     def _estimate(self, t: float, v_meas: float | None, ay_meas: float | None) -> Estimate:
-        x, p = self.kf.x[:, 0], self.kf.P
-        u, v = float(x[0]), float(x[2])
+        kalman = self.kalman
+        u, v = kalman.value(0), kalman.value(2)
         n2 = u * u + v * v
-        jac = _row(u=-v / n2, v=u / n2) if n2 > 0 else _row()
-        sigma = math.sqrt(max(float(jac @ p @ jac), 0.0) * max(1.0, self.health))
+        variance = kalman.innovation(0.0, (-v / n2, u / n2, 0.0))[1] if n2 > 0 else 0.0
+        sigma = math.sqrt(max(variance, 0.0) * max(1.0, self.health))
         if ay_meas is not None:
             self._last_ay = ay_meas
         yaw_observed = t - self._t_yaw <= _YAW_TIMEOUT_S
-        r = float(x[4]) if yaw_observed else None
+        r = kalman.value(4) if yaw_observed else None
         ay = u * r if r is not None else self._last_ay
         sideslip_meas = math.atan2(v_meas, u) if v_meas is not None else None
         return Estimate(
             u_mps=u,
-            u_dot_mps2=float(x[1]),
+            u_dot_mps2=kalman.value(1),
             v_mps=v,
-            v_dot_mps2=float(x[3]),
+            v_dot_mps2=kalman.value(3),
             r_radps=r,
-            r_dot_radps2=float(x[5]) if yaw_observed else None,
+            r_dot_radps2=kalman.value(5) if yaw_observed else None,
             sideslip_rad=math.atan2(v, u),
             sideslip_sigma_rad=sigma,
             ay_mps2=ay,
@@ -262,22 +257,5 @@ class MotionFilter:
 _IDENTITY = (np.eye(6), np.zeros((6, 6)))
 
 
-def transition(dt: float, q_u: float, q_v: float, q_r: float) -> tuple[np.ndarray, np.ndarray]:
-    """F and Q for the three [value, rate] pairs over dt.
-
-    x_k+1 = F x_k with F = [[1, dt], [0, 1]] per pair; Q = q·[[dt³/3, dt²/2], [dt²/2, dt]] per pair,
-    white jerk of spectral density q integrated over dt (filterpy's Q_continuous_white_noise,
-    built here directly: scipy's block_diag costs ten times the rest of the filter).
-    """
-    f = np.eye(6)
-    q = np.zeros((6, 6))
-    block = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
-    for i, density in enumerate((q_u, q_v, q_r)):
-        j = 2 * i
-        f[j, j + 1] = dt
-        q[j : j + 2, j : j + 2] = density * block
-    return f, q
-
-
-def _row(u: float = 0.0, v: float = 0.0, r: float = 0.0) -> np.ndarray:
-    return np.array([u, 0.0, v, 0.0, r, 0.0])
+def _row(u: float = 0.0, v: float = 0.0, r: float = 0.0) -> H:
+    return (u, v, r)

@@ -4,7 +4,7 @@ Live and offline runs differ only in where the frames come from; both call ``pro
 frame in arrival order and ``finish`` at the end, so the same frames give the same crossings.
 """
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import can
 
@@ -102,7 +102,16 @@ class Pipeline:
         if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
             self._last_fit = record.t
             state.regression = self.regression.fit()
-        record = replace(record, estimate=estimate, steady=steady, events=tuple(events))
+        record = Record(  # not dataclasses.replace: this runs for every filtered frame
+            record.t,
+            record.channel,
+            record.frame_id,
+            record.signals,
+            record.rejected,
+            estimate,
+            steady,
+            tuple(events),
+        )
         state.last = record
         return record
 

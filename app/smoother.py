@@ -68,8 +68,9 @@ def smooth(
             fs.append(motion.last_transition[0])
             qs.append(motion.last_transition[1] + _EPSILON * np.eye(6))
         t.append(record.t)
-        xs.append(motion.kf.x[:, 0].copy())
-        ps.append(motion.kf.P.copy() + _EPSILON * np.eye(6))
+        x, p = motion.kalman.state()
+        xs.append(x)
+        ps.append(p + _EPSILON * np.eye(6))
     tracks += _smooth_stretch(t, xs, ps, fs, qs, chunk, overlap)
     return tracks
 

@@ -4,11 +4,9 @@ import math
 
 import numpy as np
 import pytest
-from filterpy.common import Q_continuous_white_noise
-from scipy.linalg import block_diag
 
 from app.config import FilterSettings
-from app.estimator import MotionFilter, transition
+from app.estimator import MotionFilter
 from app.records import Record
 
 ROLES = frozenset({"vx", "vy", "beta", "yaw_rate", "speed"})
@@ -16,15 +14,6 @@ ROLES = frozenset({"vx", "vy", "beta", "yaw_rate", "speed"})
 
 def record(t: float, **signals: float) -> Record:
     return Record(t, 0, 0x7E5, signals)
-
-
-def test_transition_equals_filterpy_reference() -> None:
-    for dt in (0.004, 0.02, 0.5):
-        f, q = transition(dt, 0.05, 0.02, 0.5)
-        reference_q = block_diag(*(Q_continuous_white_noise(2, dt, d) for d in (0.05, 0.02, 0.5)))
-        reference_f = block_diag(*([np.array([[1.0, dt], [0.0, 1.0]])] * 3))
-        np.testing.assert_allclose(q, reference_q, rtol=0, atol=1e-18)
-        np.testing.assert_allclose(f, reference_f, rtol=0, atol=0)
 
 
 def steady_stream(

@@ -1,0 +1,347 @@
+"""Performance on a saturated bus and offline, each figure the median (min, max) of several runs.
+
+1. live throughput: frames/s through the live loop (bus, decode, filter, detect, recorder) from a
+   pre-filled python-can ``virtual`` bus carrying a saturated 1 Mbit/s mix, as a multiple of
+   9,009 frames/s;
+2. CPU share of the live loop's thread while the mix arrives in real time, dashboard refreshed at
+   10 Hz into a pseudo-terminal (the feeder's own CPU is measured apart and left out);
+3. latency from a frame's arrival on the bus to the estimate it updates: p50 and p99;
+4. offline: ``c2n analyze`` on a 1,000,000-frame BLF and the same drive as MF4, against a loop that
+   only iterates python-can's reader over the same file;
+5. memory: peak RSS of a 10-minute and an 8-hour session (accelerated, each in its own process);
+   and the Kalman kernel against filterpy's KalmanFilter.
+
+The mix: the optical sensor at 250 Hz (three messages), the vehicle messages at their cycle
+times, and 96 background ids at about 81 Hz each, 9,009 frames/s in all.
+
+    python tools/bench.py [--runs 5] [--only live,cpu,offline,memory,kernel] [--hours 8]
+"""
+
+import argparse
+import contextlib
+import io
+import os
+import pty
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import can
+import numpy as np
+from rich.console import Console
+
+from app.cli import main as c2n
+from app.config import load_config
+from app.dashboard import Dashboard
+from app.live import run
+from app.pipeline import Pipeline
+from app.recorder import SessionRecorder
+from app.records import Record
+from app.sim.session import DriveOptions, simulate_drive
+from app.sources import BusSource
+
+SATURATED_FPS = 9009
+BACKGROUND_IDS = range(0x300, 0x360)
+
+
+def saturated_mix(seconds: float, seed: int = 1) -> list[can.Message]:
+    """A simulated drive with the optical sensor at 250 Hz, filled up to 9,009 frames/s."""
+    config = load_config()
+    drive = simulate_drive(config, DriveOptions(seed=seed, sensor={"optical_hz": 250.0}))
+    start = drive.messages[0].timestamp
+    period = drive.truth["duration_s"] + 0.01
+    messages = []
+    for k in range(int(seconds // period) + 1):  # the drive over and over, as long as asked
+        messages += [
+            can.Message(
+                timestamp=m.timestamp + k * period,
+                arbitration_id=m.arbitration_id,
+                is_extended_id=m.is_extended_id,
+                data=m.data,
+                channel=m.channel,
+            )
+            for m in drive.messages
+            if m.timestamp + k * period < start + seconds
+        ]
+    rng = np.random.default_rng(seed)
+    n = int(seconds * SATURATED_FPS) - len(messages)
+    times = np.sort(rng.uniform(start, start + seconds, n)).tolist()
+    ids = rng.choice(np.array(BACKGROUND_IDS), n).tolist()
+    payload = rng.integers(0, 256, (n, 8), dtype=np.uint8)
+    messages += [
+        can.Message(timestamp=t, arbitration_id=i, data=bytes(payload[k]), channel=0)
+        for k, (t, i) in enumerate(zip(times, ids, strict=True))
+    ]
+    messages.sort(key=lambda m: m.timestamp)
+    return messages
+
+
+def summary(values: list[float], unit: str, scale: float = 1.0, digits: int = 0) -> str:
+    def f(v: float) -> str:
+        return f"{v * scale:,.{digits}f}"
+
+    return f"{f(statistics.median(values))} {unit} (min {f(min(values))}, max {f(max(values))})"
+
+
+# -- 1. live throughput ---------------------------------------------------------------------------
+
+
+def live_throughput(messages: list[can.Message]) -> float:
+    config = load_config()
+    rx = can.Bus(interface="virtual", channel="bench", preserve_timestamps=True)
+    tx = can.Bus(interface="virtual", channel="bench", preserve_timestamps=True)
+    for message in messages:
+        tx.send(message)
+    finished = threading.Event()
+    finished.set()  # everything is on the bus already: end when it is drained
+    pipeline = Pipeline(config)
+    with tempfile.TemporaryDirectory() as tmp:
+        recorder = SessionRecorder(Path(tmp) / "session", config)
+        start = time.perf_counter()
+        run(
+            BusSource([rx], threading.Event(), finished, idle_s=0.01),
+            pipeline,
+            lambda e: None,
+            recorder=recorder,
+        )
+        elapsed = time.perf_counter() - start
+        recorder.close({})
+    for bus in (rx, tx):
+        bus.shutdown()
+    assert pipeline.decoder.counts.total == len(messages)
+    return len(messages) / elapsed
+
+
+# -- 2, 3. real time: CPU share and latency -------------------------------------------------------
+
+
+def _feed(bus: can.BusABC, messages: list[can.Message], cpu: list[float], done: threading.Event) -> None:
+    """Deliver each frame when it is due (in 1-ms batches), stamped on arrival as a driver would
+    stamp it. The frames go straight onto the receiving virtual bus's queue: python-can's ``send``
+    deep-copies every frame, which would cost this thread more than the whole live loop."""
+    arrivals = bus.queue  # type: ignore[attr-defined]  # python-can's VirtualBus
+    begin = time.perf_counter()
+    t0 = messages[0].timestamp
+    thread_start = time.thread_time()
+    k = 0
+    while k < len(messages):
+        now = time.perf_counter() - begin
+        while k < len(messages) and messages[k].timestamp - t0 <= now:
+            message = messages[k]
+            message.timestamp = time.time()
+            arrivals.put(message)
+            k += 1
+        time.sleep(0.001)
+    cpu.append(time.thread_time() - thread_start)
+    done.set()
+
+
+def _drain(fd: int) -> None:
+    with contextlib.suppress(OSError):
+        while os.read(fd, 65536):
+            pass
+
+
+def real_time(messages: list[can.Message]) -> tuple[float, list[float]]:
+    """(CPU share of the live loop's thread, latencies in s of the records with an estimate)."""
+    config = load_config()
+    master, slave = pty.openpty()
+    threading.Thread(target=_drain, args=(master,), daemon=True).start()
+    terminal = open(slave, "w", buffering=1)  # noqa: SIM115 — closed below, after the run
+    console = Console(file=terminal, force_terminal=True, width=120, height=50)
+    rx = can.Bus(interface="virtual", channel="realtime")
+    pipeline = Pipeline(config)
+    latencies: list[float] = []
+
+    def on_record(record: Record) -> None:
+        if record.estimate is not None:
+            latencies.append(time.time() - record.t)
+
+    feeder_cpu: list[float] = []
+    finished = threading.Event()
+    feeder = threading.Thread(target=_feed, args=(rx, [m.__copy__() for m in messages], feeder_cpu, finished))
+    with tempfile.TemporaryDirectory() as tmp:
+        recorder = SessionRecorder(Path(tmp) / "session", config)
+        wall, cpu = time.perf_counter(), time.thread_time()
+        feeder.start()
+        run(
+            BusSource([rx], threading.Event(), finished),
+            pipeline,
+            lambda e: None,
+            Dashboard(pipeline, "bench"),
+            console,
+            recorder,
+            on_record=on_record,
+        )
+        share = (time.thread_time() - cpu) / (time.perf_counter() - wall)
+        feeder.join()
+        recorder.close({})
+    terminal.close()
+    os.close(master)
+    rx.shutdown()
+    return share, latencies
+
+
+# -- 4. offline -------------------------------------------------------------------------------------
+
+
+def write_logs(messages: list[can.Message], folder: Path) -> tuple[Path, Path]:
+    blf, mf4 = folder / "drive.blf", folder / "drive.mf4"
+    for path in (blf, mf4):
+        with can.Logger(path) as writer:
+            for message in messages:
+                writer.on_message_received(message)
+    return blf, mf4
+
+
+def bare_read(log: Path) -> float:
+    start = time.perf_counter()
+    frames = sum(1 for _ in can.LogReader(log))
+    return frames / (time.perf_counter() - start)
+
+
+def analyze(log: Path, frames: int) -> float:
+    out = io.StringIO()
+    start = time.perf_counter()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+        code = c2n(["analyze", str(log), "--json", str(log.with_suffix(".json"))])
+    elapsed = time.perf_counter() - start
+    assert code == 0, out.getvalue()
+    return frames / elapsed
+
+
+# -- 5. memory --------------------------------------------------------------------------------------
+
+
+def lengthened(seconds: float) -> Iterator[can.Message]:
+    """A simulated drive (optical sensor and vehicle bus at 50 Hz, 450 frames/s) repeated for
+    ``seconds``, made as it is consumed: what grows with the session, not with the rate."""
+    sensors = {"optical_hz": 50.0, "vehicle_hz": 50.0}
+    drive = simulate_drive(load_config(), DriveOptions(seed=2, sensor=sensors))
+    period = drive.truth["duration_s"] + 0.01
+    start = drive.messages[0].timestamp
+    k = 0
+    while True:
+        for m in drive.messages:
+            t = m.timestamp + k * period
+            if t - start >= seconds:
+                return
+            yield can.Message(timestamp=t, arbitration_id=m.arbitration_id, data=m.data, channel=m.channel)
+        k += 1
+
+
+def session_memory(seconds: float) -> None:
+    """Child process: one accelerated session; prints frames and peak RSS (MiB)."""
+    config = load_config()
+    pipeline = Pipeline(config)
+    with tempfile.TemporaryDirectory() as tmp:
+        recorder = SessionRecorder(Path(tmp) / "session", config)
+        run(lengthened(seconds), pipeline, lambda e: None, recorder=recorder)
+        recorder.close({})
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(pipeline.decoder.counts.total, f"{peak:.1f}")
+
+
+def memory(seconds: float) -> tuple[int, float]:
+    out = subprocess.run(
+        [sys.executable, __file__, "--session-memory", str(seconds)],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    return int(out[0]), float(out[1])
+
+
+# -- the Kalman kernel ------------------------------------------------------------------------------
+
+
+def kernel_rates(runs: int) -> dict[str, list[float]]:
+    from app.decode import Decoder
+    from app.estimator import MotionFilter
+    from app.kalman import FilterpyKalman, PairKalman
+
+    config = load_config()
+    drive = simulate_drive(config, DriveOptions(seed=3))
+    decoder = Decoder(config)
+    records = [r for r in map(decoder.decode, drive.messages) if r is not None]
+    rates: dict[str, list[float]] = {"fast": [], "filterpy": []}
+    for _ in range(runs):
+        for name, kalman in (("fast", PairKalman), ("filterpy", FilterpyKalman)):
+            motion = MotionFilter(config.filter, 0.0, frozenset(config.roles), kalman=kalman)
+            start = time.perf_counter()
+            for record in records:
+                motion.step(record)
+            rates[name].append(len(records) / (time.perf_counter() - start))
+    return rates
+
+
+def repeat(runs: int, fn: Callable[[], float]) -> list[float]:
+    return [fn() for _ in range(runs)]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--only", default="kernel,live,cpu,offline,memory")
+    parser.add_argument("--hours", type=float, default=8.0, help="the long session's length")
+    parser.add_argument("--session-memory", type=float, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.session_memory is not None:
+        session_memory(args.session_memory)
+        return
+    only = set(args.only.split(","))
+    print(f"median (min, max) of {args.runs} runs; saturated mix = {SATURATED_FPS:,} frames/s")
+    if "kernel" in only:
+        kernels = kernel_rates(args.runs)
+        print(f"Kalman filter, fast kernel   {summary(kernels['fast'], 'records/s')}")
+        print(f"Kalman filter, filterpy      {summary(kernels['filterpy'], 'records/s')}")
+        ratios = [f / r for f, r in zip(kernels["fast"], kernels["filterpy"], strict=True)]
+        print(f"  fast / filterpy            {summary(ratios, '×', digits=1)}")
+    if "live" in only:
+        messages = saturated_mix(20.0)
+        rates = repeat(args.runs, lambda: live_throughput(messages))
+        print(f"1. live throughput           {summary(rates, 'frames/s')}")
+        print(
+            f"   × {SATURATED_FPS:,} frames/s       {summary(rates, '×', 1 / SATURATED_FPS, 1)}  (goal ≥ 20×)"
+        )
+    if "cpu" in only:
+        messages = saturated_mix(10.0)
+        shares, p50, p99 = [], [], []
+        for _ in range(args.runs):
+            share, latencies = real_time(messages)
+            shares.append(share)
+            p50.append(float(np.percentile(latencies, 50)))
+            p99.append(float(np.percentile(latencies, 99)))
+        print(f"2. CPU, real time + dashboard {summary(shares, '% of a core', 100, 1)}  (goal ≤ 25 %)")
+        print(f"3. latency p50               {summary(p50, 'ms', 1000, 2)}")
+        print(f"   latency p99               {summary(p99, 'ms', 1000, 2)}  (goal < 5 ms)")
+    if "offline" in only:
+        messages = saturated_mix(1_000_000 / SATURATED_FPS)[:1_000_000]
+        with tempfile.TemporaryDirectory() as tmp:
+            blf, mf4 = write_logs(messages, Path(tmp))
+            for log in (blf, mf4):
+                bare = repeat(args.runs, lambda log=log: bare_read(log))  # type: ignore[misc]
+                piped = repeat(args.runs, lambda log=log: analyze(log, len(messages)))  # type: ignore[misc]
+                kind = log.suffix[1:].upper()
+                print(f"4. {kind} bare python-can read {summary(bare, 'frames/s')}")
+                print(f"   {kind} c2n analyze         {summary(piped, 'frames/s')}")
+                ratio = [p / b for p, b in zip(piped, bare, strict=True)]
+                print(f"   {kind} analyze / bare      {summary(ratio, '×', digits=2)}")
+    if "memory" in only:
+        short_frames, short = memory(600.0)
+        long_frames, long = memory(args.hours * 3600.0)
+        print(f"5. peak RSS, 10 min          {short:.1f} MiB ({short_frames:,} frames)")
+        print(f"   peak RSS, {args.hours:g} h            {long:.1f} MiB ({long_frames:,} frames)")
+        print(f"   growth                    {100 * (long / short - 1):+.1f} %  (goal within 10 %)")
+
+
+if __name__ == "__main__":
+    main()

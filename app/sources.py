@@ -191,11 +191,14 @@ _ENDS_EARLY: dict[str, Callable[[Path, object], str | None]] = {
 
 
 def check_readable(path: Path) -> None:
-    """Open a log and read its first frame: a file that is damaged from the start is an error,
-    not an empty drive."""
+    """Open a log and read its first frame: a file that is damaged from the start, or holds no
+    frame at all, is an error, not an empty drive."""
     reader = open_log(path)
     try:
-        next(iter(reader), None)
+        if next(iter(reader), None) is None:
+            raise LogFileError(f"{path}: no CAN frames in the file")
+    except LogFileError:
+        raise
     except Exception as error:
         reason = _one_line(error)
         _drop_quietly(error)

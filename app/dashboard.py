@@ -51,6 +51,8 @@ class _RateMeter:
     def update(self, t: float | None, counts: dict[tuple[object, int, bool], int]) -> None:
         if t is None:
             return
+        if self.last_t is not None and t < self.last_t:
+            self.last_t = None  # time went backwards: start again from here
         if self.last_t is not None and t - self.last_t >= 0.5:
             dt = t - self.last_t
             self.rates = {key: (n - self.last_counts.get(key, 0)) / dt for key, n in counts.items()}
@@ -97,6 +99,7 @@ class Dashboard:
         self.title = title
         self.max_ids = max_ids
         self.max_crossings = max_crossings
+        self.bus_problem: str | None = None  # set by the run while a bus is lost
         self._rates = _RateMeter()
 
     def __rich__(self) -> RenderableType:
@@ -138,6 +141,8 @@ class Dashboard:
     def _status(self) -> RenderableType:
         state = self.pipeline.state
         lines: list[Text] = []
+        if self.bus_problem:
+            lines.append(Text(f"bus: {self.bus_problem}", style="bold red"))
         steady = state.last.steady if state.last else None
         if steady is None:
             lines.append(Text("waiting for optical sensor frames", style="yellow"))
@@ -222,7 +227,12 @@ class Dashboard:
         table = columns(rows, left={2})
         bad = (
             f"total {counts.total}  used {counts.used}  unknown id {counts.unknown_id}  "
-            f"bad length {counts.bad_length}  error {counts.error_frames}  remote {counts.remote_frames}  "
-            f"other channel {counts.other_channel}"
+            f"bad length {counts.bad_length}  undecodable {counts.undecodable}  error {counts.error_frames}  "
+            f"remote {counts.remote_frames}  other channel {counts.other_channel}  CAN FD {counts.fd_frames}"
         )
-        return Panel(Group(table, Text(bad)), title="Frames")
+        lines: list[RenderableType] = [table, Text(bad)]
+        lines.extend(
+            Text(f"values dropped from {n} frames: {reason}", style="yellow")
+            for reason, n in counts.rejected.most_common(3)
+        )
+        return Panel(Group(*lines), title="Frames")

@@ -18,7 +18,7 @@ from app.records import Record
 
 @dataclass
 class FrameCounts:
-    """What the frames were. ``total`` is the sum of the kinds below it."""
+    """What the frames were. ``total`` is the sum of the kinds below it (``fd_frames`` aside)."""
 
     total: int = 0
     used: int = 0  # gave the pipeline a role value or a sensor status
@@ -29,6 +29,7 @@ class FrameCounts:
     undecodable: int = 0
     error_frames: int = 0
     remote_frames: int = 0
+    fd_frames: int = 0  # not a kind: how many of the total were CAN FD (decoded like the rest)
     by_id: Counter[tuple[object, int, bool]] = field(
         default_factory=Counter
     )  # (channel, id, extended) -> frames
@@ -47,6 +48,7 @@ class FrameCounts:
             "undecodable": self.undecodable,
             "error_frames": self.error_frames,
             "remote_frames": self.remote_frames,
+            "fd_frames": self.fd_frames,
         }
 
 
@@ -138,6 +140,8 @@ class Decoder:
         counts = self.counts
         counts.total += 1
         counts.by_id[(msg.channel, msg.arbitration_id, msg.is_extended_id)] += 1
+        if msg.is_fd:
+            counts.fd_frames += 1
         if msg.is_error_frame:
             counts.error_frames += 1
             return None

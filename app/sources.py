@@ -5,12 +5,15 @@ BusError here, at the edge; a log that breaks part-way gives every frame before 
 says where it stopped.
 """
 
+import gc
 import heapq
 import logging
 import os
 import queue
 import re
+import sys
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +21,7 @@ from typing import Any
 
 import can
 
-from app.errors import BusError, LogFileError
+from app.errors import BusError, C2nError, LogFileError
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +89,21 @@ def open_log(path: Path) -> Iterable[can.Message]:
     except ImportError as error:
         raise LogFileError(f"{path}: cannot read {real} files ({error}) — pip install asammdf") from None
     except Exception as error:
-        raise LogFileError(f"{path}: not a readable {real} log ({_one_line(error)})") from None
+        reason = _one_line(error)
+        _drop_quietly(error)
+        raise LogFileError(f"{path}: not a readable {real} log ({reason})") from None
+
+
+def _drop_quietly(error: BaseException) -> None:
+    """Free a failed reader now: asammdf's half-built MDF object raises again from ``__del__``,
+    which Python would print as a traceback long after the one-line error."""
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: log.debug("while closing a failed reader: %s", unraisable)
+    try:
+        error.__traceback__ = None
+        gc.collect()  # the reader may sit in a reference cycle
+    finally:
+        sys.unraisablehook = hook
 
 
 _CANDUMP_LINE = re.compile(r"^\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
@@ -116,7 +133,8 @@ def _sniff(path: Path) -> str | None:
 
 
 def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
-    """Frames of one log file, in file order; damage ends the file, noted in ``report``."""
+    """Frames of one log file, in file order; damage ends the file, noted in ``report`` (the
+    caller says so: the summary's warnings, or a line of its own)."""
     reader = open_log(path)
     report.reader = reader
     iterator = iter(reader)
@@ -125,15 +143,67 @@ def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
             try:
                 message = next(iterator)
             except StopIteration:
+                ended = _ENDS_EARLY.get(path.suffix.lower())
+                why = ended(path, reader) if ended is not None else None
+                if why is not None:
+                    report.stopped = f"stopped after frame {report.frames}: {why}"
                 return
             except Exception as error:
                 report.stopped = f"stopped after frame {report.frames}: {_one_line(error)}"
-                log.warning("%s: %s", path, report.stopped)
                 return
             report.frames += 1
             yield message
     finally:
         report.done, report.reader = True, None
+        stop = getattr(reader, "stop", None)
+        if callable(stop):
+            stop()
+
+
+def _blf_ends_early(path: Path, reader: object) -> str | None:
+    """A BLF whose writer finished says its size in the header; a copy cut short is smaller. (A
+    recording killed mid-run never got its header finished and reads up to its last container.)"""
+    declared = int(getattr(reader, "file_size", 0) or 0)
+    size = _size(path)
+    if size < declared:
+        return f"the file ends at byte {size} of the {declared} its header declares (truncated)"
+    return None
+
+
+def _asc_ends_early(path: Path, reader: object) -> str | None:
+    """An ASC file ends with 'End TriggerBlock'; python-can's reader skips a last line cut in half."""
+    try:
+        with path.open("rb") as file:
+            file.seek(max(_size(path) - 512, 0))
+            tail = file.read()
+    except OSError:
+        return None
+    if b"end triggerblock" in tail.lower():
+        return None
+    return "the file ends without 'End TriggerBlock' (truncated?)"
+
+
+# Readers that end quietly on a cut-off file: how to tell that the file stopped early.
+_ENDS_EARLY: dict[str, Callable[[Path, object], str | None]] = {
+    ".blf": _blf_ends_early,
+    ".asc": _asc_ends_early,
+}
+
+
+def check_readable(path: Path) -> None:
+    """Open a log and read its first frame: a file that is damaged from the start, or holds no
+    frame at all, is an error, not an empty drive."""
+    reader = open_log(path)
+    try:
+        if next(iter(reader), None) is None:
+            raise LogFileError(f"{path}: no CAN frames in the file")
+    except LogFileError:
+        raise
+    except Exception as error:
+        reason = _one_line(error)
+        _drop_quietly(error)
+        raise LogFileError(f"{path}: not a readable log, damaged from the start ({reason})") from None
+    finally:
         stop = getattr(reader, "stop", None)
         if callable(stop):
             stop()
@@ -147,11 +217,8 @@ class LogSource:
         self.paths = list(paths)
         self.merge = merge
         self.reports = [LogReport(p) for p in self.paths]
-        for path in self.paths:  # fail before any work on a missing or unknown file
-            reader = open_log(path)
-            stop = getattr(reader, "stop", None)
-            if callable(stop):
-                stop()
+        for path in self.paths:  # fail before any work on a missing, unknown or unreadable file
+            check_readable(path)
 
     @property
     def total_bytes(self) -> int:
@@ -216,12 +283,21 @@ def _bus_hint(interface: str | None) -> str:
     return "check the interface name, channel and driver"
 
 
+@dataclass(frozen=True)
+class _Failure:
+    """A bus's receive thread failed (cable pulled, interface gone, driver error)."""
+
+    bus: can.BusABC
+    error: BaseException
+
+
 class _Forward(can.Listener):
     """Puts a bus's frames on the shared queue, naming the channel if the interface did not."""
 
-    def __init__(self, out: "queue.SimpleQueue[can.Message | BaseException]", channel: str) -> None:
+    def __init__(self, out: "queue.SimpleQueue[can.Message | _Failure]", bus: can.BusABC) -> None:
         self.out = out
-        self.channel = channel
+        self.bus = bus
+        self.channel = bus.channel_info
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.channel is None:
@@ -229,15 +305,38 @@ class _Forward(can.Listener):
         self.out.put(msg)
 
     def on_error(self, exc: Exception) -> None:
-        self.out.put(exc)
+        self.out.put(_Failure(self.bus, exc))
+
+
+@dataclass(frozen=True)
+class Backoff:
+    """Waits between attempts to reopen a lost bus: ``first_s``, doubling up to ``max_s``."""
+
+    first_s: float = 0.5
+    max_s: float = 5.0
+
+    def delay_s(self, failed_attempts: int) -> float:
+        return float(min(self.first_s * 2.0**failed_attempts, self.max_s))
+
+
+@dataclass
+class _Lost:
+    since: float
+    retry_at: float
+    failed_attempts: int = 0
 
 
 class BusSource:
     """Frames from one or more live buses in arrival order.
 
-    Iterating yields a message, or None after ``idle_s`` without one (so the caller can redraw).
-    It ends at once when ``stop`` is set, or once the buses fall quiet after ``finished`` is set
-    (a player that has sent everything). A bus that fails ends it with BusError.
+    Iterating yields a message, or None after ``idle_s`` without one (so the caller can redraw
+    and flush the recording). It ends at once when ``stop`` is set, or once the buses fall quiet
+    after ``finished`` is set (a player that has sent everything).
+
+    A bus that fails ends it with BusError, unless ``reopen`` is given (index → a new bus for
+    that channel): then the lost bus is closed, None is yielded at once, and reopening is tried
+    after ``backoff`` delays on ``clock`` until it works; the other buses go on meanwhile.
+    ``on_change`` hears each loss, failed attempt and return as one line.
     """
 
     def __init__(
@@ -246,25 +345,45 @@ class BusSource:
         stop: threading.Event,
         finished: threading.Event | None = None,
         idle_s: float = 0.05,
+        reopen: Callable[[int], can.BusABC] | None = None,
+        backoff: Backoff = Backoff(),
+        clock: Callable[[], float] = time.monotonic,
+        on_change: Callable[[str], None] | None = None,
     ) -> None:
         self.buses = list(buses)
         self.stop = stop
         self.finished = finished
         self.idle_s = idle_s
-        self._queue: queue.SimpleQueue[can.Message | BaseException] = queue.SimpleQueue()
-        self._notifiers: list[can.Notifier] = []
+        self.reopen = reopen
+        self.backoff = backoff
+        self.clock = clock
+        self.on_change = on_change or (lambda text: None)
+        self.names = [str(bus.channel_info) for bus in self.buses]
+        self.lost: dict[int, _Lost] = {}
+        self.losses: list[str] = []  # one line per time a bus went away, for the summary
+        self._queue: queue.SimpleQueue[can.Message | _Failure] = queue.SimpleQueue()
+        self._notifiers: dict[int, can.Notifier] = {}
+
+    @property
+    def problem(self) -> str | None:
+        """Which buses are lost, for the dashboard (None while all are up)."""
+        if not self.lost:
+            return None
+        now = self.clock()
+        return "; ".join(
+            f"{self.names[i]} lost for {now - lost.since:.0f} s, "
+            f"next try in {max(lost.retry_at - now, 0.0):.1f} s"
+            for i, lost in sorted(self.lost.items())
+        )
 
     def __iter__(self) -> Iterator[can.Message | None]:
-        if len(self.buses) == 1:
-            yield from self._one(self.buses[0])
-            return
-        for bus in self.buses:
-            self._notifiers.append(
-                can.Notifier(bus, [_Forward(self._queue, bus.channel_info)], timeout=self.idle_s)
-            )
+        for index in range(len(self.buses)):
+            self._listen(index)
         stop = self.stop
         try:
             while not stop.is_set():
+                if self.lost:
+                    self._retry(self.clock())
                 try:
                     item = self._queue.get(timeout=self.idle_s)
                 except queue.Empty:
@@ -272,31 +391,63 @@ class BusSource:
                         return
                     yield None
                     continue
-                if isinstance(item, BaseException):
-                    raise BusError(f"the bus failed: {_one_line(item)}")
+                if isinstance(item, _Failure):
+                    if self._lose(item):
+                        yield None  # the caller flushes the recording now
+                    continue
                 yield item
         finally:
             self.close()
 
-    def _one(self, bus: can.BusABC) -> Iterator[can.Message | None]:
-        """One bus is read in this thread: no notifier thread, no queue, no GIL hand-over per
-        frame (three times the frame rate of the threaded path, tools/bench.py)."""
-        stop, finished, idle_s, name = self.stop, self.finished, self.idle_s, bus.channel_info
-        while not stop.is_set():
-            try:
-                msg = bus.recv(idle_s)
-            except Exception as error:
-                raise BusError(f"the bus failed: {_one_line(error)}") from None
-            if msg is None:
-                if finished is not None and finished.is_set():
-                    return
-                yield None
+    def _listen(self, index: int) -> None:
+        bus = self.buses[index]
+        self._notifiers[index] = can.Notifier(bus, [_Forward(self._queue, bus)], timeout=self.idle_s)
+
+    def _lose(self, failure: _Failure) -> bool:
+        """Close a failed bus and schedule its reopening; False for a stale report."""
+        index = next((i for i, bus in enumerate(self.buses) if bus is failure.bus), None)
+        if index is None or index in self.lost:
+            return False  # the receive thread reported again before it was stopped
+        name, reason = self.names[index], _one_line(failure.error)
+        if self.reopen is None:
+            raise BusError(f"{name}: the bus failed ({reason})")
+        self._notifiers.pop(index).stop(timeout=1.0)
+        _shutdown(failure.bus)
+        now = self.clock()
+        delay = self.backoff.delay_s(0)
+        self.lost[index] = _Lost(since=now, retry_at=now + delay)
+        self.losses.append(f"{name}: the bus went away ({reason})")
+        self.on_change(f"{self.losses[-1]} — recording kept, retrying in {delay:g} s")
+        return True
+
+    def _retry(self, now: float) -> None:
+        if self.reopen is None:
+            return
+        for index, lost in list(self.lost.items()):
+            if now < lost.retry_at:
                 continue
-            if msg.channel is None:
-                msg.channel = name
-            yield msg
+            name = self.names[index]
+            try:
+                bus = self.reopen(index)
+            except (C2nError, can.CanError, OSError) as error:
+                lost.failed_attempts += 1
+                delay = self.backoff.delay_s(lost.failed_attempts)
+                lost.retry_at = now + delay
+                self.on_change(f"{name}: still gone ({_one_line(error)}) — retrying in {delay:g} s")
+                continue
+            self.buses[index] = bus
+            del self.lost[index]
+            self._listen(index)
+            self.on_change(f"{name}: the bus is back after {now - lost.since:.1f} s — measuring again")
 
     def close(self) -> None:
-        for notifier in self._notifiers:
+        for notifier in self._notifiers.values():
             notifier.stop(timeout=1.0)
         self._notifiers.clear()
+
+
+def _shutdown(bus: can.BusABC) -> None:
+    try:
+        bus.shutdown()
+    except (can.CanError, OSError) as error:  # it is already gone
+        log.debug("closing a failed bus: %s", error)

@@ -40,6 +40,8 @@ def _configure_logging(debug: bool) -> None:
     root.handlers[:] = [handler]
     root.setLevel(logging.DEBUG if debug else logging.WARNING)
     logging.getLogger("can").setLevel(logging.DEBUG if debug else logging.ERROR)
+    # asammdf logs a damaged MF4 as an ERROR with a traceback; the reader's error says it in one line
+    logging.getLogger("asammdf").setLevel(logging.DEBUG if debug else logging.CRITICAL)
 
 
 def main(argv: Sequence[str] | None = None, console: Console | None = None) -> int:

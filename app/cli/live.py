@@ -4,9 +4,13 @@ import argparse
 import datetime
 import signal
 import threading
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
+import can
 from rich.console import Console
 from rich.text import Text
 
@@ -19,7 +23,7 @@ from app.live import EventPrinter
 from app.live import run as run_pipeline
 from app.pipeline import Pipeline
 from app.recorder import RAW_FORMATS, SessionRecorder
-from app.sources import BusSource, open_buses
+from app.sources import Backoff, BusSource, open_buses
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -59,11 +63,25 @@ def session_folder(parent: Path) -> Path:
     return folder
 
 
-def run(args: argparse.Namespace, console: Console) -> int:
+OpenBuses = Callable[..., list[can.BusABC]]
+
+
+def run(
+    args: argparse.Namespace,
+    console: Console,
+    open_bus: OpenBuses = open_buses,
+    backoff: Backoff | None = None,
+    clock: Callable[[], float] = time.monotonic,
+) -> int:
+    """The session. A bus that goes away is reopened with ``open_bus`` after ``backoff`` delays
+    (default 0.5 s doubling to 5 s, on ``clock``) while the recording and the pipeline carry on."""
     config = load_config(args.config)
-    buses = open_buses(args.interface, channels(args), args.bitrate, **bus_kwargs(args))
+    wanted: Sequence[str | int | None] = channels(args)
+    options: dict[str, Any] = bus_kwargs(args)
+    buses = open_bus(args.interface, wanted, args.bitrate, **options)
     title = ", ".join(str(bus.channel_info) for bus in buses)
     pipeline = Pipeline(config)
+    dashboard = Dashboard(pipeline, title)
     recorder = (
         None if args.no_record else SessionRecorder(session_folder(args.record), config, args.raw_format)
     )
@@ -73,25 +91,31 @@ def run(args: argparse.Namespace, console: Console) -> int:
     # (a shell starts background jobs so, and Python then leaves it ignored).
     previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
     console.print(f"c2n live on {title} — Ctrl-C ends the session", style="dim")
+
+    def reopen(index: int) -> can.BusABC:
+        return open_bus(args.interface, [wanted[index]], args.bitrate, **options)[0]
+
+    def bus_changed(text: str) -> None:
+        console.print(Text(f"c2n: {text}", style="bold yellow"), soft_wrap=True)
+        dashboard.bus_problem = source.problem
+
+    source = BusSource(
+        buses, stop, reopen=reopen, backoff=backoff or Backoff(), clock=clock, on_change=bus_changed
+    )
     try:
         if timer is not None:
             timer.start()
-        run_pipeline(
-            BusSource(buses, stop),
-            pipeline,
-            EventPrinter(console, pipeline, recorder),
-            Dashboard(pipeline, title),
-            console,
-            recorder,
-        )
+        printer = EventPrinter(console, pipeline, recorder)
+        run_pipeline(source, pipeline, printer, dashboard, console, recorder)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         if timer is not None:
             timer.cancel()
-        for bus in buses:
+        for bus in source.buses:  # the ones open now (a lost bus was closed already)
             bus.shutdown()
         result = summary.build(pipeline, [title])
+        result["warnings"].extend(source.losses)
         if recorder is not None:
             recorder.close(result)
         if args.json:

@@ -6,6 +6,7 @@ come from the vehicle bus where the config maps them; the comparison is with the
 sideslip and the yaw rate.
 """
 
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -22,6 +23,8 @@ from app.regression import RegressionFit
 from app.sources import LogSource
 from app.summary import build as build_summary
 from app.trace import Trace, TraceRecorder
+
+log = logging.getLogger(__name__)
 
 DT_S = 0.02
 ACCEL_SMOOTHING_S = 0.5  # the speed is averaged over this before it is differentiated
@@ -104,6 +107,9 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
         if record is not None:
             recorder(record)
     pipeline.finish()
+    for report in source.reports:
+        if report.stopped:
+            log.warning("%s: %s", report.path, report.stopped)
     state = pipeline.state
     trace = recorder.trace(state.t_first or 0.0)
     if not len(trace) or not np.isfinite(trace["sideslip_measured"]).any():

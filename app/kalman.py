@@ -107,9 +107,8 @@ class PairKalman:
             s = hu * ph[0] + hv * ph[2] + hr * ph[4] + r
             y = z - (hu * x[0] + hv * x[2] + hr * x[4])
             gain = [v / s for v in ph]
-            for i in range(6):
-                x[i] += gain[i] * y
-                g = gain[i]
+            for i, g in enumerate(gain):
+                x[i] += g * y
                 p[i] = [a - g * b for a, b in zip(p[i], ph, strict=True)]
 
     def value(self, i: int) -> float:

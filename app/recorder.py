@@ -5,12 +5,14 @@ recording is one more sink). The live loop calls ``flush`` at least every 50 ms 
 bus is idle, so after a crash (even ``kill -9``) the log reads back up to the last flush.
 """
 
+import copy
 import io
 import shutil
 from pathlib import Path
 from typing import Any
 
 import can
+from can.util import channel2int
 
 from app.config import Config
 from app.errors import C2nError
@@ -47,6 +49,26 @@ class _Spool(io.StringIO):
         super().close()
 
 
+class _BLFWriter(can.BLFWriter):
+    """python-can's BLF writer for any channel name. BLF numbers channels in 16 bits; a name whose
+    trailing digits do not fit (``vcan70000``, a generated test channel) is written as the writer's
+    default channel instead of failing the recording."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self._fits: dict[Any, bool] = {}
+
+    def on_message_received(self, msg: can.Message) -> None:
+        fits = self._fits.get(msg.channel)
+        if fits is None:
+            number = channel2int(msg.channel)
+            fits = self._fits[msg.channel] = number is None or 0 <= number < 0xFFFF
+        if not fits:
+            msg = copy.copy(msg)
+            msg.channel = None
+        super().on_message_received(msg)
+
+
 class SessionRecorder:
     def __init__(self, folder: Path, config: Config, raw_format: str = ".log") -> None:
         if raw_format not in RAW_FORMATS:
@@ -62,7 +84,7 @@ class SessionRecorder:
             self.raw_path = folder / f"frames{raw_format}"
             self._spool = _Spool(self.raw_path) if raw_format in _TEXT_WRITERS else None
             self._writer: Any = (
-                _TEXT_WRITERS[raw_format](self._spool) if self._spool else can.BLFWriter(self.raw_path)
+                _TEXT_WRITERS[raw_format](self._spool) if self._spool else _BLFWriter(self.raw_path)
             )
         except OSError as error:
             raise C2nError(

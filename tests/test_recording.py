@@ -13,6 +13,8 @@ import can
 import pytest
 
 from app.cli import main
+from app.config import load_config
+from app.recorder import SessionRecorder
 from tests.simulated import REPO, cached_drive
 
 FLUSH_DEADLINE_S = 0.1  # every frame sent this long before a crash must be on disk
@@ -104,3 +106,28 @@ def test_sigterm_finishes_every_file(tmp_path: Path) -> None:
     assert summary["frames"]["total"] == len(recorded) >= 2000
     with can.BLFReader(session / "frames.blf") as reader:  # the header is finished too
         assert reader.object_count == len(recorded)
+
+
+@pytest.mark.parametrize("raw_format", [".log", ".asc", ".blf"])
+@pytest.mark.parametrize("channel", ["can0", "vcan70000", "kill-3f9a1234567890", 3, None])
+def test_any_channel_name_records_every_frame(tmp_path: Path, raw_format: str, channel: object) -> None:
+    """A bus's channel name ends up in the log; one whose number does not fit the format's channel
+    field (BLF's is 16 bits) must not stop the recording."""
+    config = load_config()
+    recorder = SessionRecorder(tmp_path / "session", config, raw_format)
+    sent = cached_drive("constant_radius", 41, 15.1).messages[:500]
+    for message in sent:
+        recorder.on_message(
+            can.Message(
+                timestamp=message.timestamp,
+                arbitration_id=message.arbitration_id,
+                data=message.data,
+                is_extended_id=message.is_extended_id,
+                channel=channel,
+            )
+        )
+    recorder.close({"frames": {"total": len(sent)}})
+    recorded = list(can.LogReader(recorder.raw_path))
+    assert [(m.arbitration_id, bytes(m.data)) for m in recorded] == [
+        (m.arbitration_id, bytes(m.data)) for m in sent
+    ]

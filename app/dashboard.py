@@ -6,7 +6,7 @@ test renders it into ``Console(record=True)`` and reads the text.
 
 import heapq
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from rich.console import Group, RenderableType
@@ -99,7 +99,7 @@ class Dashboard:
         self.title = title
         self.max_ids = max_ids
         self.max_crossings = max_crossings
-        self.bus_problem: str | None = None  # set by the run while a bus is lost
+        self.bus_problem: Callable[[], str | None] = lambda: None  # lost, bus-off or error-passive buses
         self._rates = _RateMeter()
 
     def __rich__(self) -> RenderableType:
@@ -141,8 +141,9 @@ class Dashboard:
     def _status(self) -> RenderableType:
         state = self.pipeline.state
         lines: list[Text] = []
-        if self.bus_problem:
-            lines.append(Text(f"bus: {self.bus_problem}", style="bold red"))
+        bus_problem = self.bus_problem()
+        if bus_problem:
+            lines.append(Text(f"bus: {bus_problem}", style="bold red"))
         steady = state.last.steady if state.last else None
         if steady is None:
             lines.append(Text("waiting for optical sensor frames", style="yellow"))

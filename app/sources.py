@@ -21,6 +21,7 @@ from typing import Any
 
 import can
 
+from app.bus_health import BusHealth
 from app.errors import BusError, C2nError, LogFileError
 
 log = logging.getLogger(__name__)
@@ -360,26 +361,35 @@ class BusSource:
         self.on_change = on_change or (lambda text: None)
         self.names = [str(bus.channel_info) for bus in self.buses]
         self.lost: dict[int, _Lost] = {}
-        self.losses: list[str] = []  # one line per time a bus went away, for the summary
+        self.losses: list[str] = []  # one line per time a bus went away or bus-off, for the summary
+        self.health = BusHealth()
         self._queue: queue.SimpleQueue[can.Message | _Failure] = queue.SimpleQueue()
         self._notifiers: dict[int, can.Notifier] = {}
 
     @property
     def problem(self) -> str | None:
-        """Which buses are lost, for the dashboard (None while all are up)."""
-        if not self.lost:
+        """Which buses are lost, bus-off or error-passive, for the dashboard (None while all are well)."""
+        if not self.lost and not self.health.troubled:
             return None
         now = self.clock()
-        return "; ".join(
+        lost = [
             f"{self.names[i]} lost for {now - lost.since:.0f} s, "
             f"next try in {max(lost.retry_at - now, 0.0):.1f} s"
             for i, lost in sorted(self.lost.items())
-        )
+        ]
+        return "; ".join(lost + self.health.problems(now))
+
+    def _check_health(self, msg: can.Message) -> None:
+        line = self.health.see(msg, self.clock())
+        if line is not None:
+            if str(msg.channel) in self.health.troubled:  # a new trouble, not a return
+                self.losses.append(line.partition(" — ")[0])
+            self.on_change(line)
 
     def __iter__(self) -> Iterator[can.Message | None]:
         for index in range(len(self.buses)):
             self._listen(index)
-        stop = self.stop
+        stop, health = self.stop, self.health
         try:
             while not stop.is_set():
                 if self.lost:
@@ -395,6 +405,8 @@ class BusSource:
                     if self._lose(item):
                         yield None  # the caller flushes the recording now
                     continue
+                if item.is_error_frame or health.troubled:
+                    self._check_health(item)
                 yield item
         finally:
             self.close()

@@ -23,6 +23,13 @@ from hypothesis import strategies as st
 from rich.console import Console
 
 from app import summary
+from app.bus_health import (
+    CAN_ERR_BUSOFF,
+    CAN_ERR_CRTL,
+    CAN_ERR_CRTL_RX_PASSIVE,
+    CAN_ERR_RESTARTED,
+    BusHealth,
+)
 from app.cli import build_parser, main
 from app.cli import live as live_command
 from app.config import Config, load_config
@@ -452,6 +459,105 @@ def test_ctrl_c_during_the_backoff_ends_the_session_cleanly(tmp_path: Path) -> N
     assert json.loads((session / "summary.json").read_text())["frames"]["total"] == 1000
     assert len(list(can.LogReader(session / "frames.log"))) == 1000
     assert not [t for t in threading.enumerate() if cable.channel[:6] in t.name]  # no receive thread left
+
+
+def socketcan_error(classes: int, detail: int = 0, t: float = 0.0) -> can.Message:
+    """An error frame as SocketCAN delivers it: class bits in the id, controller detail in data[1]."""
+    return can.Message(
+        timestamp=t,
+        arbitration_id=classes,
+        is_error_frame=True,
+        is_extended_id=False,
+        data=bytes([0, detail, 0, 0, 0, 0, 0, 0]),
+    )
+
+
+def test_bus_health_follows_the_controller_state_from_error_frames() -> None:
+    health = BusHealth()
+    m = socketcan_error
+    frame_on_can0 = can.Message(arbitration_id=0x123, data=b"\0", channel="can0")
+    for msg in (m(CAN_ERR_CRTL, 0x04), m(0x008), m(0x080)):  # warning, protocol, bus error: no change
+        msg.channel = "can0"
+        assert health.see(msg, 1.0) is None
+    assert health.see(frame_on_can0, 1.0) is None and health.problems(1.0) == []
+    passive = m(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_PASSIVE)
+    passive.channel = "can0"
+    assert "can0: error-passive" in (health.see(passive, 2.0) or "")
+    assert health.see(passive, 2.5) is None  # said once
+    off = m(CAN_ERR_BUSOFF)
+    off.channel = "can0"
+    assert (health.see(off, 3.0) or "").startswith("can0: bus-off — ")
+    assert health.see(passive, 3.5) is None  # still off
+    assert health.problems(10.0) == ["can0 bus-off for 7 s"]
+    restarted = m(CAN_ERR_RESTARTED)
+    restarted.channel = "can0"
+    assert health.see(restarted, 13.0) == "can0: back from bus-off after 10.0 s — measuring again"
+    assert health.problems(13.0) == []
+    # where no restart report comes, frames on the channel are the sign it is back
+    assert health.see(off, 20.0) is not None
+    assert "back from bus-off after 2.0 s" in (health.see(frame_on_can0, 22.0) or "")
+    # a bus-off elsewhere leaves can0 alone; an error frame without class bits says nothing
+    other = m(CAN_ERR_BUSOFF)
+    other.channel = "can1"
+    assert health.see(other, 30.0) is not None and health.see(frame_on_can0, 30.0) is None
+    plain = can.Message(arbitration_id=0, is_error_frame=True, channel="can0")
+    assert health.see(plain, 31.0) is None and health.problems(31.0) == ["can1 bus-off for 1 s"]
+
+
+def test_bus_off_is_announced_shown_recorded_and_measuring_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """1000 frames, the controller goes bus-off (a SocketCAN error frame), nothing for a while, it
+    restarts, 1000 more frames: the run says so both times, the dashboard shows it meanwhile, the
+    recording and the counts hold every frame and both error frames, the summary names it."""
+    frames = cached_drive("constant_radius", 41, 15.1).messages[:2000]
+    channel = f"busoff-{uuid.uuid4().hex}"
+    record = tmp_path / "sessions"
+    out = io.StringIO()
+    console = Console(file=out, force_terminal=False, width=300, soft_wrap=True)
+    dashboards: list[Dashboard] = []
+    shown: list[str] = []
+
+    class SeenDashboard(Dashboard):
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            dashboards.append(self)
+
+    monkeypatch.setattr(live_command, "Dashboard", SeenDashboard)
+
+    def drive_the_car() -> None:
+        wait_until(lambda: any(record.glob("20*/frames.log")), "the session to start")
+        with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as car:
+            for msg in frames[:1000]:
+                car.send(msg)
+            car.send(socketcan_error(CAN_ERR_BUSOFF, t=frames[999].timestamp))
+            wait_until(lambda: "bus-off" in out.getvalue(), "the bus-off line")
+            time.sleep(0.3)
+            shown.append(render(dashboards[0]))
+            car.send(socketcan_error(CAN_ERR_RESTARTED, t=frames[999].timestamp + 1.0))
+            for msg in frames[1000:]:
+                car.send(msg)
+            wait_until(lambda: recorded_frames(record) == 2002, "2002 frames on disk")
+        os.kill(os.getpid(), signal.SIGINT)
+
+    driver = threading.Thread(target=drive_the_car)
+    driver.start()
+    code = live_command.run(live_args(channel, tmp_path), console)
+    driver.join()
+
+    assert code == 0
+    lines = [line for line in out.getvalue().splitlines() if line.startswith("c2n: ")]
+    assert len(lines) == 2, lines
+    assert f"{channel}: bus-off — " in lines[0] and "recording kept" in lines[0]
+    assert f"{channel}: back from bus-off after " in lines[1] and "measuring again" in lines[1]
+    assert f"bus: {channel} bus-off for " in shown[-1]
+    [session] = list(record.glob("20*"))
+    recorded = list(can.LogReader(session / "frames.log"))
+    assert [m.is_error_frame for m in recorded].count(True) == 2
+    assert [bytes(m.data) for m in recorded if not m.is_error_frame] == [bytes(m.data) for m in frames]
+    result = json.loads((session / "summary.json").read_text())
+    assert (result["frames"]["total"], result["frames"]["error_frames"]) == (2002, 2)
+    assert any(w.startswith(f"{channel}: bus-off") for w in result["warnings"])
 
 
 # -- 5. damaged, empty or missing files; broken DBC and config ---------------------------------------

@@ -97,11 +97,11 @@ def run(
 
     def bus_changed(text: str) -> None:
         console.print(Text(f"c2n: {text}", style="bold yellow"), soft_wrap=True)
-        dashboard.bus_problem = source.problem
 
     source = BusSource(
         buses, stop, reopen=reopen, backoff=backoff or Backoff(), clock=clock, on_change=bus_changed
     )
+    dashboard.bus_problem = lambda: source.problem
     try:
         if timer is not None:
             timer.start()

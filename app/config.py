@@ -34,6 +34,7 @@ class Vehicle:
     rear_axle_load_N: float | None = None
     front_axle_load_N: float | None = None
     cg_height_m: float | None = None
+    roll_axis_height_m: float | None = None  # at the sensor: its height above it times the roll rate
     track_m: float | None = None
     steering_ratio: float | None = None
     tyre_radius_m: float | None = None

@@ -92,6 +92,7 @@ DECODED: Mapping[str, tuple[Channel, float]] = {
     "yaw_rate": (Channel("yaw_rate_measured", "deg/s", "yaw rate (decoded)"), _DEG),
     "ay": (Channel("ay_measured", "m/s²", "lateral acceleration (decoded)"), 1.0),
     "steer": (Channel("steer", "deg", "steering-wheel angle (decoded)"), _DEG),
+    "roll_rate": (Channel("roll_rate_measured", "deg/s", "roll rate (decoded, + leaning right)"), _DEG),
 }
 
 TIME = Channel("time", "s", "time since the first frame")

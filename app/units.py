@@ -15,6 +15,7 @@ ROLE_UNITS: dict[str, str] = {
     "yaw_rate": "rad/s",
     "ay": "m/s^2",
     "steer": "rad",
+    "roll_rate": "rad/s",
 }
 
 _DEG = math.pi / 180.0

@@ -15,7 +15,7 @@ from app import paper
 from app.cli import main
 from app.config import load_config
 from app.gap.check import CaseAnswer, score
-from app.gap.diagnose import diagnose, problem
+from app.gap.diagnose import diagnose, problem, roll_lever_m
 from app.gap.measured import Measured, measure
 from app.gap.model import Mods, simulate
 from app.sim.session import DriveOptions, simulate_drive, write_drive
@@ -35,6 +35,7 @@ def steady_drive(u: float, delta: float, seconds: float = 20.0, dt: float = 0.02
         delta=delta * ones,
         ay=np.zeros(n),
         r=np.zeros(n),
+        p=np.zeros(n),
         beta=np.zeros(n),
         steady=np.ones(n, dtype=bool),
         speed_source="vehicle speed",
@@ -92,6 +93,31 @@ def test_longitudinal_load_transfer_moves_the_steady_state_as_the_shifted_loads_
     assert sim.beta[mid] == pytest.approx(math.atan(expected), abs=1e-6)
     static = simulate(p, drive, config.d_m)
     assert static.beta[mid] != pytest.approx(sim.beta[mid], abs=1e-5)  # the transfer is felt
+
+
+def test_the_roll_rate_moves_the_sensor_by_its_height_above_the_roll_axis() -> None:
+    """A head h above the roll axis, rolling at p: its lateral velocity is v_s − p·h, so the
+    sideslip it reads is atan((v_s − p·h)/u); h = sensor height − roll-axis height from the config."""
+    config = load_config()
+    p = BicycleParams.from_config(config)
+    u, roll_rate = 12.0, math.radians(6.0)
+    drive = steady_drive(u, math.radians(1.5))
+    rolling = dataclasses.replace(drive, p=np.full(len(drive.t), roll_rate))
+    lever = roll_lever_m(config)
+    assert lever == pytest.approx(config.vehicle.sensor_height_m - config.vehicle.roll_axis_height_m)
+    base = simulate(p, rolling, config.d_m)
+    swayed = simulate(p, rolling, config.d_m, roll_lever_m=lever)
+    v_sensor = u * math.tan(base.beta[-1])
+    assert swayed.beta[-1] == pytest.approx(math.atan((v_sensor - roll_rate * lever) / u), abs=1e-12)
+    assert abs(swayed.beta[-1] - base.beta[-1]) > math.radians(
+        0.1
+    )  # 6°/s at 0.35 m: 0.037 m/s, 0.18° at 12 m/s
+    no_height = dataclasses.replace(config, vehicle=dataclasses.replace(config.vehicle, sensor_height_m=0.0))
+    assert roll_lever_m(no_height) == 0.0
+    default_axis = dataclasses.replace(
+        config, vehicle=dataclasses.replace(config.vehicle, roll_axis_height_m=None)
+    )
+    assert roll_lever_m(default_axis) == pytest.approx(config.vehicle.sensor_height_m - 0.10)
 
 
 def test_the_sideslip_gap_leaves_white_sensor_noise_out() -> None:

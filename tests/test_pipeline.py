@@ -65,7 +65,7 @@ def test_sensor_on_the_door_is_moved_to_the_centre_line(write_config: Callable[.
 def test_without_yaw_rate_the_sideslip_alone_still_gives_c2n(write_config: Callable[..., Path]) -> None:
     """Only vx and vy (or beta) are required: the paper's point that no yaw rate is needed."""
     text = mondeo_text()
-    for role in ("yaw_rate", "ay", "steer"):
+    for role in ("yaw_rate", "ay", "steer", "roll_rate"):
         text = "\n".join(line for line in text.splitlines() if not line.startswith(f"{role} ="))
     config = load_config(write_config(text))
     assert set(config.roles) == {"vx", "vy", "beta", "speed"}

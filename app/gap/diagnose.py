@@ -20,6 +20,7 @@ YAW_WEIGHT = 0.3  # the yaw rate carries the driver's corrections the model cann
 GAP_BLOCK_S = 1.0  # the sideslip gap is measured on 1-s means
 ROBUST_SCALE = 3.0  # residuals beyond this many noise σ count less (soft L1)
 CONFOUNDED_SHARE = 0.8  # candidates reaching this share of the best improvement are confounded
+DEFAULT_ROLL_AXIS_HEIGHT_M = 0.10  # at the sensor, where the config does not say: a saloon's roll centres
 _STRAIGHT_RADPS, _TURNING_RADPS = 0.015, 0.03
 _MIN_MANOEUVRE_S = 2.0
 
@@ -91,6 +92,7 @@ class Problem:
     measured: Measured
     d_m: float
     cg_height_m: float | None  # for the longitudinal load transfer
+    roll_lever_m: float  # the sensor's height above the roll axis
     rows: np.ndarray  # usable grid steps
     sigma_beta: float
     sigma_r: float
@@ -130,7 +132,9 @@ class Problem:
         return math.degrees(math.sqrt(max(square, 0.0) / rows.sum()))
 
     def simulate(self, mods: Mods | None = None) -> Simulated:
-        return simulate(self.params, self.measured, self.d_m, mods or NOMINAL, self.cg_height_m)
+        return simulate(
+            self.params, self.measured, self.d_m, mods or NOMINAL, self.cg_height_m, self.roll_lever_m
+        )
 
     def fit(self, candidate: Candidate, rows: np.ndarray) -> tuple[float, ...]:
         scales = np.array([p.scale for p in candidate.params])
@@ -159,11 +163,20 @@ class Problem:
 def problem(m: Measured, config: Config) -> Problem:
     params = BicycleParams.from_config(config)
     rows = _usable(m)
-    cg_height = config.vehicle.cg_height_m
-    base = simulate(params, m, config.d_m, cg_height_m=cg_height)
+    cg_height, lever = config.vehicle.cg_height_m, roll_lever_m(config)
+    base = simulate(params, m, config.d_m, cg_height_m=cg_height, roll_lever_m=lever)
     sigma_beta = _noise(m.beta - base.beta)
     sigma_r = _noise(base.r_measured - base.r)
-    return Problem(params, m, config.d_m, cg_height, rows, sigma_beta, sigma_r)
+    return Problem(params, m, config.d_m, cg_height, lever, rows, sigma_beta, sigma_r)
+
+
+def roll_lever_m(config: Config) -> float:
+    """The sensor's height above the roll axis; 0 (no roll term) without a sensor height."""
+    vehicle = config.vehicle
+    if not vehicle.sensor_height_m:
+        return 0.0
+    axis = vehicle.roll_axis_height_m
+    return vehicle.sensor_height_m - (DEFAULT_ROLL_AXIS_HEIGHT_M if axis is None else axis)
 
 
 def score(pb: Problem, fold: np.ndarray) -> list[Scored]:

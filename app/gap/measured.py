@@ -41,6 +41,7 @@ class Measured:
     delta: np.ndarray  # road-wheel steer angle (steering-wheel angle / ratio), NaN without steer
     ay: np.ndarray  # u·r from the optical speed and the yaw rate (no roll or slope in it)
     r: np.ndarray  # measured yaw rate
+    p: np.ndarray  # measured roll rate (+ leaning right), 0 without the role
     beta: np.ndarray  # measured sideslip at the sensor (optical)
     steady: np.ndarray  # bool: the steady-state gate held
     speed_source: str
@@ -147,6 +148,7 @@ def _on_grid(trace: Trace, config: Config, pipeline: Pipeline, logs: Sequence[Pa
         delta=delta,
         ay=ay,
         r=r,
+        p=np.nan_to_num(column("roll_rate_measured", deg)),
         beta=beta,
         steady=steady,
         speed_source="vehicle speed" if has_speed else "optical speed",

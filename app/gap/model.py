@@ -5,6 +5,11 @@ Each axle's cornering stiffness is its normalised stiffness times its load, and 
 rearward by m·h·a_x/L when the car speeds up (longitudinal load transfer: the CG height is the
 config's ``cg_height_m``; without it the loads stay static).
 
+The sensor head rides the body above its roll axis: a roll rate p moves it sideways at −p·h, h
+its height above the roll axis (config ``sensor_height_m`` − ``roll_axis_height_m``, with the
+measured roll rate where the config maps the ``roll_rate`` role). In a step steer that is a
+sideslip of a tenth of a degree the planar model would otherwise not have.
+
 Linear tyres make the lateral dynamics a linear time-varying system in x = [v, r] (lateral velocity
 at the CG and yaw rate): ẋ = M(u)·x + f(δ, …). It is discretised per grid step (fourth-order
 series of exp(M·h), forcing held over the step) and stepped in one tight loop, so a whole session
@@ -58,7 +63,12 @@ def _shift(values: np.ndarray, t: np.ndarray, by_s: float) -> np.ndarray:
 
 
 def simulate(
-    p: BicycleParams, m: Measured, d_m: float, mods: Mods = NOMINAL, cg_height_m: float | None = None
+    p: BicycleParams,
+    m: Measured,
+    d_m: float,
+    mods: Mods = NOMINAL,
+    cg_height_m: float | None = None,
+    roll_lever_m: float = 0.0,
 ) -> Simulated:
     t, h = m.t, m.dt
     late = m.vehicle_roles
@@ -108,7 +118,7 @@ def simulate(
         v, r = a11[k] * v + a12[k] * r + g1[k], a21[k] * v + a22[k] * r + g2[k]
     v_cg, yaw = np.array(v_out), np.array(r_out)
     x_sensor = d_m + mods.d_error_m - b
-    beta = np.arctan2(v_cg + yaw * x_sensor, u) - mods.misalignment_rad
+    beta = np.arctan2(v_cg + yaw * x_sensor - m.p * roll_lever_m, u) - mods.misalignment_rad
     return Simulated(beta=beta, r=yaw, u=u, r_measured=r_meas, ay=ay)
 
 

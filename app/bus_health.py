@@ -5,7 +5,8 @@ class bits of ``linux/can/error.h`` and whose ``data[1]`` details a controller p
 hands them over as they are (``is_error_frame``). ``BusHealth`` turns that stream into the few
 changes worth a line in the live run: a controller that went bus-off (it stops receiving until it
 is restarted), one that went error-passive (its error counters passed 128: bad termination,
-wrong bitrate, a node sending garbage), and its return (a restart report, or frames again).
+wrong bitrate, a node sending garbage; it still receives), and its return (a restart or
+error-active report; after bus-off, frames again).
 Error frames without class bits (other interfaces) are counted by the decoder and nothing more.
 """
 
@@ -46,8 +47,12 @@ class BusHealth:
         """Take one frame; a line to print when the channel's state changed, else None."""
         channel = str(msg.channel)
         trouble = self.troubled.get(channel)
-        if not msg.is_error_frame:
-            return self._recovered(channel, trouble, now) if trouble is not None else None
+        if not msg.is_error_frame:  # a bus-off controller receives nothing: frames mean it is back
+            return (
+                self._recovered(channel, trouble, now)
+                if trouble is not None and trouble.state == OFF
+                else None
+            )
         classes = msg.arbitration_id
         detail = msg.data[1] if len(msg.data) > 1 else 0
         if classes & CAN_ERR_BUSOFF:

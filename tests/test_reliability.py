@@ -484,6 +484,8 @@ def test_bus_health_follows_the_controller_state_from_error_frames() -> None:
     passive.channel = "can0"
     assert "can0: error-passive" in (health.see(passive, 2.0) or "")
     assert health.see(passive, 2.5) is None  # said once
+    assert health.see(frame_on_can0, 2.6) is None  # an error-passive controller still receives
+    assert health.problems(2.6) == ["can0 error-passive for 1 s"]
     off = m(CAN_ERR_BUSOFF)
     off.channel = "can0"
     assert (health.see(off, 3.0) or "").startswith("can0: bus-off — ")

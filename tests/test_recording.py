@@ -91,19 +91,27 @@ def test_analyze_accepts_the_log_of_a_killed_session(
     assert not any("stopped after frame" in w for w in summary["warnings"])
 
 
-def test_sigterm_finishes_every_file(tmp_path: Path) -> None:
-    child, record, sent_file = start_live(tmp_path, ".blf")
+def stop_live(tmp_path: Path, raw_format: str, signum: int) -> tuple[Path, list[can.Message]]:
+    """Start `c2n live`, send ``signum`` once 2000 frames were sent; check it ended with exit code 0
+    and that the summary counts exactly the frames recorded (at least 2000). The session folder
+    and the recorded frames."""
+    child, record, sent_file = start_live(tmp_path, raw_format)
     try:
         wait_for_lines(sent_file, 2000, child)
-        child.send_signal(signal.SIGTERM)
+        child.send_signal(signum)
         assert child.wait(timeout=30) == 0
     finally:
         child.kill()
         child.wait()
     [session] = list(record.glob("20*"))
     summary = json.loads((session / "summary.json").read_text())
-    recorded = list(can.LogReader(session / "frames.blf"))
+    recorded = list(can.LogReader(session / f"frames{raw_format}"))
     assert summary["frames"]["total"] == len(recorded) >= 2000
+    return session, recorded
+
+
+def test_sigterm_finishes_every_file(tmp_path: Path) -> None:
+    session, recorded = stop_live(tmp_path, ".blf", signal.SIGTERM)
     with can.BLFReader(session / "frames.blf") as reader:  # the header is finished too
         assert reader.object_count == len(recorded)
 

@@ -76,7 +76,8 @@ def columns(rows: Sequence[Sequence[str]], left: frozenset[int] | set[int] = fro
         )
         for row in rows
     ]
-    text = Text(lines[0], style="bold")
+    text = Text()
+    text.append(lines[0], style="bold")
     for line in lines[1:]:
         text.append("\n" + line)
     return text

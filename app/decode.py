@@ -14,6 +14,7 @@ import can
 from app.config import Config, RoleSpec, StatusCondition
 from app.dbc import ChannelSpec, channel_matches
 from app.records import Record
+from app.signal_reader import Reader, signal_reader
 
 
 @dataclass
@@ -60,6 +61,7 @@ class SensorStatus:
         self.timeout_s = timeout_s
         self.values: dict[str, float] = {}
         self.t: float | None = None
+        self._relevant: dict[str, list[StatusCondition]] = {}  # role -> the conditions on it
 
     def update(self, t: float, values: dict[str, float]) -> None:
         self.values.update(values)
@@ -67,7 +69,9 @@ class SensorStatus:
 
     def why_not(self, role: str, t: float) -> str | None:
         """None when every condition on ``role`` holds at time t, else the reason it does not."""
-        relevant = [c for c in self.conditions if role in c.applies_to]
+        relevant = self._relevant.get(role)
+        if relevant is None:
+            relevant = self._relevant[role] = [c for c in self.conditions if role in c.applies_to]
         if not relevant:
             return None
         if self.t is None:
@@ -99,6 +103,7 @@ class _MessageBinding:
     channel: ChannelSpec | None
     roles: tuple[_RoleBinding, ...]
     status: tuple[str, ...]  # status signal names ("Message.Signal") in this message
+    read: Reader | None  # the needed signals' values from a frame's data (None: nothing needed)
 
     @property
     def needed(self) -> bool:
@@ -126,14 +131,39 @@ class Decoder:
                     if f"{message.name}.{s.name}" in status_names
                 )
                 key = (message.frame_id, bool(message.is_extended_frame))
+                needed = [role.signal for role in roles] + [name.partition(".")[2] for name in status]
+                read = signal_reader(message, list(dict.fromkeys(needed))) if needed else None
                 self._bindings.setdefault(key, []).append(
-                    _MessageBinding(message, dbc.channel, roles, status)
+                    _MessageBinding(message, dbc.channel, roles, status, read)
                 )
 
     def message_name(self, frame_id: int, extended: bool) -> str | None:
         """The DBC name of a frame id (the first DBC's, if several define it)."""
         bindings = self._bindings.get((frame_id, extended))
         return str(bindings[0].message.name) if bindings else None
+
+    def skip_kind(self, channel: object, frame_id: int, extended: bool) -> str | None:
+        """For a data frame of this key: the count it goes to when nothing in it is needed
+        (``unknown_id``, ``other_channel``, ``unused``: what ``decode`` would count it as), or
+        None when it must be decoded. For readers that count such frames in bulk."""
+        candidates = self._bindings.get((frame_id, extended))
+        if candidates is None:
+            return "unknown_id"
+        binding = next((b for b in candidates if channel_matches(b.channel, channel)), None)
+        if binding is None:
+            return "other_channel"
+        return None if binding.needed else "unused"
+
+    def count_skipped(
+        self, channel: object, frame_id: int, extended: bool, kind: str, frames: int, fd_frames: int
+    ) -> None:
+        """Count ``frames`` data frames of one key that ``skip_kind`` sent to ``kind``, as
+        ``decode`` would have counted them one by one."""
+        counts = self.counts
+        counts.total += frames
+        counts.by_id[(channel, frame_id, extended)] += frames
+        counts.fd_frames += fd_frames
+        setattr(counts, kind, getattr(counts, kind) + frames)
 
     def decode(self, msg: can.Message) -> Record | None:
         """Count the frame; return a Record when it carries role values (usable or not)."""
@@ -159,14 +189,14 @@ class Decoder:
         if not binding.needed:
             counts.unused += 1
             return None
-        message = binding.message
-        if len(msg.data) != message.length:
+        length = binding.message.length
+        if len(msg.data) != length:
             counts.bad_length += 1
-            kind = "short" if len(msg.data) < message.length else "long"
+            kind = "short" if len(msg.data) < length else "long"
             counts.bad_by_id[(msg.arbitration_id, kind)] += 1
             return None
         try:
-            decoded = message.decode(bytes(msg.data), decode_choices=False, scaling=True)
+            decoded = binding.read(msg.data)  # type: ignore[misc]  # a needed binding reads
         except Exception:
             counts.undecodable += 1
             counts.bad_by_id[(msg.arbitration_id, "undecodable")] += 1

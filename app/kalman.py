@@ -64,58 +64,102 @@ def full_row(h: H) -> np.ndarray:
 
 
 class PairKalman:
+    """P is kept as a flat row-major list of 36 floats. The measurement update is written out
+    term by term: it runs for every measurement of every optical frame, and spelled out it costs
+    half what row-by-row list arithmetic does (tools/bench.py, the kernel figure)."""
+
     def __init__(self, q_u: float, q_v: float, q_r: float) -> None:
         self.q = (q_u, q_v, q_r)
         self.x = [0.0] * 6
-        self.p = [[0.0] * 6 for _ in range(6)]
+        self.p = [0.0] * 36
 
     def reset(self, x: Sequence[float], p_diagonal: Sequence[float]) -> None:
         self.x = [float(v) for v in x]
-        self.p = [[float(p_diagonal[i]) if i == j else 0.0 for j in range(6)] for i in range(6)]
+        self.p = [float(p_diagonal[k // 6]) if k % 7 == 0 else 0.0 for k in range(36)]
 
     def predict(self, dt: float) -> None:
         x, p = self.x, self.p
-        for i in (0, 2, 4):
-            x[i] += dt * x[i + 1]
-            p[i] = [a + dt * b for a, b in zip(p[i], p[i + 1], strict=True)]  # F·P
-        for row in p:  # (F·P)·Fᵀ
-            row[0] += dt * row[1]
-            row[2] += dt * row[3]
-            row[4] += dt * row[5]
+        x[0] += dt * x[1]
+        x[2] += dt * x[3]
+        x[4] += dt * x[5]
+        for i in (0, 12, 24):  # F·P: each value row gains dt × its rate row
+            p[i : i + 6] = [a + dt * b for a, b in zip(p[i : i + 6], p[i + 6 : i + 12], strict=True)]
+        for i in range(0, 36, 6):  # (F·P)·Fᵀ: the same for the columns
+            p[i] += dt * p[i + 1]
+            p[i + 2] += dt * p[i + 3]
+            p[i + 4] += dt * p[i + 5]
         cube, square = dt**3 / 3.0, dt * dt / 2.0
-        for i, density in zip((0, 2, 4), self.q, strict=True):
-            p[i][i] += density * cube
-            p[i][i + 1] += density * square
-            p[i + 1][i] += density * square
-            p[i + 1][i + 1] += density * dt
+        for i, density in zip((0, 14, 28), self.q, strict=True):  # the pairs' diagonal blocks
+            p[i] += density * cube
+            p[i + 1] += density * square
+            p[i + 6] += density * square
+            p[i + 7] += density * dt
 
     def innovation(self, z: float, h: H) -> tuple[float, float]:
         x, p = self.x, self.p
         hu, hv, hr = h
-        pu, pv, pr = p[0], p[2], p[4]
         hph = (
-            hu * (pu[0] * hu + pu[2] * hv + pu[4] * hr)
-            + hv * (pv[0] * hu + pv[2] * hv + pv[4] * hr)
-            + hr * (pr[0] * hu + pr[2] * hv + pr[4] * hr)
+            hu * (p[0] * hu + p[2] * hv + p[4] * hr)
+            + hv * (p[12] * hu + p[14] * hv + p[16] * hr)
+            + hr * (p[24] * hu + p[26] * hv + p[28] * hr)
         )
         return z - (hu * x[0] + hv * x[2] + hr * x[4]), hph
 
     def update(self, rows: Sequence[Row]) -> None:
+        """One scalar update per row: gain K = P·Hᵀ/S, x += K·y, P −= K·(P·Hᵀ)ᵀ (P stays
+        symmetric, so the upper triangle is computed and mirrored)."""
         x, p = self.x, self.p
         for z, (hu, hv, hr), r in rows:
-            ph = [row[0] * hu + row[2] * hv + row[4] * hr for row in p]  # P·Hᵀ
-            s = hu * ph[0] + hv * ph[2] + hr * ph[4] + r
+            (
+                p0, _, p2, _, p4, _,
+                p6, p7, p8, _, p10, _,
+                p12, p13, p14, _, p16, _,
+                p18, p19, p20, p21, p22, _,
+                p24, p25, p26, p27, p28, _,
+                p30, p31, p32, p33, p34, p35,
+            ) = p  # fmt: skip
+            h0 = p0 * hu + p2 * hv + p4 * hr  # P·Hᵀ
+            h1 = p6 * hu + p8 * hv + p10 * hr
+            h2 = p12 * hu + p14 * hv + p16 * hr
+            h3 = p18 * hu + p20 * hv + p22 * hr
+            h4 = p24 * hu + p26 * hv + p28 * hr
+            h5 = p30 * hu + p32 * hv + p34 * hr
+            s = hu * h0 + hv * h2 + hr * h4 + r
             y = z - (hu * x[0] + hv * x[2] + hr * x[4])
-            gain = [v / s for v in ph]
-            for i, g in enumerate(gain):
-                x[i] += g * y
-                p[i] = [a - g * b for a, b in zip(p[i], ph, strict=True)]
+            k0, k1, k2, k3, k4, k5 = h0 / s, h1 / s, h2 / s, h3 / s, h4 / s, h5 / s
+            x[0] += k0 * y
+            x[1] += k1 * y
+            x[2] += k2 * y
+            x[3] += k3 * y
+            x[4] += k4 * y
+            x[5] += k5 * y
+            a0, a1, a2, a3, a4, a5 = (
+                p0 - k0 * h0,
+                p6 - k0 * h1,
+                p12 - k0 * h2,
+                p18 - k0 * h3,
+                p24 - k0 * h4,
+                p30 - k0 * h5,
+            )
+            b1, b2, b3, b4, b5 = p7 - k1 * h1, p13 - k1 * h2, p19 - k1 * h3, p25 - k1 * h4, p31 - k1 * h5
+            c2, c3, c4, c5 = p14 - k2 * h2, p20 - k2 * h3, p26 - k2 * h4, p32 - k2 * h5
+            d3, d4, d5 = p21 - k3 * h3, p27 - k3 * h4, p33 - k3 * h5
+            e4, e5 = p28 - k4 * h4, p34 - k4 * h5
+            f5 = p35 - k5 * h5
+            p[:] = (
+                a0, a1, a2, a3, a4, a5,
+                a1, b1, b2, b3, b4, b5,
+                a2, b2, c2, c3, c4, c5,
+                a3, b3, c3, d3, d4, d5,
+                a4, b4, c4, d4, e4, e5,
+                a5, b5, c5, d5, e5, f5,
+            )  # fmt: skip
 
     def value(self, i: int) -> float:
         return self.x[i]
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array(self.x), np.array(self.p)
+        return np.array(self.x), np.array(self.p).reshape(6, 6)
 
 
 class FilterpyKalman:

@@ -1,7 +1,15 @@
 """The run loop shared by ``c2n live``, ``c2n demo`` and ``c2n analyze``: frames through the
 pipeline, events printed as they happen, the dashboard redrawn and the recording flushed on a
-wall-clock cadence (the only clock here, and it is injected)."""
+wall-clock cadence (the only clock here, and it is injected).
 
+Drawing the dashboard takes milliseconds of rich's layout work, too long to hold up the frames
+behind it. So the loop only takes a picture of it (``rich_cast``: the dashboard's values turned
+into text, well under a millisecond) and rich's own refresh thread lays that picture out and draws
+it. While it draws, the interpreter switches threads every ``_SWITCH_S`` instead of Python's 5 ms,
+so a frame that arrives waits at most that long for the loop.
+"""
+
+import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import nullcontext
@@ -10,12 +18,15 @@ from typing import Any
 import can
 from rich.console import Console, RenderableType
 from rich.live import Live
+from rich.protocol import rich_cast
 from rich.text import Text
 
 from app.event_line import crossing_line, rejected_line
 from app.pipeline import Pipeline
 from app.recorder import SessionRecorder
 from app.records import Crossing, CrossingRejected, Event, Record
+
+_SWITCH_S = 0.0005  # the interpreter's thread switch interval while a display is drawn
 
 
 class EventPrinter:
@@ -54,13 +65,22 @@ def run(
 ) -> bool:
     """Run until the source ends (True) or Ctrl-C / SIGTERM (False); then fit what is pending.
 
-    The display (dashboard, progress) is drawn only on a terminal; elsewhere the printed lines
-    are all there is. A transient display is cleared at the end. The recording is flushed every
-    ``flush_s`` and whenever the source is idle (it yields None). ``on_record`` sees every record.
+    The display (dashboard, progress) is drawn only on a terminal, every ``refresh_s``, from a
+    picture taken in this thread; elsewhere the printed lines are all there is. A transient
+    display is cleared at the end. The recording is flushed every ``flush_s`` and whenever the
+    source is idle (it yields None). ``on_record`` sees every record.
     """
     live: Any = nullcontext()
+    switch_s = sys.getswitchinterval()
     if display is not None and console is not None and console.is_terminal:
-        live = Live(display, console=console, auto_refresh=False, transient=transient, redirect_stdout=False)
+        live = Live(
+            rich_cast(display),
+            console=console,
+            refresh_per_second=1.0 / refresh_s,
+            transient=transient,
+            redirect_stdout=False,
+        )
+        sys.setswitchinterval(min(switch_s, _SWITCH_S))
     completed = True
     with live:
         next_refresh = next_flush = clock()
@@ -81,11 +101,13 @@ def run(
                     next_flush = now + flush_s
                 if now >= next_refresh:
                     if isinstance(live, Live):
-                        live.refresh()
+                        live.update(rich_cast(display))  # rich's refresh thread draws it
                     next_refresh = now + refresh_s
         except KeyboardInterrupt:
             completed = False
+        finally:
+            sys.setswitchinterval(switch_s)
         printer(pipeline.finish())
         if isinstance(live, Live):
-            live.refresh()
+            live.update(rich_cast(display), refresh=True)
     return completed

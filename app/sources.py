@@ -21,6 +21,7 @@ from typing import Any
 
 import can
 
+from app import mf4_bulk
 from app.bus_health import BusHealth
 from app.errors import BusError, C2nError, LogFileError
 
@@ -133,9 +134,16 @@ def _sniff(path: Path) -> str | None:
     return None
 
 
-def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
+def read_log(path: Path, report: LogReport, triage: mf4_bulk.Triage | None = None) -> Iterator[can.Message]:
     """Frames of one log file, in file order; damage ends the file, noted in ``report`` (the
-    caller says so: the summary's warnings, or a line of its own)."""
+    caller says so: the summary's warnings, or a line of its own).
+
+    With ``triage`` (the decoder), an MF4 file is read in bulk: only the frames the pipeline
+    decodes are yielded, the rest are counted by the decoder directly (app/mf4_bulk.py)."""
+    bulk = _read_mf4_in_bulk(path, report, triage) if triage is not None else None
+    if bulk is not None:
+        yield from bulk
+        return
     reader = open_log(path)
     report.reader = reader
     iterator = iter(reader)
@@ -159,6 +167,41 @@ def read_log(path: Path, report: LogReport) -> Iterator[can.Message]:
         stop = getattr(reader, "stop", None)
         if callable(stop):
             stop()
+
+
+def _read_mf4_in_bulk(path: Path, report: LogReport, triage: mf4_bulk.Triage) -> Iterator[can.Message] | None:
+    """The MF4 bulk reader's frames, or None where it does not apply (not MF4, error or remote
+    frames in the file, a file asammdf cannot open: the frame-by-frame reader says why)."""
+    if path.suffix.lower() != ".mf4":
+        return None
+
+    def read(frames: int) -> None:
+        report.frames += frames
+
+    mdf = None
+    try:
+        mdf = mf4_bulk.MDF(path)
+        groups = mf4_bulk.data_groups(mdf)
+        frames = mf4_bulk.read_frames(mdf, groups, triage, read) if groups is not None else None
+    except Exception as error:
+        log.debug("%s: not read in bulk: %s", path, error)
+        frames = None
+    if frames is None:
+        if mdf is not None:
+            mdf.close()
+        return None
+    return _bulk_frames(mdf, frames, report)
+
+
+def _bulk_frames(mdf: Any, frames: Iterator[can.Message], report: LogReport) -> Iterator[can.Message]:
+    report.reader = mdf
+    try:
+        yield from frames
+    except Exception as error:
+        report.stopped = f"stopped after frame {report.frames}: {_one_line(error)}"
+    finally:
+        report.done, report.reader = True, None
+        mdf.close()
 
 
 def _blf_ends_early(path: Path, reader: object) -> str | None:
@@ -212,11 +255,15 @@ def check_readable(path: Path) -> None:
 
 class LogSource:
     """Frames of several log files: one after another, or merged by timestamp (``merge``), for
-    per-channel recordings of one drive (e.g. two candump files)."""
+    per-channel recordings of one drive (e.g. two candump files). Given the decoder as
+    ``triage``, MF4 files are read in bulk (``read_log``)."""
 
-    def __init__(self, paths: Sequence[Path], merge: bool = False) -> None:
+    def __init__(
+        self, paths: Sequence[Path], merge: bool = False, triage: mf4_bulk.Triage | None = None
+    ) -> None:
         self.paths = list(paths)
         self.merge = merge
+        self.triage = triage
         self.reports = [LogReport(p) for p in self.paths]
         for path in self.paths:  # fail before any work on a missing, unknown or unreadable file
             check_readable(path)
@@ -239,7 +286,7 @@ class LogSource:
         return done
 
     def __iter__(self) -> Iterator[can.Message]:
-        streams = [read_log(p, r) for p, r in zip(self.paths, self.reports, strict=True)]
+        streams = [read_log(p, r, self.triage) for p, r in zip(self.paths, self.reports, strict=True)]
         if self.merge:
             yield from heapq.merge(*streams, key=lambda m: m.timestamp)
         else:
@@ -387,16 +434,21 @@ class BusSource:
             self.on_change(line)
 
     def __iter__(self) -> Iterator[can.Message | None]:
-        for index in range(len(self.buses)):
-            self._listen(index)
+        """One bus is read in the caller's thread: no hand-off between threads per frame, which
+        would cost more than decoding it (tools/bench.py). Several buses get a receive thread
+        each, feeding one queue."""
+        direct = len(self.buses) == 1
+        if not direct:
+            for index in range(len(self.buses)):
+                self._listen(index)
+        receive = self._receive_direct if direct else self._receive_queued
         stop, health = self.stop, self.health
         try:
             while not stop.is_set():
                 if self.lost:
-                    self._retry(self.clock())
-                try:
-                    item = self._queue.get(timeout=self.idle_s)
-                except queue.Empty:
+                    self._retry(self.clock(), listen=not direct)
+                item = receive()
+                if item is None:
                     if self.finished is not None and self.finished.is_set():
                         return
                     yield None
@@ -411,6 +463,25 @@ class BusSource:
         finally:
             self.close()
 
+    def _receive_queued(self) -> "can.Message | _Failure | None":
+        try:
+            return self._queue.get(timeout=self.idle_s)
+        except queue.Empty:
+            return None
+
+    def _receive_direct(self) -> "can.Message | _Failure | None":
+        if self.lost:  # the only bus is away: wait for the next attempt
+            time.sleep(max(0.0, min(self.idle_s, self.lost[0].retry_at - self.clock())))
+            return None
+        bus = self.buses[0]
+        try:
+            msg = bus.recv(self.idle_s)
+        except Exception as error:  # what a receive thread would report to its listener
+            return _Failure(bus, error)
+        if msg is not None and msg.channel is None:
+            msg.channel = bus.channel_info
+        return msg
+
     def _listen(self, index: int) -> None:
         bus = self.buses[index]
         self._notifiers[index] = can.Notifier(bus, [_Forward(self._queue, bus)], timeout=self.idle_s)
@@ -423,7 +494,9 @@ class BusSource:
         name, reason = self.names[index], _one_line(failure.error)
         if self.reopen is None:
             raise BusError(f"{name}: the bus failed ({reason})")
-        self._notifiers.pop(index).stop(timeout=1.0)
+        notifier = self._notifiers.pop(index, None)
+        if notifier is not None:
+            notifier.stop(timeout=1.0)
         _shutdown(failure.bus)
         now = self.clock()
         delay = self.backoff.delay_s(0)
@@ -432,7 +505,7 @@ class BusSource:
         self.on_change(f"{self.losses[-1]} — recording kept, retrying in {delay:g} s")
         return True
 
-    def _retry(self, now: float) -> None:
+    def _retry(self, now: float, listen: bool = True) -> None:
         if self.reopen is None:
             return
         for index, lost in list(self.lost.items()):
@@ -449,7 +522,8 @@ class BusSource:
                 continue
             self.buses[index] = bus
             del self.lost[index]
-            self._listen(index)
+            if listen:
+                self._listen(index)
             self.on_change(f"{name}: the bus is back after {now - lost.since:.1f} s — measuring again")
 
     def close(self) -> None:

@@ -34,8 +34,8 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 def run(args: argparse.Namespace, console: Console) -> int:
     config = load_config(args.config)
-    source = LogSource(args.logs, merge=args.merge)
     pipeline = Pipeline(config)
+    source = LogSource(args.logs, merge=args.merge, triage=pipeline.decoder)
     progress = ReadProgress(pipeline, source, ", ".join(p.name for p in args.logs))
     run_pipeline(source, pipeline, EventPrinter(console, pipeline), progress, console, transient=True)
     result = summary.build(pipeline, [str(p) for p in args.logs], source.reports)

@@ -65,8 +65,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app import export
 
     log, config, out = _inputs(args)
-    source = LogSource([log])
     pipeline = Pipeline(config)
+    source = LogSource([log], triage=pipeline.decoder)
     trace_recorder = TraceRecorder(config.roles)
     progress = ReadProgress(pipeline, source, log.name)
     run_pipeline(

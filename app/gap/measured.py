@@ -100,8 +100,8 @@ def _vehicle_roles(config: Config) -> frozenset[str]:
 
 
 def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
-    source = LogSource(logs, merge=len(logs) > 1)
     pipeline = Pipeline(config)
+    source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
     recorder = TraceRecorder(config.roles)
     for message in source:
         record = pipeline.process(message)

@@ -1,0 +1,158 @@
+"""MF4 bus logging read in bulk: asammdf's arrays of a whole channel group, not a python-can
+Message per frame.
+
+Most frames of a drive are of ids the pipeline never decodes; they are counted per (channel, id)
+with numpy, and only the others become Messages, built as python-can's MF4Reader builds them
+(tests/test_mf4_bulk.py holds the two readers to the same frames and counts). Files with
+error or remote frames, or several data groups whose times go back, are read frame by frame.
+"""
+
+import heapq
+from collections.abc import Callable, Iterator
+from typing import Any, Protocol
+
+import can
+import numpy as np
+from asammdf import MDF, Source
+from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
+
+__all__ = ["MDF", "Triage", "data_groups", "read_frames"]
+
+CHUNK = 200_000  # frames per asammdf request: bounded memory on files of any size
+_ID_MASK = 0x1FFFFFFF
+_DATA = "CAN_DataFrame"
+
+
+class Triage(Protocol):
+    """What the reader asks the decoder: which data frames it needs, and how to count the rest."""
+
+    def skip_kind(self, channel: object, frame_id: int, extended: bool) -> str | None:
+        """The count a data frame of this key goes to when the pipeline needs nothing from it
+        (``unknown_id``, ``other_channel``, ``unused``); None when it must be decoded."""
+        ...
+
+    def count_skipped(
+        self, channel: object, frame_id: int, extended: bool, kind: str, frames: int, fd_frames: int
+    ) -> None: ...
+
+
+def data_groups(mdf: Any) -> list[int] | None:
+    """The groups python-can's MF4Reader reads, when all of them hold CAN data frames (None when
+    it would also read error or remote frames: those files are read frame by frame)."""
+    groups = []
+    for index, group in enumerate(mdf.groups):
+        channel_group = group.channel_group
+        if not channel_group.flags & FLAG_CG_BUS_EVENT or channel_group.cycles_nr == 0:
+            continue
+        source = channel_group.acq_source
+        if source is None or not source.source_type & Source.SOURCE_BUS:
+            continue
+        if source.bus_type != Source.BUS_TYPE_CAN:
+            continue
+        names = [channel.name for channel in group.channels]
+        if _DATA in names:
+            groups.append(index)
+        elif "CAN_ErrorFrame" in names or "CAN_RemoteFrame" in names:
+            return None
+    return groups
+
+
+def read_frames(
+    mdf: Any, groups: list[int], triage: Triage, on_read: Callable[[int], None]
+) -> Iterator[can.Message] | None:
+    """The needed frames of the groups as Messages, in python-can's order (its heapq merge of
+    the groups by time); the others counted through ``triage``; ``on_read`` hears how many
+    frames each array held. None when several groups have times that go back (their merge
+    order is the frame-by-frame reader's business)."""
+    start = mdf.header.start_time.timestamp()
+    if len(groups) == 1:
+        return _chunks(mdf, groups[0], start, triage, on_read)
+    whole = [_Frames(mdf.get(_DATA, g, raw=False), start) for g in groups]
+    if any(np.any(np.diff(frames.t) < 0) for frames in whole):
+        return None
+    return heapq.merge(*(_needed(f, triage, on_read) for f in whole), key=lambda m: m.timestamp)
+
+
+def _chunks(
+    mdf: Any, group: int, start: float, triage: Triage, on_read: Callable[[int], None]
+) -> Iterator[can.Message]:
+    cycles = mdf.groups[group].channel_group.cycles_nr
+    for offset in range(0, cycles, CHUNK):
+        signal = mdf.get(_DATA, group, record_offset=offset, record_count=CHUNK, raw=False)
+        yield from _needed(_Frames(signal, start), triage, on_read)
+
+
+def _needed(frames: "_Frames", triage: Triage, on_read: Callable[[int], None]) -> Iterator[can.Message]:
+    keep = frames.triage(triage)
+    on_read(len(frames.t))
+    for i in np.flatnonzero(keep).tolist():
+        yield frames.message(i)
+
+
+class _Frames:
+    """One asammdf Signal of CAN_DataFrame records as columns."""
+
+    def __init__(self, signal: Any, start: float) -> None:
+        samples = signal.samples
+        names = samples.dtype.names
+        self.t = signal.timestamps + start
+        self.frame_id = samples[f"{_DATA}.ID"] & _ID_MASK
+        self.length = samples[f"{_DATA}.DataLength"]
+        self.data = samples[f"{_DATA}.DataBytes"]
+
+        def column(name: str) -> np.ndarray | None:
+            return samples[f"{_DATA}.{name}"] if f"{_DATA}.{name}" in names else None
+
+        self.channel, self.ide, self.dir = column("BusChannel"), column("IDE"), column("Dir")
+        self.edl, self.brs, self.esi = column("EDL"), column("BRS"), column("ESI")
+
+    def triage(self, triage: Triage) -> np.ndarray:
+        """Count the frames the pipeline does not need; return the mask of those it does."""
+        n = len(self.t)
+        channel = self.channel.astype(np.uint64) if self.channel is not None else np.zeros(n, np.uint64)
+        ide = self.ide.astype(bool) if self.ide is not None else np.ones(n, bool)  # python-can's default
+        keys = (
+            (channel << np.uint64(33))
+            | (ide.astype(np.uint64) << np.uint64(32))
+            | self.frame_id.astype(np.uint64)
+        )
+        unique, first, inverse, counts = np.unique(
+            keys, return_index=True, return_inverse=True, return_counts=True
+        )
+        fd = (
+            np.bincount(inverse, weights=self.edl.astype(bool), minlength=len(unique))
+            if self.edl is not None
+            else None
+        )
+        needed = np.zeros(len(unique), bool)
+        for k, i in enumerate(first.tolist()):
+            key_channel = int(self.channel[i]) if self.channel is not None else None
+            frame_id, extended = int(self.frame_id[i]), bool(ide[i])
+            kind = triage.skip_kind(key_channel, frame_id, extended)
+            if kind is None:
+                needed[k] = True
+            else:
+                fd_frames = int(fd[k]) if fd is not None else 0
+                triage.count_skipped(key_channel, frame_id, extended, kind, int(counts[k]), fd_frames)
+        return needed[inverse]
+
+    def message(self, i: int) -> can.Message:
+        """Frame i as python-can's MF4Reader makes it."""
+        kv: dict[str, Any] = {
+            "timestamp": float(self.t[i]),
+            "arbitration_id": int(self.frame_id[i]),
+            "data": self.data[i][: int(self.length[i])].tobytes(),
+        }
+        if self.channel is not None:
+            kv["channel"] = int(self.channel[i])
+        if self.dir is not None:
+            kv["is_rx"] = self.dir[i] == b"Rx" if self.dir.dtype.kind == "S" else int(self.dir[i]) == 0
+        if self.ide is not None:
+            kv["is_extended_id"] = bool(self.ide[i])
+        if self.edl is not None:
+            kv["is_fd"] = bool(self.edl[i])
+        if self.brs is not None:
+            kv["bitrate_switch"] = bool(self.brs[i])
+        if self.esi is not None:
+            kv["error_state_indicator"] = bool(self.esi[i])
+        return can.Message(**kv)

@@ -1,0 +1,63 @@
+"""Reading the few signals a frame is needed for, straight from its bits.
+
+cantools decodes every signal of a message through layers of Python; a frame of the optical
+sensor is needed for one or two of them, and on a saturated bus that decoding is a third of the
+live loop's time (tools/bench.py). A plain integer signal — little- or big-endian, signed or
+not, linearly scaled, not multiplexed — is a shift, a mask and a multiply, done here. Anything
+else (floats, multiplexed messages, choices) goes through cantools. tests/test_signal_reader.py
+holds these equal to cantools' own decoding over every such signal of every DBC at hand.
+"""
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+Reader = Callable[[bytes | bytearray], dict[str, float]]
+
+
+def signal_reader(message: Any, names: Sequence[str]) -> Reader:
+    """A function from a frame's data (of the message's length) to {name: scaled value} for the
+    named signals of a cantools message: the hand path where every named signal allows it,
+    else cantools' decode."""
+    signals = [message.get_signal_by_name(name) for name in names]
+    if message.is_multiplexed() or not all(_plain(signal) for signal in signals):
+        return lambda data: _cantools_values(message, data, names)
+    size = message.length
+    little = [_layout(signal, size) for signal in signals if signal.byte_order == "little_endian"]
+    big = [_layout(signal, size) for signal in signals if signal.byte_order != "little_endian"]
+
+    def read(data: bytes | bytearray) -> dict[str, float]:
+        values: dict[str, float] = {}
+        for layouts, order in ((little, "little"), (big, "big")):
+            if not layouts:
+                continue
+            bits = int.from_bytes(data, order)  # type: ignore[arg-type]
+            for name, shift, mask, sign, scale, offset in layouts:
+                raw = (bits >> shift) & mask
+                if raw & sign:
+                    raw -= sign << 1
+                values[name] = raw * scale + offset
+        return values
+
+    return read
+
+
+def _plain(signal: Any) -> bool:
+    return not signal.is_float and not signal.is_multiplexer and signal.multiplexer_ids is None
+
+
+def _layout(signal: Any, size: int) -> tuple[str, int, int, int, Any, Any]:
+    """(name, shift, mask, sign bit or 0, scale, offset) of a signal in a frame of ``size`` bytes
+    read as one integer in the signal's byte order."""
+    length = signal.length
+    if signal.byte_order == "little_endian":
+        shift = signal.start
+    else:  # Motorola: DBC's start bit is the most significant bit, numbered 7..0 within a byte
+        msb = 8 * (signal.start // 8) + 7 - signal.start % 8  # counted from the first byte's MSB
+        shift = 8 * size - msb - length
+    sign = 1 << (length - 1) if signal.is_signed else 0
+    return signal.name, shift, (1 << length) - 1, sign, signal.scale, signal.offset
+
+
+def _cantools_values(message: Any, data: bytes | bytearray, names: Sequence[str]) -> dict[str, float]:
+    decoded = message.decode(bytes(data), decode_choices=False, scaling=True)
+    return {name: decoded[name] for name in names}

@@ -3,42 +3,75 @@ Message per frame.
 
 Most frames of a drive are of ids the pipeline never decodes; they are counted per (channel, id)
 with numpy, and only the others become Messages, built as python-can's MF4Reader builds them
-(tests/test_mf4_bulk.py holds the two readers to the same frames and counts). Files with
-error or remote frames, or several data groups whose times go back, are read frame by frame.
+(tests/test_log_bulk.py holds the two readers to the same frames and counts). Files with error
+or remote frames, or several data groups whose times go back, are left to python-can's reader.
 """
 
 import heapq
 from collections.abc import Callable, Iterator
-from typing import Any, Protocol
+from pathlib import Path
+from typing import Any
 
 import can
 import numpy as np
 from asammdf import MDF, Source
 from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
 
-__all__ = ["MDF", "Triage", "data_groups", "read_frames"]
+from app.triage import NotInBulk, Triage
 
 CHUNK = 200_000  # frames per asammdf request: bounded memory on files of any size
 _ID_MASK = 0x1FFFFFFF
 _DATA = "CAN_DataFrame"
 
 
-class Triage(Protocol):
-    """What the reader asks the decoder: which data frames it needs, and how to count the rest."""
+class TriagedMF4Reader:
+    """The frames of an MF4 that ``triage`` needs, in python-can's order (its heapq merge of the
+    groups by time); the others counted through ``triage``, and ``skipped`` hears how many.
+    Raises NotInBulk for a file python-can's reader should read."""
 
-    def skip_kind(self, channel: object, frame_id: int, extended: bool) -> str | None:
-        """The count a data frame of this key goes to when the pipeline needs nothing from it
-        (``unknown_id``, ``other_channel``, ``unused``); None when it must be decoded."""
-        ...
+    def __init__(self, path: Path, triage: Triage, skipped: Callable[[int], None]) -> None:
+        self.triage = triage
+        self.skipped = skipped
+        self.mdf = MDF(path)
+        try:
+            groups = data_groups(self.mdf)
+            if groups is None:
+                raise NotInBulk("error or remote frames")
+            self.start = self.mdf.header.start_time.timestamp()
+            self.groups = groups
+            self.whole: list[_Frames] = []
+            if len(groups) > 1:  # merged by time: each group must be in time order
+                self.whole = [_Frames(self.mdf.get(_DATA, g, raw=False), self.start) for g in groups]
+                if any(np.any(np.diff(frames.t) < 0) for frames in self.whole):
+                    raise NotInBulk("several data groups whose times go back")
+        except BaseException:
+            self.mdf.close()
+            raise
 
-    def count_skipped(
-        self, channel: object, frame_id: int, extended: bool, kind: str, frames: int, fd_frames: int
-    ) -> None: ...
+    def __iter__(self) -> Iterator[can.Message]:
+        if self.whole:
+            return heapq.merge(*(self._needed(f) for f in self.whole), key=lambda m: m.timestamp)
+        return self._chunks(self.groups[0]) if self.groups else iter(())
+
+    def stop(self) -> None:
+        self.mdf.close()
+
+    def _chunks(self, group: int) -> Iterator[can.Message]:
+        cycles = self.mdf.groups[group].channel_group.cycles_nr
+        for offset in range(0, cycles, CHUNK):
+            signal = self.mdf.get(_DATA, group, record_offset=offset, record_count=CHUNK, raw=False)
+            yield from self._needed(_Frames(signal, self.start))
+
+    def _needed(self, frames: "_Frames") -> Iterator[can.Message]:
+        keep = frames.triage(self.triage)
+        self.skipped(len(keep) - int(np.count_nonzero(keep)))
+        for i in np.flatnonzero(keep).tolist():
+            yield frames.message(i)
 
 
 def data_groups(mdf: Any) -> list[int] | None:
     """The groups python-can's MF4Reader reads, when all of them hold CAN data frames (None when
-    it would also read error or remote frames: those files are read frame by frame)."""
+    it would also read error or remote frames)."""
     groups = []
     for index, group in enumerate(mdf.groups):
         channel_group = group.channel_group
@@ -55,38 +88,6 @@ def data_groups(mdf: Any) -> list[int] | None:
         elif "CAN_ErrorFrame" in names or "CAN_RemoteFrame" in names:
             return None
     return groups
-
-
-def read_frames(
-    mdf: Any, groups: list[int], triage: Triage, on_read: Callable[[int], None]
-) -> Iterator[can.Message] | None:
-    """The needed frames of the groups as Messages, in python-can's order (its heapq merge of
-    the groups by time); the others counted through ``triage``; ``on_read`` hears how many
-    frames each array held. None when several groups have times that go back (their merge
-    order is the frame-by-frame reader's business)."""
-    start = mdf.header.start_time.timestamp()
-    if len(groups) == 1:
-        return _chunks(mdf, groups[0], start, triage, on_read)
-    whole = [_Frames(mdf.get(_DATA, g, raw=False), start) for g in groups]
-    if any(np.any(np.diff(frames.t) < 0) for frames in whole):
-        return None
-    return heapq.merge(*(_needed(f, triage, on_read) for f in whole), key=lambda m: m.timestamp)
-
-
-def _chunks(
-    mdf: Any, group: int, start: float, triage: Triage, on_read: Callable[[int], None]
-) -> Iterator[can.Message]:
-    cycles = mdf.groups[group].channel_group.cycles_nr
-    for offset in range(0, cycles, CHUNK):
-        signal = mdf.get(_DATA, group, record_offset=offset, record_count=CHUNK, raw=False)
-        yield from _needed(_Frames(signal, start), triage, on_read)
-
-
-def _needed(frames: "_Frames", triage: Triage, on_read: Callable[[int], None]) -> Iterator[can.Message]:
-    keep = frames.triage(triage)
-    on_read(len(frames.t))
-    for i in np.flatnonzero(keep).tolist():
-        yield frames.message(i)
 
 
 class _Frames:

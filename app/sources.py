@@ -21,9 +21,11 @@ from typing import Any
 
 import can
 
-from app import mf4_bulk
+from app.blf_bulk import TriagedBLFReader
 from app.bus_health import BusHealth
 from app.errors import BusError, C2nError, LogFileError
+from app.mf4_bulk import TriagedMF4Reader
+from app.triage import NotInBulk, Triage
 
 log = logging.getLogger(__name__)
 
@@ -134,17 +136,15 @@ def _sniff(path: Path) -> str | None:
     return None
 
 
-def read_log(path: Path, report: LogReport, triage: mf4_bulk.Triage | None = None) -> Iterator[can.Message]:
+def read_log(path: Path, report: LogReport, triage: Triage | None = None) -> Iterator[can.Message]:
     """Frames of one log file, in file order; damage ends the file, noted in ``report`` (the
     caller says so: the summary's warnings, or a line of its own).
 
-    With ``triage`` (the decoder), an MF4 file is read in bulk: only the frames the pipeline
-    decodes are yielded, the rest are counted by the decoder directly (app/mf4_bulk.py)."""
-    bulk = _read_mf4_in_bulk(path, report, triage) if triage is not None else None
-    if bulk is not None:
-        yield from bulk
-        return
-    reader = open_log(path)
+    With ``triage`` (the decoder), BLF and MF4 files are read in bulk: only the frames the
+    pipeline decodes are yielded, the rest are counted by the decoder directly."""
+    reader = _bulk_reader(path, report, triage) if triage is not None else None
+    if reader is None:
+        reader = open_log(path)
     report.reader = reader
     iterator = iter(reader)
     try:
@@ -169,39 +169,29 @@ def read_log(path: Path, report: LogReport, triage: mf4_bulk.Triage | None = Non
             stop()
 
 
-def _read_mf4_in_bulk(path: Path, report: LogReport, triage: mf4_bulk.Triage) -> Iterator[can.Message] | None:
-    """The MF4 bulk reader's frames, or None where it does not apply (not MF4, error or remote
-    frames in the file, a file asammdf cannot open: the frame-by-frame reader says why)."""
-    if path.suffix.lower() != ".mf4":
+_BULK_READERS: dict[str, Callable[[Path, Triage, Callable[[int], None]], Iterable[can.Message]]] = {
+    ".blf": TriagedBLFReader,
+    ".mf4": TriagedMF4Reader,
+}
+
+
+def _bulk_reader(path: Path, report: LogReport, triage: Triage) -> Iterable[can.Message] | None:
+    """A bulk reader for the file, or None where none applies (another format, a file the bulk
+    reader leaves to python-can's, or one that does not open: python-can's reader says why)."""
+    reader = _BULK_READERS.get(path.suffix.lower())
+    if reader is None:
         return None
 
-    def read(frames: int) -> None:
+    def skipped(frames: int) -> None:
         report.frames += frames
 
-    mdf = None
     try:
-        mdf = mf4_bulk.MDF(path)
-        groups = mf4_bulk.data_groups(mdf)
-        frames = mf4_bulk.read_frames(mdf, groups, triage, read) if groups is not None else None
+        return reader(path, triage, skipped)
+    except NotInBulk as reason:
+        log.debug("%s: read frame by frame: %s", path, reason)
     except Exception as error:
-        log.debug("%s: not read in bulk: %s", path, error)
-        frames = None
-    if frames is None:
-        if mdf is not None:
-            mdf.close()
-        return None
-    return _bulk_frames(mdf, frames, report)
-
-
-def _bulk_frames(mdf: Any, frames: Iterator[can.Message], report: LogReport) -> Iterator[can.Message]:
-    report.reader = mdf
-    try:
-        yield from frames
-    except Exception as error:
-        report.stopped = f"stopped after frame {report.frames}: {_one_line(error)}"
-    finally:
-        report.done, report.reader = True, None
-        mdf.close()
+        _drop_quietly(error)
+    return None
 
 
 def _blf_ends_early(path: Path, reader: object) -> str | None:
@@ -258,9 +248,7 @@ class LogSource:
     per-channel recordings of one drive (e.g. two candump files). Given the decoder as
     ``triage``, MF4 files are read in bulk (``read_log``)."""
 
-    def __init__(
-        self, paths: Sequence[Path], merge: bool = False, triage: mf4_bulk.Triage | None = None
-    ) -> None:
+    def __init__(self, paths: Sequence[Path], merge: bool = False, triage: Triage | None = None) -> None:
         self.paths = list(paths)
         self.merge = merge
         self.triage = triage

@@ -29,8 +29,11 @@ from can.io.blf import (
 from app.triage import Triage
 
 _CHANNEL_FLAGS_ID = struct.Struct("<HBxL")  # a CAN message object's channel, flags, (dlc), id
+_V1_FRAME = struct.Struct("<4sHHLL16xHBxL")  # base header, v1 header, and those three fields
 _HEADER_SIZE = {1: OBJ_HEADER_V1_STRUCT.size, 2: OBJ_HEADER_V2_STRUCT.size}
-_SKIP = "skip"
+_CAN_MESSAGES = (CAN_MESSAGE, CAN_MESSAGE2)
+_MAX_KINDS = 65_536  # (channel, id) pairs remembered: a log of random ids must not grow it
+_UNKNOWN = object()
 
 
 class TriagedBLFReader(can.BLFReader):
@@ -48,6 +51,7 @@ class TriagedBLFReader(can.BLFReader):
         the frames nobody needs counted and skipped; the rest parsed by python-can."""
         parse = super()._parse_data
         unpack_header = OBJ_HEADER_BASE_STRUCT.unpack_from
+        unpack_v1_frame = _V1_FRAME.unpack_from
         unpack_frame = _CHANNEL_FLAGS_ID.unpack_from
         kinds = self._kinds
         skipped: Counter[tuple[int, int]] = Counter()
@@ -56,30 +60,37 @@ class TriagedBLFReader(can.BLFReader):
         try:
             while True:
                 self._pos = pos
-                try:
-                    pos = data.index(b"LOBJ", pos, pos + 8)
-                except ValueError:
-                    if pos + 8 > max_pos:
-                        return
-                    raise BLFParseError("Could not find next object") from None
-                _, _, header_version, obj_size, obj_type = unpack_header(data, pos)
+                if not data.startswith(b"LOBJ", pos):  # padding before the object
+                    try:
+                        pos = data.index(b"LOBJ", pos, pos + 8)
+                    except ValueError:
+                        if pos + 8 > max_pos:
+                            return
+                        raise BLFParseError("Could not find next object") from None
+                if pos + _V1_FRAME.size <= max_pos:  # the usual object: a CAN message, header v1
+                    _, _, version, obj_size, obj_type, channel, flags, can_id = unpack_v1_frame(data, pos)
+                else:
+                    _, _, version, obj_size, obj_type = unpack_header(data, pos)
                 next_pos = pos + obj_size
                 if next_pos > max_pos:
                     return  # the object continues in the next container
-                if obj_type in (CAN_MESSAGE, CAN_MESSAGE2) and header_version in _HEADER_SIZE:
-                    body = pos + OBJ_HEADER_BASE_STRUCT.size + _HEADER_SIZE[header_version]
-                    channel, flags, can_id = unpack_frame(data, body)
+                if obj_type in _CAN_MESSAGES and version in _HEADER_SIZE:
+                    if version != 1 or pos + _V1_FRAME.size > max_pos:
+                        body = pos + OBJ_HEADER_BASE_STRUCT.size + _HEADER_SIZE[version]
+                        channel, flags, can_id = unpack_frame(data, body)
                     if not flags & REMOTE_FLAG:
                         raw = (channel, can_id)
-                        if raw not in kinds:
-                            kinds[raw] = self._kind(channel, can_id)
-                        if kinds[raw] is not None:
+                        kind = kinds.get(raw, _UNKNOWN)
+                        if kind is _UNKNOWN:
+                            kind = self._kind(channel, can_id)
+                            if len(kinds) < _MAX_KINDS:
+                                kinds[raw] = kind
+                        if kind is not None:
                             skipped[raw] += 1
                             pos = next_pos
                             continue
-                self._pos = pos
                 yield from parse(data[pos:next_pos])
-                self._pos = pos = next_pos
+                pos = next_pos
         finally:
             self._count(skipped)
 
@@ -89,7 +100,7 @@ class TriagedBLFReader(can.BLFReader):
         return None if kind is None else (*key, kind)
 
     def _count(self, skipped: Counter[tuple[int, int]]) -> None:
-        for raw, frames in skipped.items():
-            channel, frame_id, extended, kind = self._kinds[raw]  # type: ignore[misc]
+        for (raw_channel, can_id), frames in skipped.items():
+            channel, frame_id, extended, kind = self._kind(raw_channel, can_id)  # type: ignore[misc]
             self.triage.count_skipped(channel, frame_id, extended, kind, frames, 0)
         self.skipped(sum(skipped.values()))

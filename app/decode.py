@@ -104,10 +104,20 @@ class _MessageBinding:
     roles: tuple[_RoleBinding, ...]
     status: tuple[str, ...]  # status signal names ("Message.Signal") in this message
     read: Reader | None  # the needed signals' values from a frame's data (None: nothing needed)
+    roles_by_channel: dict[object, tuple[_RoleBinding, ...]] = field(default_factory=dict)
 
     @property
     def needed(self) -> bool:
         return bool(self.roles or self.status)
+
+    def roles_on(self, channel: object) -> tuple[_RoleBinding, ...]:
+        """The roles this message gives on a frame's channel (worked out once per channel)."""
+        roles = self.roles_by_channel.get(channel)
+        if roles is None:
+            roles = tuple(role for role in self.roles if channel_matches(role.channel, channel))
+            if len(self.roles_by_channel) < 64:  # a log of many channel names must not grow it
+                self.roles_by_channel[channel] = roles
+        return roles
 
 
 class Decoder:
@@ -206,19 +216,25 @@ class Decoder:
             self.status.update(t, {name: float(decoded[name.partition(".")[2]]) for name in binding.status})
         signals: dict[str, float] = {}
         rejected: dict[str, str] = {}
-        roles = [role for role in binding.roles if channel_matches(role.channel, msg.channel)]
+        roles = binding.roles_on(msg.channel)
         if not roles and not binding.status:
             counts.other_channel += 1  # its roles are bound to another channel
             return None
         counts.used += 1
+        role_frames, isfinite, why_not = counts.role_frames, math.isfinite, self.status.why_not
         for role in roles:
-            counts.role_frames[role.role] += 1
+            role_frames[role.role] += 1
             value = float(decoded[role.signal]) * role.factor
-            reason = self._why_not(role, value, t)
-            if reason is None:
-                signals[role.role] = value
+            if not isfinite(value):
+                rejected[role.role] = "not a number"
+            elif not role.low <= value <= role.high:
+                rejected[role.role] = "out of range"
             else:
-                rejected[role.role] = reason
+                reason = why_not(role.role, t)
+                if reason is None:
+                    signals[role.role] = value
+                else:
+                    rejected[role.role] = reason
         if rejected:
             for reason in dict.fromkeys(rejected.values()):
                 names = ", ".join(r for r, why in rejected.items() if why == reason)
@@ -226,13 +242,6 @@ class Decoder:
         elif not signals:
             return None
         return Record(t, msg.channel, msg.arbitration_id, signals, rejected)
-
-    def _why_not(self, role: _RoleBinding, value: float, t: float) -> str | None:
-        if not math.isfinite(value):
-            return "not a number"
-        if not role.low <= value <= role.high:
-            return "out of range"
-        return self.status.why_not(role.role, t)
 
 
 def _bind_role(spec: RoleSpec, message: Any) -> _RoleBinding:

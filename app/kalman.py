@@ -78,22 +78,51 @@ class PairKalman:
         self.p = [float(p_diagonal[k // 6]) if k % 7 == 0 else 0.0 for k in range(36)]
 
     def predict(self, dt: float) -> None:
+        """x = F·x, P = F·P·Fᵀ + Q, written out per 2×2 block of the pairs: a value's row and
+        column gain dt × its rate's (the upper triangle, mirrored)."""
         x, p = self.x, self.p
         x[0] += dt * x[1]
         x[2] += dt * x[3]
         x[4] += dt * x[5]
-        for i in (0, 12, 24):  # F·P: each value row gains dt × its rate row
-            p[i : i + 6] = [a + dt * b for a, b in zip(p[i : i + 6], p[i + 6 : i + 12], strict=True)]
-        for i in range(0, 36, 6):  # (F·P)·Fᵀ: the same for the columns
-            p[i] += dt * p[i + 1]
-            p[i + 2] += dt * p[i + 3]
-            p[i + 4] += dt * p[i + 5]
+        (
+            p0, p1, p2, p3, p4, p5,
+            _, p7, p8, p9, p10, p11,
+            _, _, p14, p15, p16, p17,
+            _, _, _, p21, p22, p23,
+            _, _, _, _, p28, p29,
+            _, _, _, _, _, p35,
+        ) = p  # fmt: skip
+        q_u, q_v, q_r = self.q
         cube, square = dt**3 / 3.0, dt * dt / 2.0
-        for i, density in zip((0, 14, 28), self.q, strict=True):  # the pairs' diagonal blocks
-            p[i] += density * cube
-            p[i + 1] += density * square
-            p[i + 6] += density * square
-            p[i + 7] += density * dt
+        n01 = p1 + dt * p7
+        n00 = p0 + dt * p1 + dt * n01 + q_u * cube
+        n01 += q_u * square
+        n11 = p7 + q_u * dt
+        n03 = p3 + dt * p9
+        n02 = p2 + dt * p8 + dt * n03
+        n12 = p8 + dt * p9
+        n05 = p5 + dt * p11
+        n04 = p4 + dt * p10 + dt * n05
+        n14 = p10 + dt * p11
+        n23 = p15 + dt * p21
+        n22 = p14 + dt * p15 + dt * n23 + q_v * cube
+        n23 += q_v * square
+        n33 = p21 + q_v * dt
+        n25 = p17 + dt * p23
+        n24 = p16 + dt * p22 + dt * n25
+        n34 = p22 + dt * p23
+        n45 = p29 + dt * p35
+        n44 = p28 + dt * p29 + dt * n45 + q_r * cube
+        n45 += q_r * square
+        n55 = p35 + q_r * dt
+        p[:] = (
+            n00, n01, n02, n03, n04, n05,
+            n01, n11, n12, p9, n14, p11,
+            n02, n12, n22, n23, n24, n25,
+            n03, p9, n23, n33, n34, p23,
+            n04, n14, n24, n34, n44, n45,
+            n05, p11, n25, p23, n45, n55,
+        )  # fmt: skip
 
     def innovation(self, z: float, h: H) -> tuple[float, float]:
         x, p = self.x, self.p

@@ -19,6 +19,7 @@ from app.regression import RegressionFit, SampleRegression
 from app.steady_state import SteadyStateGate
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
+_OPTICAL = frozenset(OPTICAL_ROLES)
 _REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
 
 
@@ -84,10 +85,11 @@ class Pipeline:
             state.t_first = record.t
         state.t_last = record.t
         state.latest.update(record.signals)
-        optical_rejected = [record.rejected[r] for r in OPTICAL_ROLES if r in record.rejected]
+        rejected = record.rejected
+        optical_rejected = [rejected[r] for r in OPTICAL_ROLES if r in rejected] if rejected else None
         if optical_rejected:
             state.sensor_problem = optical_rejected[0]
-        elif any(r in record.signals for r in OPTICAL_ROLES):
+        elif state.sensor_problem is not None and not _OPTICAL.isdisjoint(record.signals):
             state.sensor_problem = None
         if _FILTER_ROLES.isdisjoint(record.signals):
             return record

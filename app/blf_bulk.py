@@ -2,11 +2,12 @@
 
 python-can's BLFReader builds a Message for every object, with its timestamp worked out in
 ``Decimal``; most frames of a drive are of ids the pipeline never decodes. This reader is
-python-can's, containers, compression and all, except that before an object is parsed its CAN id
-and channel are read (two fields at fixed places) and asked of the decoder: a frame it does not
-need is counted by key and passed over; every other object — needed frames, remote and error
-frames, CAN FD, anything else — is parsed by python-can's own code. tests/test_log_bulk.py holds
-it to python-can's reader frame for frame.
+python-can's, containers, compression and all, except for its object walk: a run of plain CAN
+message objects (48 bytes each, header version 1: what loggers and python-can's writer write) is
+read as one numpy array, and elsewhere an object's channel and id are read from their fixed
+places. A frame the decoder does not need is counted by key and passed over; every other object
+— needed frames, remote and error frames, CAN FD, anything else — is parsed by python-can's own
+code. tests/test_log_bulk.py holds it to python-can's reader frame for frame.
 """
 
 import struct
@@ -15,6 +16,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import can
+import numpy as np
 from can.io.blf import (
     CAN_MESSAGE,
     CAN_MESSAGE2,
@@ -34,6 +36,21 @@ _HEADER_SIZE = {1: OBJ_HEADER_V1_STRUCT.size, 2: OBJ_HEADER_V2_STRUCT.size}
 _CAN_MESSAGES = (CAN_MESSAGE, CAN_MESSAGE2)
 _MAX_KINDS = 65_536  # (channel, id) pairs remembered: a log of random ids must not grow it
 _UNKNOWN = object()
+_RUN = np.dtype(  # a CAN message object with header version 1, as numpy reads a run of them
+    [
+        ("signature", "S4"),
+        ("header_size", "<u2"),
+        ("version", "<u2"),
+        ("size", "<u4"),
+        ("type", "<u4"),
+        ("header", "V16"),
+        ("channel", "<u2"),
+        ("flags", "u1"),
+        ("dlc", "u1"),
+        ("id", "<u4"),
+        ("data", "V8"),
+    ]
+)
 
 
 class TriagedBLFReader(can.BLFReader):
@@ -74,6 +91,14 @@ class TriagedBLFReader(can.BLFReader):
                 next_pos = pos + obj_size
                 if next_pos > max_pos:
                     return  # the object continues in the next container
+                if obj_size == _RUN.itemsize and version == 1 and obj_type in _CAN_MESSAGES:
+                    run = self._run(data, pos, skipped)  # this object and the like after it
+                    if run is not None:
+                        end, needed = run
+                        for at in needed:
+                            yield from parse(data[at : at + _RUN.itemsize])
+                        pos = end
+                        continue
                 if obj_type in _CAN_MESSAGES and version in _HEADER_SIZE:
                     if version != 1 or pos + _V1_FRAME.size > max_pos:
                         body = pos + OBJ_HEADER_BASE_STRUCT.size + _HEADER_SIZE[version]
@@ -93,6 +118,44 @@ class TriagedBLFReader(can.BLFReader):
                 pos = next_pos
         finally:
             self._count(skipped)
+
+    def _run(self, data: bytes, pos: int, skipped: Counter[tuple[int, int]]) -> tuple[int, list[int]] | None:
+        """A run of whole CAN message objects (header v1, no padding) from ``pos``, read as one
+        numpy array: the frames nobody needs counted into ``skipped``. Returns where the run ends
+        and where its other objects start (None for a run of one: the walk takes it)."""
+        n = (len(data) - pos) // _RUN.itemsize
+        if n < 2:
+            return None
+        objects = np.frombuffer(data, _RUN, count=n, offset=pos)
+        alike = (
+            (objects["signature"] == b"LOBJ")
+            & (objects["size"] == _RUN.itemsize)
+            & (objects["version"] == 1)
+            & np.isin(objects["type"], _CAN_MESSAGES)
+        )
+        length = n if alike.all() else int(np.argmin(alike))
+        if length < 2:
+            return None
+        objects = objects[:length]
+        raw = (objects["channel"].astype(np.uint64) << np.uint64(32)) | objects["id"].astype(np.uint64)
+        unique, inverse = np.unique(raw, return_inverse=True)
+        kinds = self._kinds
+        skip = np.zeros(len(unique), bool)
+        for k, key in enumerate(unique.tolist()):
+            channel_and_id = (key >> 32, key & 0xFFFFFFFF)
+            kind = kinds.get(channel_and_id, _UNKNOWN)
+            if kind is _UNKNOWN:
+                kind = self._kind(*channel_and_id)
+                if len(kinds) < _MAX_KINDS:
+                    kinds[channel_and_id] = kind
+            skip[k] = kind is not None
+        passed_over = skip[inverse] & (objects["flags"] & REMOTE_FLAG == 0)
+        for k, frames in enumerate(np.bincount(inverse[passed_over], minlength=len(unique)).tolist()):
+            if frames:
+                key = int(unique[k])
+                skipped[(key >> 32, key & 0xFFFFFFFF)] += frames
+        needed = (pos + _RUN.itemsize * np.flatnonzero(~passed_over)).tolist()
+        return pos + _RUN.itemsize * length, needed
 
     def _kind(self, channel: int, can_id: int) -> tuple[object, int, bool, str] | None:
         key = (channel - 1, can_id & 0x1FFFFFFF, bool(can_id & CAN_MSG_EXT))  # as python-can reads it

@@ -87,6 +87,9 @@ class SensorStatus:
         return None
 
 
+_MAX_ROUTES = 65_536  # (channel, id) keys whose route is remembered
+
+
 @dataclass(frozen=True)
 class _RoleBinding:
     role: str
@@ -127,6 +130,7 @@ class Decoder:
         self.counts = FrameCounts()
         self.status = SensorStatus(config.status, config.filter.status_timeout_s)
         self._bindings: dict[tuple[int, bool], list[_MessageBinding]] = {}
+        self._routes: dict[tuple[object, int, bool], _MessageBinding | str] = {}
         status_names = {c.name for c in config.status}
         for dbc in config.dbcs:
             for message in dbc.database.messages:
@@ -156,13 +160,25 @@ class Decoder:
         """For a data frame of this key: the count it goes to when nothing in it is needed
         (``unknown_id``, ``other_channel``, ``unused``: what ``decode`` would count it as), or
         None when it must be decoded. For readers that count such frames in bulk."""
-        candidates = self._bindings.get((frame_id, extended))
+        route = self._route((channel, frame_id, extended))
+        return route if isinstance(route, str) else None
+
+    def _route(self, key: tuple[object, int, bool]) -> "_MessageBinding | str":
+        """Where a data frame of this (channel, id, extended) goes: its binding, or the count
+        it adds to. Worked out once per key."""
+        route = self._routes.get(key)
+        if route is not None:
+            return route
+        channel, frame_id, extended = key
+        candidates = self._bindings.get((frame_id, bool(extended)))
         if candidates is None:
-            return "unknown_id"
-        binding = next((b for b in candidates if channel_matches(b.channel, channel)), None)
-        if binding is None:
-            return "other_channel"
-        return None if binding.needed else "unused"
+            route = "unknown_id"
+        else:
+            binding = next((b for b in candidates if channel_matches(b.channel, channel)), None)
+            route = "other_channel" if binding is None else binding if binding.needed else "unused"
+        if len(self._routes) < _MAX_ROUTES:  # a bus of random ids must not grow it without bound
+            self._routes[key] = route
+        return route
 
     def count_skipped(
         self, channel: object, frame_id: int, extended: bool, kind: str, frames: int, fd_frames: int
@@ -179,7 +195,8 @@ class Decoder:
         """Count the frame; return a Record when it carries role values (usable or not)."""
         counts = self.counts
         counts.total += 1
-        counts.by_id[(msg.channel, msg.arbitration_id, msg.is_extended_id)] += 1
+        key = (msg.channel, msg.arbitration_id, msg.is_extended_id)
+        counts.by_id[key] += 1
         if msg.is_fd:
             counts.fd_frames += 1
         if msg.is_error_frame:
@@ -188,17 +205,16 @@ class Decoder:
         if msg.is_remote_frame:
             counts.remote_frames += 1
             return None
-        candidates = self._bindings.get((msg.arbitration_id, bool(msg.is_extended_id)))
-        if candidates is None:
-            counts.unknown_id += 1
+        binding = self._routes.get(key) or self._route(key)
+        if binding.__class__ is str:
+            if binding == "unknown_id":
+                counts.unknown_id += 1
+            elif binding == "other_channel":
+                counts.other_channel += 1
+            else:
+                counts.unused += 1
             return None
-        binding = next((b for b in candidates if channel_matches(b.channel, msg.channel)), None)
-        if binding is None:
-            counts.other_channel += 1
-            return None
-        if not binding.needed:
-            counts.unused += 1
-            return None
+        assert isinstance(binding, _MessageBinding)
         length = binding.message.length
         if len(msg.data) != length:
             counts.bad_length += 1

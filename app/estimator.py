@@ -62,6 +62,7 @@ class MotionFilter:
         self.has_yaw = "yaw_rate" in roles or "ay" in roles
         # Without yaw information the lateral offset cannot be corrected (r is not observable).
         self.y_s = sensor_lateral_m if self.has_yaw else 0.0
+        self._vx_row: H = (1.0, 0.0, -self.y_s)  # optical vx = u − r·y_s
         self.counts = FilterCounts()
         self.q = (settings.q_u, settings.q_v, settings.q_r if self.has_yaw else 0.0)
         self.kalman: Kalman = kalman(*self.q)
@@ -146,19 +147,19 @@ class MotionFilter:
         u_s = u - r * self.y_s  # the head's own longitudinal velocity
         rows: list[tuple[float, H, float, str]] = []  # (z, H, R, kind)
         if "vx" in s:
-            rows.append((s["vx"], _row(u=1.0, r=-self.y_s), self._variance("vx", "vx", 1.0), "vx"))
+            rows.append((s["vx"], self._vx_row, self._variance("vx", "vx", 1.0), "vx"))
         lateral = self._lateral_source(s, u_s)
         self._angle = lateral == "beta"
         v_meas = None
         if lateral == "vy":
             v_meas = s["vy"]
-            rows.append((v_meas, _row(v=1.0), self._variance("lateral", "vy", 1.0), "lateral"))
+            rows.append((v_meas, _V_ROW, self._variance("lateral", "vy", 1.0), "lateral"))
         elif lateral == "beta":
             beta = s["beta"]
             v_meas = u_s * math.tan(beta)
             n2 = u_s * u_s + v * v
             h = math.atan2(v, u_s)
-            jac = _row(u=-v / n2, v=u_s / n2, r=v * self.y_s / n2)
+            jac = (-v / n2, u_s / n2, v * self.y_s / n2)
             if self.settings.sigma_beta_deg is not None:
                 variance = math.radians(self.settings.sigma_beta_deg) ** 2
             else:  # the angle's noise is the lateral velocity's over the speed
@@ -166,12 +167,12 @@ class MotionFilter:
             # pseudo-measurement: filterpy forms y = z − Hx, the EKF needs y = z − h(x)
             rows.append((beta - h + jac[0] * u + jac[1] * v + jac[2] * r, jac, variance, "lateral"))
         if "speed" in s:
-            rows.append((s["speed"], _row(u=1.0), self.settings.sigma_speed_mps**2, "speed"))
+            rows.append((s["speed"], _U_ROW, self.settings.sigma_speed_mps**2, "speed"))
         if "yaw_rate" in s:
-            rows.append((s["yaw_rate"], _row(r=1.0), self.settings.sigma_yaw_rate_radps**2, "yaw"))
+            rows.append((s["yaw_rate"], _R_ROW, self.settings.sigma_yaw_rate_radps**2, "yaw"))
             self._t_yaw = record.t
         elif "ay" in s and "yaw_rate" not in self.roles and u > _MIN_SPEED_FOR_ANGLE:
-            rows.append((s["ay"] / u, _row(r=1.0), (self.settings.sigma_ay_mps2 / u) ** 2, "yaw"))
+            rows.append((s["ay"] / u, _R_ROW, (self.settings.sigma_ay_mps2 / u) ** 2, "yaw"))
             self._t_yaw = record.t
         self.kalman.update(self._gate(rows))
         return v_meas
@@ -257,5 +258,6 @@ class MotionFilter:
 _IDENTITY = (np.eye(6), np.zeros((6, 6)))
 
 
-def _row(u: float = 0.0, v: float = 0.0, r: float = 0.0) -> H:
-    return (u, v, r)
+_U_ROW: H = (1.0, 0.0, 0.0)  # measurement rows (coefficients on u, v, r) that never change
+_V_ROW: H = (0.0, 1.0, 0.0)
+_R_ROW: H = (0.0, 0.0, 1.0)

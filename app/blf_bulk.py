@@ -70,7 +70,6 @@ class TriagedBLFReader(can.BLFReader):
         unpack_header = OBJ_HEADER_BASE_STRUCT.unpack_from
         unpack_v1_frame = _V1_FRAME.unpack_from
         unpack_frame = _CHANNEL_FLAGS_ID.unpack_from
-        kinds = self._kinds
         skipped: Counter[tuple[int, int]] = Counter()
         max_pos = len(data)
         pos = 0
@@ -103,17 +102,10 @@ class TriagedBLFReader(can.BLFReader):
                     if version != 1 or pos + _V1_FRAME.size > max_pos:
                         body = pos + OBJ_HEADER_BASE_STRUCT.size + _HEADER_SIZE[version]
                         channel, flags, can_id = unpack_frame(data, body)
-                    if not flags & REMOTE_FLAG:
-                        raw = (channel, can_id)
-                        kind = kinds.get(raw, _UNKNOWN)
-                        if kind is _UNKNOWN:
-                            kind = self._kind(channel, can_id)
-                            if len(kinds) < _MAX_KINDS:
-                                kinds[raw] = kind
-                        if kind is not None:
-                            skipped[raw] += 1
-                            pos = next_pos
-                            continue
+                    if not flags & REMOTE_FLAG and self._kind(channel, can_id) is not None:
+                        skipped[(channel, can_id)] += 1
+                        pos = next_pos
+                        continue
                 yield from parse(data[pos:next_pos])
                 pos = next_pos
         finally:
@@ -139,16 +131,9 @@ class TriagedBLFReader(can.BLFReader):
         objects = objects[:length]
         raw = (objects["channel"].astype(np.uint64) << np.uint64(32)) | objects["id"].astype(np.uint64)
         unique, inverse = np.unique(raw, return_inverse=True)
-        kinds = self._kinds
-        skip = np.zeros(len(unique), bool)
-        for k, key in enumerate(unique.tolist()):
-            channel_and_id = (key >> 32, key & 0xFFFFFFFF)
-            kind = kinds.get(channel_and_id, _UNKNOWN)
-            if kind is _UNKNOWN:
-                kind = self._kind(*channel_and_id)
-                if len(kinds) < _MAX_KINDS:
-                    kinds[channel_and_id] = kind
-            skip[k] = kind is not None
+        skip = np.array(
+            [self._kind(key >> 32, key & 0xFFFFFFFF) is not None for key in unique.tolist()], bool
+        )
         passed_over = skip[inverse] & (objects["flags"] & REMOTE_FLAG == 0)
         for k, frames in enumerate(np.bincount(inverse[passed_over], minlength=len(unique)).tolist()):
             if frames:
@@ -158,9 +143,17 @@ class TriagedBLFReader(can.BLFReader):
         return pos + _RUN.itemsize * length, needed
 
     def _kind(self, channel: int, can_id: int) -> tuple[object, int, bool, str] | None:
-        key = (channel - 1, can_id & 0x1FFFFFFF, bool(can_id & CAN_MSG_EXT))  # as python-can reads it
-        kind = self.triage.skip_kind(*key)
-        return None if kind is None else (*key, kind)
+        """(channel, id, extended, count) of a frame nobody needs, as python-can would read its
+        key; None for a frame to parse. Asked of the decoder once per (channel, id)."""
+        raw = (channel, can_id)
+        kind = self._kinds.get(raw, _UNKNOWN)
+        if kind is _UNKNOWN:
+            key = (channel - 1, can_id & 0x1FFFFFFF, bool(can_id & CAN_MSG_EXT))
+            count = self.triage.skip_kind(*key)
+            kind = None if count is None else (*key, count)
+            if len(self._kinds) < _MAX_KINDS:
+                self._kinds[raw] = kind
+        return kind  # type: ignore[return-value]
 
     def _count(self, skipped: Counter[tuple[int, int]]) -> None:
         for (raw_channel, can_id), frames in skipped.items():

@@ -80,11 +80,12 @@ def run(
             transient=transient,
             redirect_stdout=False,
         )
-        sys.setswitchinterval(min(switch_s, _SWITCH_S))
     completed = True
     with live:
         next_refresh = next_flush = clock()
         try:
+            if isinstance(live, Live):
+                sys.setswitchinterval(min(switch_s, _SWITCH_S))
             for msg in source:
                 if msg is not None:
                     if recorder is not None:

@@ -3,7 +3,7 @@ crossings as the offline analysis of its log file."""
 
 import threading
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import can
@@ -118,3 +118,32 @@ def test_two_live_channels_kept_apart(write_config: Callable[[str], Path]) -> No
     assert counts.other_channel == 1
     assert counts.role_frames["vx"] > 0 and counts.role_frames["speed"] > 0
     assert {str(channel) for channel, _, _ in counts.by_id} == {f"sensor-{tag}", f"vehicle-{tag}"}
+
+
+def test_the_dashboard_is_drawn_on_a_terminal_and_the_interpreter_left_as_it_was(config: Config) -> None:
+    """On a terminal, rich's refresh thread draws the pictures the loop takes of the dashboard;
+    the thread switch interval is shortened while it draws and given back at the end."""
+    import io
+    import sys
+
+    from rich.console import Console
+
+    from app.dashboard import Dashboard
+
+    out = io.StringIO()
+    console = Console(file=out, force_terminal=True, width=120, height=60)
+    pipeline = Pipeline(config)
+    switch_s = sys.getswitchinterval()
+    seen: list[float] = []
+
+    def frames() -> Iterator[can.Message]:
+        for message in cached_drive().messages:
+            seen.append(sys.getswitchinterval())
+            yield message
+
+    run(frames(), pipeline, lambda events: None, Dashboard(pipeline, "vcan9"), console, refresh_s=0.01)
+    assert max(seen) < switch_s  # shortened while the dashboard was up
+    assert sys.getswitchinterval() == switch_s
+    text = out.getvalue()
+    assert "c2n live — vcan9" in text and "Correvit" in text
+    assert f"total {pipeline.decoder.counts.total}" in text  # the last picture is of the end

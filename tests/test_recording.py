@@ -1,5 +1,6 @@
 """Recording in `c2n live`: nothing lost on a clean stop or a crash."""
 
+import io
 import json
 import os
 import signal
@@ -139,3 +140,30 @@ def test_any_channel_name_records_every_frame(tmp_path: Path, raw_format: str, c
     assert [(m.arbitration_id, bytes(m.data)) for m in recorded] == [
         (m.arbitration_id, bytes(m.data)) for m in sent
     ]
+
+
+def test_candump_lines_are_python_cans_own_bytes(tmp_path: Path) -> None:
+    """The recorder's candump writer writes what python-can's CanutilsLogWriter writes, for every
+    kind of frame: 11- and 29-bit, rx and tx, channel names, numbers and none, error, remote and
+    CAN FD frames, and a timestamp before the first (python-can writes the first one's time)."""
+    frames = [
+        can.Message(timestamp=100.25, arbitration_id=0x7E5, data=bytes(range(8)), channel="can0"),
+        can.Message(timestamp=100.5, arbitration_id=0x1ABCDEF, is_extended_id=True, data=b"\x01", channel=1),
+        can.Message(timestamp=100.75, arbitration_id=0x123, data=b"", channel=None, is_rx=False),
+        can.Message(timestamp=101.0, arbitration_id=0x7E5, data=bytes(8), channel="7"),
+        can.Message(timestamp=99.0, arbitration_id=0x7E5, data=bytes(8), channel="vcan0"),  # time went back
+        can.Message(timestamp=101.5, is_error_frame=True, channel="can0"),
+        can.Message(timestamp=102.0, arbitration_id=0x7E0, is_remote_frame=True, dlc=8, channel="can0"),
+        can.Message(timestamp=102.5, arbitration_id=0x300, is_fd=True, bitrate_switch=True, data=bytes(12)),
+        can.Message(timestamp=103.123456789, arbitration_id=0x7E5, data=b"\xff" * 8, channel="can0"),
+    ]
+    recorder = SessionRecorder(tmp_path / "session", load_config(), ".log")
+    for message in frames * 3:  # the second and third times through the cached heads
+        recorder.on_message(message)
+    recorder.close({})
+    reference = io.StringIO()
+    writer = can.CanutilsLogWriter(reference)
+    for message in frames * 3:
+        writer.on_message_received(message)
+    assert recorder.raw_path.read_text() == reference.getvalue()
+    assert reference.getvalue().count("\n") == 27

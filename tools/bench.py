@@ -10,12 +10,13 @@
 4. offline: ``c2n analyze`` on a 1,000,000-frame BLF and the same drive as MF4, against a loop that
    only iterates python-can's reader over the same file;
 5. memory: peak RSS of a 10-minute and an 8-hour session (accelerated, each in its own process);
-   and the Kalman kernel against filterpy's KalmanFilter.
+   and the Kalman kernel against filterpy's KalmanFilter, and what each stage costs a frame
+   (``parts``).
 
 The mix: the optical sensor at 250 Hz (three messages), the vehicle messages at their cycle
 times, and 96 background ids at about 81 Hz each, 9,009 frames/s in all.
 
-    python tools/bench.py [--runs 5] [--only live,cpu,offline,memory,kernel] [--hours 8]
+    python tools/bench.py [--runs 5] [--only kernel,parts,live,cpu,offline,memory] [--hours 8]
 """
 
 import argparse
@@ -32,6 +33,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import can
 import numpy as np
@@ -42,7 +44,7 @@ from app.config import load_config
 from app.dashboard import Dashboard
 from app.live import run
 from app.pipeline import Pipeline
-from app.recorder import SessionRecorder
+from app.recorder import SessionRecorder, _CandumpWriter
 from app.records import Record
 from app.sim.session import DriveOptions, simulate_drive
 from app.sources import BusSource
@@ -285,6 +287,49 @@ def kernel_rates(runs: int) -> dict[str, list[float]]:
     return rates
 
 
+# -- where a frame's time goes ---------------------------------------------------------------------
+
+
+def part_costs(messages: list[can.Message]) -> dict[str, float]:
+    """µs a frame for each stage, on the frames that reach it."""
+    from app.decode import Decoder
+    from app.pipeline import _FILTER_ROLES
+
+    config = load_config()
+    background = [m for m in messages if m.arbitration_id in BACKGROUND_IDS]
+    relevant = [m for m in messages if m.arbitration_id not in BACKGROUND_IDS]
+
+    def per_frame(frames: list[Any], step: Callable[[Any], object]) -> float:
+        start = time.perf_counter()
+        for frame in frames:
+            step(frame)
+        return 1e6 * (time.perf_counter() - start) / len(frames)
+
+    decoder = Decoder(config)
+    costs = {"decode, background frame": per_frame(background, decoder.decode)}
+    decoder = Decoder(config)
+    records = [decoder.decode(m) for m in relevant]
+    costs["decode, relevant frame"] = per_frame(relevant, Decoder(config).decode)
+    steps = [r for r in records if r is not None and not _FILTER_ROLES.isdisjoint(r.signals)]
+    costs["filter step"] = per_frame(steps, Pipeline(config).filter.step)
+    costs["whole pipeline, relevant frame"] = per_frame(relevant, Pipeline(config).process)
+    for name, writer in (
+        ("candump line, c2n", _CandumpWriter),
+        ("candump line, python-can", can.CanutilsLogWriter),
+    ):
+        lines: list[str] = []
+        sink = type("Sink", (), {"write": lines.append, "flush": lambda self: None})()
+        costs[name] = per_frame(messages, writer(sink).on_message_received)
+    rx = can.Bus(interface="virtual", channel="parts", preserve_timestamps=True)
+    tx = can.Bus(interface="virtual", channel="parts", preserve_timestamps=True)
+    for message in messages:
+        tx.send(message)
+    costs["python-can virtual bus recv"] = per_frame(messages, lambda _: rx.recv(0))
+    rx.shutdown()
+    tx.shutdown()
+    return costs
+
+
 def repeat(runs: int, fn: Callable[[], float]) -> list[float]:
     return [fn() for _ in range(runs)]
 
@@ -294,7 +339,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--runs", type=int, default=5)
-    parser.add_argument("--only", default="kernel,live,cpu,offline,memory")
+    parser.add_argument("--only", default="kernel,parts,live,cpu,offline,memory")
     parser.add_argument("--hours", type=float, default=8.0, help="the long session's length")
     parser.add_argument("--session-memory", type=float, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -309,6 +354,11 @@ def main() -> None:
         print(f"Kalman filter, filterpy      {summary(kernels['filterpy'], 'records/s')}")
         ratios = [f / r for f, r in zip(kernels["fast"], kernels["filterpy"], strict=True)]
         print(f"  fast / filterpy            {summary(ratios, '×', digits=1)}")
+    if "parts" in only:
+        messages = saturated_mix(20.0)
+        costs = [part_costs(messages) for _ in range(args.runs)]
+        for name in costs[0]:
+            print(f"   {name:31s}{summary([c[name] for c in costs], 'µs a frame', digits=2)}")
     if "live" in only:
         messages = saturated_mix(20.0)
         rates = repeat(args.runs, lambda: live_throughput(messages))

@@ -61,29 +61,40 @@ class SensorStatus:
         self.timeout_s = timeout_s
         self.values: dict[str, float] = {}
         self.t: float | None = None
-        self._relevant: dict[str, list[StatusCondition]] = {}  # role -> the conditions on it
+        # role -> the conditions on it, as (signal name, value it needs)
+        self._relevant: dict[str, tuple[tuple[str, float], ...]] = {}
+        self._verdicts: dict[str, str | None] = {}  # role -> what the values say, until they change
 
     def update(self, t: float, values: dict[str, float]) -> None:
         self.values.update(values)
         self.t = t
+        self._verdicts.clear()
 
     def why_not(self, role: str, t: float) -> str | None:
         """None when every condition on ``role`` holds at time t, else the reason it does not."""
         relevant = self._relevant.get(role)
         if relevant is None:
-            relevant = self._relevant[role] = [c for c in self.conditions if role in c.applies_to]
+            relevant = self._relevant[role] = tuple(
+                (c.name, c.value) for c in self.conditions if role in c.applies_to
+            )
         if not relevant:
             return None
         if self.t is None:
             return "no sensor status yet"
         if abs(t - self.t) > self.timeout_s:
             return f"sensor status older than {self.timeout_s:g} s"
-        for condition in relevant:
-            value = self.values.get(condition.name)
+        verdicts = self._verdicts
+        if role not in verdicts:
+            verdicts[role] = self._verdict(relevant)
+        return verdicts[role]
+
+    def _verdict(self, relevant: tuple[tuple[str, float], ...]) -> str | None:
+        for name, needed in relevant:
+            value = self.values.get(name)
             if value is None:
-                return f"no {condition.name} yet"
-            if value != condition.value:
-                return f"{condition.name}={value:g} (needs {condition.value:g})"
+                return f"no {name} yet"
+            if value != needed:
+                return f"{name}={value:g} (needs {needed:g})"
         return None
 
 
@@ -105,7 +116,7 @@ class _MessageBinding:
     message: Any  # cantools Message
     channel: ChannelSpec | None
     roles: tuple[_RoleBinding, ...]
-    status: tuple[str, ...]  # status signal names ("Message.Signal") in this message
+    status: tuple[tuple[str, str], ...]  # status signals in this message: ("Message.Signal", "Signal")
     read: Reader | None  # the needed signals' values from a frame's data (None: nothing needed)
     roles_by_channel: dict[object, tuple[_RoleBinding, ...]] = field(default_factory=dict)
 
@@ -140,12 +151,12 @@ class Decoder:
                     if spec.message == message.name
                 )
                 status = tuple(
-                    f"{message.name}.{s.name}"
+                    (f"{message.name}.{s.name}", s.name)
                     for s in message.signals
                     if f"{message.name}.{s.name}" in status_names
                 )
                 key = (message.frame_id, bool(message.is_extended_frame))
-                needed = [role.signal for role in roles] + [name.partition(".")[2] for name in status]
+                needed = [role.signal for role in roles] + [signal for _, signal in status]
                 read = signal_reader(message, list(dict.fromkeys(needed))) if needed else None
                 self._bindings.setdefault(key, []).append(
                     _MessageBinding(message, dbc.channel, roles, status, read)
@@ -229,7 +240,7 @@ class Decoder:
             return None
         t = msg.timestamp
         if binding.status:
-            self.status.update(t, {name: float(decoded[name.partition(".")[2]]) for name in binding.status})
+            self.status.update(t, {name: float(decoded[signal]) for name, signal in binding.status})
         signals: dict[str, float] = {}
         rejected: dict[str, str] = {}
         roles = binding.roles_on(msg.channel)

@@ -239,19 +239,19 @@ class MotionFilter:
         r = kalman.value(4) if yaw_observed else None
         ay = u * r if r is not None else self._last_ay
         sideslip_meas = math.atan2(v_meas, u) if v_meas is not None else None
-        return Estimate(
-            u_mps=u,
-            u_dot_mps2=kalman.value(1),
-            v_mps=v,
-            v_dot_mps2=kalman.value(3),
-            r_radps=r,
-            r_dot_radps2=kalman.value(5) if yaw_observed else None,
-            sideslip_rad=math.atan2(v, u),
-            sideslip_sigma_rad=sigma,
-            ay_mps2=ay,
-            health=self.health,
-            v_meas_mps=v_meas,
-            sideslip_meas_rad=sideslip_meas,
+        return Estimate(  # positional: a call with keywords costs a third more, every frame
+            u,
+            kalman.value(1),
+            v,
+            kalman.value(3),
+            r,
+            kalman.value(5) if yaw_observed else None,
+            math.atan2(v, u),
+            sigma,
+            ay,
+            self.health,
+            v_meas,
+            sideslip_meas,
         )
 
 

@@ -135,19 +135,18 @@ class SessionRecorder:
             ) from None
         self._events = EventsTable(folder / "events.csv")
         self.frames = 0
-        self._unflushed = 0
+        self._flushed = 0  # frames handed to the operating system
 
     def on_message(self, msg: can.Message) -> None:
         self._writer.on_message_received(msg)
         self.frames += 1
-        self._unflushed += 1
 
     def on_event(self, event: Crossing | CrossingRejected, t0: float) -> None:
         self._events.add(event, t0)
 
     def flush(self) -> None:
         """Hand everything received so far to the operating system."""
-        if not self._unflushed:
+        if self.frames == self._flushed:
             return
         if self._spool is not None:
             self._spool.drain()
@@ -156,7 +155,7 @@ class SessionRecorder:
             # call that writes a partial one, and its reader needs whole containers.
             self._writer._flush()
             self._writer.file.flush()
-        self._unflushed = 0
+        self._flushed = self.frames
 
     def close(self, summary: dict[str, Any]) -> None:
         self._writer.stop()

@@ -1,19 +1,23 @@
 """The record that flows through the pipeline, and the events the detector adds to it.
 
 source → decode → estimate → detect → sinks: the decoder makes a Record from a frame; the
-pipeline fills in the estimate, the steady-state verdict and any events. All frozen.
+pipeline fills in the estimate, the steady-state verdict and any events. All immutable.
+
+The three made for every filtered frame (Record, Estimate, SteadyState) are named tuples: a
+frozen dataclass sets each field through ``object.__setattr__`` and costs three to four times as
+much to make (``tools/bench.py --only parts``). The events are rare and stay dataclasses.
 """
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Literal, NamedTuple
 
 Direction = Literal["left", "right"]
 Sweep = Literal["up", "down"]
 
 
-@dataclass(frozen=True, slots=True)
-class Estimate:
+class Estimate(NamedTuple):
     """Filtered motion at the sensor's longitudinal position, on the centre line (ISO 8855)."""
 
     u_mps: float  # longitudinal velocity
@@ -30,8 +34,7 @@ class Estimate:
     sideslip_meas_rad: float | None = None  # this frame's measured sideslip
 
 
-@dataclass(frozen=True, slots=True)
-class SteadyState:
+class SteadyState(NamedTuple):
     steady: bool
     direction: Direction | None
     reasons: tuple[str, ...] = ()  # why not steady, for the dashboard's guidance
@@ -82,15 +85,17 @@ class CrossingRejected:
 Event = SignChange | Crossing | CrossingRejected
 
 
-@dataclass(frozen=True, slots=True)
-class Record:
+NOTHING_REJECTED: Mapping[str, str] = MappingProxyType({})
+
+
+class Record(NamedTuple):
     """One decoded frame with what the pipeline made of it."""
 
     t: float
     channel: object
     frame_id: int
     signals: Mapping[str, float]  # role -> value in SI units, only values fit to use
-    rejected: Mapping[str, str] = field(default_factory=dict)  # role -> why it was dropped
+    rejected: Mapping[str, str] = NOTHING_REJECTED  # role -> why it was dropped
     estimate: Estimate | None = None
     steady: SteadyState | None = None
     events: tuple[Event, ...] = ()

@@ -26,8 +26,11 @@ class SteadyStateGate:
         self, t: float, estimate: Estimate, steer_rad: float | None, sensor_problem: str | None
     ) -> SteadyState:
         direction = _direction(estimate, steer_rad)
-        hard = self._hard_reasons(estimate, sensor_problem)
-        soft = self._soft_reasons(estimate)
+        if sensor_problem is None and self._all_hold(estimate):
+            hard = soft = ()
+        else:  # the reasons, worded for the driver
+            hard = self._hard_reasons(estimate, sensor_problem)
+            soft = self._soft_reasons(estimate)
         if self._since is not None and t < self._since:
             self._since = None  # time went backwards
         if hard:
@@ -45,7 +48,22 @@ class SteadyStateGate:
         held = t - self._since
         if held < self.settings.settle_s:
             return SteadyState(False, direction, (f"settling ({held:.1f} of {self.settings.settle_s:g} s)",))
-        return SteadyState(True, direction)
+        return _STEADY[direction]
+
+    def _all_hold(self, e: Estimate) -> bool:
+        """Every limit of ``_hard_reasons`` and ``_soft_reasons`` holds (the common case, which
+        needs no words)."""
+        s = self.settings
+        if e.u_mps < s.speed_min_mps or abs(e.u_dot_mps2) > s.sweep_max_mps2:
+            return False
+        if abs(e.v_dot_mps2) > s.lateral_accel_rate_max_mps2:
+            return False
+        if e.ay_mps2 is not None and abs(e.ay_mps2) > s.ay_max_mps2:
+            return False
+        if e.r_dot_radps2 is not None and abs(e.r_dot_radps2) > s.yaw_accel_max_radps2:
+            return False
+        curvature = _curvature(e)
+        return not (curvature is not None and curvature < 1.0 / s.radius_max_m)
 
     def _hard_reasons(self, e: Estimate, sensor_problem: str | None) -> tuple[str, ...]:
         s = self.settings
@@ -70,6 +88,9 @@ class SteadyStateGate:
         if yaw_transient or abs(e.v_dot_mps2) > s.lateral_accel_rate_max_mps2:
             reasons.append("steering transient")
         return tuple(reasons)
+
+
+_STEADY = {direction: SteadyState(True, direction) for direction in ("left", "right", None)}
 
 
 def _curvature(e: Estimate) -> float | None:

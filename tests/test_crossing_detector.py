@@ -141,7 +141,7 @@ def test_a_second_sign_change_in_one_sweep_is_not_used() -> None:
     _, t = run(detector, sweep(0.7 * U0, 1.3 * U0, 80.0), 80.0)
     # the sideslip flips back while the speed keeps rising (a transient the gate let through)
     flipped = estimate(1.31 * U0, 80.0)
-    flipped = Estimate(**{**{f: getattr(flipped, f) for f in flipped.__slots__}, "sideslip_rad": 0.01})
+    flipped = flipped._replace(sideslip_rad=0.01)
     later = detector.step(t, flipped, SteadyState(True, "left"))
     assert [type(e) for e in later] == [CrossingRejected]
     assert "second sign change" in later[0].reason  # type: ignore[union-attr]

@@ -1,7 +1,5 @@
 """The fast Kalman kernel against filterpy's KalmanFilter: the same numbers over whole drives."""
 
-import dataclasses
-
 import numpy as np
 import pytest
 from filterpy.common import Q_continuous_white_noise
@@ -61,7 +59,7 @@ def test_the_motion_filter_gives_filterpys_estimates_over_a_drive(scenario: str,
         assert (fast is None) == (reference is None)
         if fast is None or reference is None:
             continue
-        for name, value in dataclasses.asdict(fast).items():
+        for name, value in fast._asdict().items():
             other = getattr(reference, name)
             if value is None or other is None:
                 assert value is other, name

@@ -2,6 +2,8 @@
 
 import math
 
+import numpy as np
+
 from app.config import DetectorSettings
 from app.records import Estimate
 from app.steady_state import SteadyStateGate
@@ -86,3 +88,26 @@ def test_without_yaw_rate_direction_and_limits_come_from_ay_or_steer() -> None:
     assert state.direction == "left"
     state = gate.step(0.0, est(yaw=False, ay=None), None, None)
     assert state.direction is None and not any("straight" in r for r in state.reasons)
+
+
+def test_the_quick_check_agrees_with_the_worded_reasons_on_every_limit() -> None:
+    """``_all_hold`` (no words, the common case) is true exactly when neither list of reasons
+    has one: on estimates spread over every limit, each side of it, with and without a yaw rate."""
+    rng = np.random.default_rng(7)
+    gate = SteadyStateGate(DetectorSettings())
+    agreed = {True: 0, False: 0}
+    for _ in range(5000):
+        yaw = bool(rng.random() < 0.7)
+        e = est(
+            u=float(rng.uniform(-1.0, 30.0)),
+            radius=float(rng.choice([-1.0, 1.0]) * rng.uniform(5.0, 400.0)),
+            u_dot=float(rng.normal(0.0, 0.2)),
+            v_dot=float(rng.normal(0.0, 0.5)),
+            r_dot=float(rng.normal(0.0, 0.1)),
+            yaw=yaw,
+            ay=None if rng.random() < 0.3 else float(rng.normal(0.0, 4.0)),
+        )
+        worded = not gate._hard_reasons(e, None) and not gate._soft_reasons(e)
+        assert gate._all_hold(e) == worded, e
+        agreed[worded] += 1
+    assert min(agreed.values()) > 500, agreed  # both verdicts were exercised

@@ -32,7 +32,7 @@ class TriagedMF4Reader:
     def __init__(self, path: Path, triage: Triage, skipped: Callable[[int], None]) -> None:
         self.triage = triage
         self.skipped = skipped
-        self.mdf = MDF(path)
+        self.mdf = open_mdf(path)
         try:
             groups = data_groups(self.mdf)
             if groups is None:
@@ -69,24 +69,52 @@ class TriagedMF4Reader:
             yield frames.message(i)
 
 
+def open_mdf(path: Path) -> Any:
+    """The file's blocks, without asammdf's bus-logging pass: with no DBC attached, that pass
+    reads every frame of the file to map ids to groups, which nothing here uses."""
+    return MDF(path, process_bus_logging=False)
+
+
+def holds_frames(path: Path) -> bool:
+    """Whether the file has a CAN frame python-can's MF4Reader would read, reading the first of
+    each group (python-can's reader would open the file with the bus-logging pass first: half a
+    second per million frames). Raises what asammdf raises on a damaged file."""
+    mdf = open_mdf(path)
+    try:
+        found = False
+        for index, group in enumerate(mdf.groups):
+            names = _can_group_names(group)
+            if names is not None:
+                name = next(n for n in (_DATA, "CAN_ErrorFrame", "CAN_RemoteFrame") if n in names)
+                found |= len(mdf.get(name, index, record_offset=0, record_count=1, raw=True)) > 0
+        return found
+    finally:
+        mdf.close()
+
+
+def _can_group_names(group: Any) -> list[str] | None:
+    """The channel names of a group python-can's MF4Reader reads CAN frames from, else None."""
+    channel_group = group.channel_group
+    if not channel_group.flags & FLAG_CG_BUS_EVENT or channel_group.cycles_nr == 0:
+        return None
+    source = channel_group.acq_source
+    if source is None or not source.source_type & Source.SOURCE_BUS or source.bus_type != Source.BUS_TYPE_CAN:
+        return None
+    names = [channel.name for channel in group.channels]
+    return names if {_DATA, "CAN_ErrorFrame", "CAN_RemoteFrame"} & set(names) else None
+
+
 def data_groups(mdf: Any) -> list[int] | None:
     """The groups python-can's MF4Reader reads, when all of them hold CAN data frames (None when
     it would also read error or remote frames)."""
     groups = []
     for index, group in enumerate(mdf.groups):
-        channel_group = group.channel_group
-        if not channel_group.flags & FLAG_CG_BUS_EVENT or channel_group.cycles_nr == 0:
+        names = _can_group_names(group)
+        if names is None:
             continue
-        source = channel_group.acq_source
-        if source is None or not source.source_type & Source.SOURCE_BUS:
-            continue
-        if source.bus_type != Source.BUS_TYPE_CAN:
-            continue
-        names = [channel.name for channel in group.channels]
-        if _DATA in names:
-            groups.append(index)
-        elif "CAN_ErrorFrame" in names or "CAN_RemoteFrame" in names:
-            return None
+        if _DATA not in names:
+            return None  # error or remote frames
+        groups.append(index)
     return groups
 
 

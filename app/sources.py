@@ -24,7 +24,7 @@ import can
 from app.blf_bulk import TriagedBLFReader
 from app.bus_health import BusHealth
 from app.errors import BusError, C2nError, LogFileError
-from app.mf4_bulk import TriagedMF4Reader
+from app.mf4_bulk import TriagedMF4Reader, holds_frames
 from app.triage import NotInBulk, Triage
 
 log = logging.getLogger(__name__)
@@ -62,8 +62,8 @@ def _size(path: Path) -> int:
         return 0
 
 
-def open_log(path: Path) -> Iterable[can.Message]:
-    """Open a log with python-can's reader for its suffix, translating its errors."""
+def _format(path: Path) -> str:
+    """The log's suffix (the one before .gz), after the checks every log passes."""
     if not path.exists():
         raise LogFileError(f"{path}: no such file")
     if path.is_dir():
@@ -76,6 +76,12 @@ def open_log(path: Path) -> Iterable[can.Message]:
     )
     if path.stat().st_size == 0:
         raise LogFileError(f"{path}: the file is empty")
+    return real
+
+
+def open_log(path: Path) -> Iterable[can.Message]:
+    """Open a log with python-can's reader for its suffix, translating its errors."""
+    real = _format(path)
     if real not in READABLE_SUFFIXES:
         sniffed = _sniff(path)
         if sniffed is None:
@@ -227,6 +233,9 @@ _ENDS_EARLY: dict[str, Callable[[Path, object], str | None]] = {
 def check_readable(path: Path) -> None:
     """Open a log and read its first frame: a file that is damaged from the start, or holds no
     frame at all, is an error, not an empty drive."""
+    if _format(path) == ".mf4":
+        _check_mf4(path)
+        return
     reader = open_log(path)
     try:
         if next(iter(reader), None) is None:
@@ -241,6 +250,18 @@ def check_readable(path: Path) -> None:
         stop = getattr(reader, "stop", None)
         if callable(stop):
             stop()
+
+
+def _check_mf4(path: Path) -> None:
+    """check_readable for MF4, without python-can's reader (``holds_frames`` says why)."""
+    try:
+        found = holds_frames(path)
+    except Exception as error:
+        reason = _one_line(error)
+        _drop_quietly(error)
+        raise LogFileError(f"{path}: not a readable .mf4 log ({reason})") from None
+    if not found:
+        raise LogFileError(f"{path}: no CAN frames in the file")
 
 
 class LogSource:

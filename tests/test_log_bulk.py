@@ -13,9 +13,10 @@ import pytest
 from app import summary
 from app.config import load_config
 from app.decode import Decoder
-from app.mf4_bulk import MDF, data_groups
+from app.errors import LogFileError
+from app.mf4_bulk import MDF, data_groups, holds_frames
 from app.pipeline import Pipeline
-from app.sources import LogReport, LogSource, read_log
+from app.sources import LogReport, LogSource, check_readable, read_log
 from tests.simulated import cached_drive
 
 
@@ -132,3 +133,20 @@ def test_mf4_chunks_of_any_size_read_the_same(
 ) -> None:
     monkeypatch.setattr("app.mf4_bulk.CHUNK", chunk)
     assert json.dumps(analysed(drive_log, bulk=True), sort_keys=True) == json.dumps(by_frame, sort_keys=True)
+
+
+def test_an_mf4_is_checked_without_python_cans_reader_and_agrees_with_it(tmp_path: Path) -> None:
+    """``check_readable`` opens an MF4 without asammdf's bus-logging pass (which reads the whole
+    file), and says what python-can's reader would find: frames, or none at all."""
+    drive = cached_drive()
+    full, empty = tmp_path / "full.mf4", tmp_path / "empty.mf4"
+    with can.Logger(full) as writer:
+        for message in drive.messages[:500]:
+            writer.on_message_received(message)
+    with can.Logger(empty):
+        pass
+    assert holds_frames(full) and next(iter(can.LogReader(full)), None) is not None
+    check_readable(full)
+    assert not holds_frames(empty) and next(iter(can.LogReader(empty)), None) is None
+    with pytest.raises(LogFileError, match=r"empty\.mf4: no CAN frames in the file"):
+        check_readable(empty)

@@ -4,8 +4,9 @@ source → decode → estimate → detect → sinks: the decoder makes a Record 
 pipeline fills in the estimate, the steady-state verdict and any events. All immutable.
 
 The three made for every filtered frame (Record, Estimate, SteadyState) are named tuples: a
-frozen dataclass sets each field through ``object.__setattr__`` and costs three to four times as
-much to make (``tools/bench.py --only parts``). The events are rare and stay dataclasses.
+frozen dataclass sets each field through ``object.__setattr__``, several times the cost of
+making a tuple (the pipeline's figure in ``tools/bench.py --only parts``). The events are rare
+and stay dataclasses.
 """
 
 from collections.abc import Mapping

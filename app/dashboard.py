@@ -76,7 +76,7 @@ def columns(rows: Sequence[Sequence[str]], left: frozenset[int] | set[int] = fro
         )
         for row in rows
     ]
-    text = Text(no_wrap=True, overflow="ellipsis")  # a wrapped row would break the columns
+    text = Text()
     text.append(lines[0], style="bold")
     for line in lines[1:]:
         text.append("\n" + line)
@@ -87,7 +87,7 @@ def _pairs(rows: list[tuple[str, str]]) -> Text:
     """Label (bold) and value (right-aligned) per line."""
     label_width = max(len(label) for label, _ in rows)
     value_width = max(len(value) for _, value in rows)
-    text = Text(no_wrap=True, overflow="ellipsis")
+    text = Text()
     for k, (label, value) in enumerate(rows):
         text.append(("\n" if k else "") + label.ljust(label_width + 1), style="bold")
         text.append(value.rjust(value_width))
@@ -112,7 +112,7 @@ class Dashboard:
         top.add_column(ratio=1)
         top.add_column(ratio=1)
         top.add_row(self._motion(), self._status())
-        heading = Text(no_wrap=True, overflow="ellipsis")
+        heading = Text()
         heading.append(f" c2n live — {self.title}", style="bold")
         heading.append(f"   t = {elapsed:.1f} s")
         # No panel around the whole: every panel inside would be cut into lines once more, which

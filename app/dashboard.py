@@ -116,7 +116,7 @@ class Dashboard:
         heading.append(f" c2n live — {self.title}", style="bold")
         heading.append(f"   t = {elapsed:.1f} s")
         # No panel around the whole: every panel inside would be cut into lines once more, which
-        # doubled the cost of a refresh (tools/bench.py: CPU share while the dashboard draws).
+        # doubled the cost of a refresh (tools/bench.py --only parts: dashboard refresh).
         return Group(heading, top, self._crossings(), self._frames())
 
     def _motion(self) -> RenderableType:

@@ -5,8 +5,8 @@ pipeline fills in the estimate, the steady-state verdict and any events. All imm
 
 The three made for every filtered frame (Record, Estimate, SteadyState) are named tuples: a
 frozen dataclass sets each field through ``object.__setattr__``, several times the cost of
-making a tuple (the pipeline's figure in ``tools/bench.py --only parts``). The events are rare
-and stay dataclasses.
+making a tuple, on the per-frame path (``tools/bench.py --only parts``: whole pipeline). The
+events are rare and stay dataclasses.
 """
 
 from collections.abc import Mapping

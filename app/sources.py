@@ -267,7 +267,7 @@ def _check_mf4(path: Path) -> None:
 class LogSource:
     """Frames of several log files: one after another, or merged by timestamp (``merge``), for
     per-channel recordings of one drive (e.g. two candump files). Given the decoder as
-    ``triage``, MF4 files are read in bulk (``read_log``)."""
+    ``triage``, BLF and MF4 files are read in bulk (``read_log``)."""
 
     def __init__(self, paths: Sequence[Path], merge: bool = False, triage: Triage | None = None) -> None:
         self.paths = list(paths)

@@ -12,18 +12,19 @@ Measurement models (y_s: sensor's lateral offset, + left):
     vehicle speed   = u                         (weak: wheel-speed scale errors and lags)
     yaw rate        = r                         (or ay/u without a gyro)
 
-The arithmetic is ``app.kalman``'s: a fast kernel for this structure, with filterpy's
-``KalmanFilter`` as the reference it is tested equal to (``kalman=FilterpyKalman``).
+This class is the filter written to be read, its arithmetic filterpy's ``KalmanFilter``
+(``app.kalman``). The pipeline runs ``app.compiled_filter.CompiledMotionFilter``: the same steps
+compiled with numba, tested equal to this one within 1e-9 on every estimate of whole drives.
 """
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from app.config import FilterSettings
-from app.kalman import H, Kalman, PairKalman, Row, transition
+from app.kalman import FilterpyKalman, H, Row, transition
 from app.records import Estimate, Record
 
 _LATE_TOLERANCE_S = 0.05  # frames up to this much out of order are applied at the current time
@@ -49,8 +50,7 @@ class MotionFilter:
         settings: FilterSettings,
         sensor_lateral_m: float,
         roles: frozenset[str],
-        resolutions: dict[str, float] | None = None,
-        kalman: Callable[[float, float, float], Kalman] = PairKalman,
+        resolutions: Mapping[str, float] | None = None,
     ) -> None:
         self.settings = settings
         self.roles = roles
@@ -65,7 +65,7 @@ class MotionFilter:
         self._vx_row: H = (1.0, 0.0, -self.y_s)  # optical vx = u − r·y_s
         self.counts = FilterCounts()
         self.q = (settings.q_u, settings.q_v, settings.q_r if self.has_yaw else 0.0)
-        self.kalman: Kalman = kalman(*self.q)
+        self.kalman = FilterpyKalman(*self.q)
         self.health = 1.0
         self._t: float | None = None
         self._t_optical = -math.inf
@@ -98,6 +98,10 @@ class MotionFilter:
         self._t = record.t
         self.health = 1.0
         return True
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Copies of x (6,) and P (6, 6)."""
+        return self.kalman.state()
 
     @property
     def last_transition(self) -> tuple[np.ndarray, np.ndarray]:

@@ -9,10 +9,10 @@ from dataclasses import dataclass, field
 import can
 
 from app.combine import Combined, combine
+from app.compiled_filter import CompiledMotionFilter
 from app.config import OPTICAL_ROLES, Config
 from app.crossing_detector import CrossingDetector
 from app.decode import Decoder
-from app.estimator import MotionFilter
 from app.pairing import Paired, pair
 from app.records import Crossing, CrossingRejected, Event, Record
 from app.regression import RegressionFit, SampleRegression
@@ -63,7 +63,7 @@ class Pipeline:
     def __init__(self, config: Config) -> None:
         self.config = config
         self.decoder = Decoder(config)
-        self.filter = MotionFilter(
+        self.filter = CompiledMotionFilter(
             config.filter,
             config.vehicle.sensor_lateral_m,
             frozenset(config.roles),

@@ -16,9 +16,9 @@ import can
 import numpy as np
 from filterpy.kalman import rts_smoother
 
+from app.compiled_filter import CompiledMotionFilter
 from app.config import Config
 from app.decode import Decoder
-from app.estimator import MotionFilter
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _EPSILON = 1e-12  # keeps P invertible for states nothing observes (r without a yaw rate)
@@ -42,7 +42,7 @@ def smooth(
 ) -> list[Track]:
     """Filter and smooth a drive; one Track per stretch between filter restarts."""
     decoder = Decoder(config)
-    motion = MotionFilter(
+    motion = CompiledMotionFilter(
         config.filter,
         config.vehicle.sensor_lateral_m,
         frozenset(config.roles),
@@ -68,7 +68,7 @@ def smooth(
             fs.append(motion.last_transition[0])
             qs.append(motion.last_transition[1] + _EPSILON * np.eye(6))
         t.append(record.t)
-        x, p = motion.kalman.state()
+        x, p = motion.state()
         xs.append(x)
         ps.append(p + _EPSILON * np.eye(6))
     tracks += _smooth_stretch(t, xs, ps, fs, qs, chunk, overlap)

@@ -26,6 +26,8 @@ class SteadyStateGate:
         self, t: float, estimate: Estimate, steer_rad: float | None, sensor_problem: str | None
     ) -> SteadyState:
         direction = _direction(estimate, steer_rad)
+        hard: tuple[str, ...]
+        soft: tuple[str, ...]
         if sensor_problem is None and self._all_hold(estimate):
             hard = soft = ()
         else:  # the reasons, worded for the driver

@@ -1,15 +1,23 @@
-"""The Kalman filter stage: filterpy's discretisation, the measurement models, time handling."""
+"""The Kalman filter stage: the measurement models, time handling, gating and the learned noise,
+on both filters (the compiled one the pipeline runs, and the reference on filterpy)."""
 
 import math
 
 import numpy as np
 import pytest
 
+from app.compiled_filter import CompiledMotionFilter
 from app.config import FilterSettings
 from app.estimator import MotionFilter
 from app.records import Record
 
 ROLES = frozenset({"vx", "vy", "beta", "yaw_rate", "speed"})
+Filter = type[CompiledMotionFilter] | type[MotionFilter]
+
+
+@pytest.fixture(params=[CompiledMotionFilter, MotionFilter], ids=["compiled", "reference"])
+def motion_filter(request: pytest.FixtureRequest) -> Filter:
+    return request.param  # type: ignore[no-any-return]
 
 
 def record(t: float, **signals: float) -> Record:
@@ -26,8 +34,8 @@ def steady_stream(
     ]
 
 
-def test_converges_to_the_motion_and_its_sideslip() -> None:
-    f = MotionFilter(FilterSettings(), 0.0, ROLES)
+def test_converges_to_the_motion_and_its_sideslip(motion_filter: Filter) -> None:
+    f = motion_filter(FilterSettings(), 0.0, ROLES)
     for rec in steady_stream(12.0, 0.06, 0.15):
         e = f.step(rec)
     assert e is not None
@@ -38,18 +46,18 @@ def test_converges_to_the_motion_and_its_sideslip() -> None:
     assert e.ay_mps2 == pytest.approx(12.0 * 0.15, rel=1e-6)
 
 
-def test_lateral_offset_moves_vx_to_the_centre_line() -> None:
+def test_lateral_offset_moves_vx_to_the_centre_line(motion_filter: Filter) -> None:
     """A head 0.9 m left of the centre sees vx = u − r·y_s; the filter reports u."""
-    f = MotionFilter(FilterSettings(), 0.9, ROLES - {"speed"})
+    f = motion_filter(FilterSettings(), 0.9, ROLES - {"speed"})
     for rec in steady_stream(12.0, 0.0, 0.2, y_s=0.9):
         e = f.step(Record(rec.t, 0, 0, {k: v for k, v in rec.signals.items() if k != "speed"}))
     assert e is not None
     assert e.u_mps == pytest.approx(12.0, abs=1e-5)
 
 
-def test_angle_alone_gives_lateral_velocity() -> None:
+def test_angle_alone_gives_lateral_velocity(motion_filter: Filter) -> None:
     """With sideslip_source 'beta' the EKF update recovers v from the angle."""
-    f = MotionFilter(FilterSettings(sideslip_source="beta"), 0.0, frozenset({"vx", "beta"}))
+    f = motion_filter(FilterSettings(sideslip_source="beta"), 0.0, frozenset({"vx", "beta"}))
     for k in range(500):
         e = f.step(record(k / 100, vx=10.0, beta=math.atan2(-0.08, 10.0)))
     assert e is not None
@@ -58,8 +66,8 @@ def test_angle_alone_gives_lateral_velocity() -> None:
     assert e.v_meas_mps == pytest.approx(-0.08, abs=1e-9)
 
 
-def test_time_going_backwards_restarts_the_filter() -> None:
-    f = MotionFilter(FilterSettings(), 0.0, ROLES)
+def test_time_going_backwards_restarts_the_filter(motion_filter: Filter) -> None:
+    f = motion_filter(FilterSettings(), 0.0, ROLES)
     for rec in steady_stream(10.0, 0.0, 0.1, seconds=1.0):
         f.step(rec)
     f.step(record(0.2, vx=20.0, vy=0.0, yaw_rate=0.1))
@@ -68,8 +76,8 @@ def test_time_going_backwards_restarts_the_filter() -> None:
     assert e is not None and e.u_mps == pytest.approx(20.0, abs=0.05)
 
 
-def test_optical_dropout_restarts_and_late_frames_are_applied_now() -> None:
-    f = MotionFilter(FilterSettings(gap_reset_s=1.0), 0.0, ROLES)
+def test_optical_dropout_restarts_and_late_frames_are_applied_now(motion_filter: Filter) -> None:
+    f = motion_filter(FilterSettings(gap_reset_s=1.0), 0.0, ROLES)
     for rec in steady_stream(10.0, 0.0, 0.1, seconds=1.0):
         f.step(rec)
     f.step(record(0.985, vx=10.0, vy=0.0))  # 5 ms out of order
@@ -78,8 +86,8 @@ def test_optical_dropout_restarts_and_late_frames_are_applied_now() -> None:
     assert f.counts.resets == 1
 
 
-def test_a_spike_is_gated_but_a_real_jump_is_believed() -> None:
-    f = MotionFilter(FilterSettings(), 0.0, ROLES)
+def test_a_spike_is_gated_but_a_real_jump_is_believed(motion_filter: Filter) -> None:
+    f = motion_filter(FilterSettings(), 0.0, ROLES)
     for rec in steady_stream(10.0, 0.0, 0.1, seconds=2.0):
         f.step(rec)
     e = f.step(record(2.0, yaw_rate=0.9))  # one wild gyro sample
@@ -90,10 +98,10 @@ def test_a_spike_is_gated_but_a_real_jump_is_believed() -> None:
     assert e is not None and e.r_radps == pytest.approx(0.9, abs=0.05)
 
 
-def test_health_is_about_one_when_the_noise_model_fits() -> None:
+def test_health_is_about_one_when_the_noise_model_fits(motion_filter: Filter) -> None:
     rng = np.random.default_rng(3)
     sigma = 0.02
-    f = MotionFilter(
+    f = motion_filter(
         FilterSettings(sigma_velocity_mps=sigma, sideslip_source="vy"), 0.0, frozenset({"vx", "vy"})
     )
     healths = []
@@ -103,7 +111,7 @@ def test_health_is_about_one_when_the_noise_model_fits() -> None:
             healths.append(e.health)
     assert 0.8 < float(np.mean(healths)) < 1.2
     # a config that claims 4× less noise reads far worse at first, until the noise model learns
-    g = MotionFilter(
+    g = motion_filter(
         FilterSettings(sigma_velocity_mps=sigma / 4, sideslip_source="vy"), 0.0, frozenset({"vx", "vy"})
     )
     early = []
@@ -116,11 +124,11 @@ def test_health_is_about_one_when_the_noise_model_fits() -> None:
     assert g.noise_sigma()["lateral_mps"] == pytest.approx(sigma, rel=0.25)
 
 
-def test_measured_noise_follows_the_sensor() -> None:
+def test_measured_noise_follows_the_sensor(motion_filter: Filter) -> None:
     """The noise model learns the optical noise from the innovations, whatever was configured."""
     for sigma in (0.005, 0.05):
         rng = np.random.default_rng(9)
-        f = MotionFilter(
+        f = motion_filter(
             FilterSettings(sigma_velocity_mps=0.02, sideslip_source="vy"), 0.0, frozenset({"vx", "vy"})
         )
         for k in range(8000):
@@ -130,10 +138,10 @@ def test_measured_noise_follows_the_sensor() -> None:
         assert abs(measured["lateral_mps"] / sigma - 1) < 0.25, measured
 
 
-def test_resolution_floor_keeps_a_noise_free_quantised_signal_sane() -> None:
+def test_resolution_floor_keeps_a_noise_free_quantised_signal_sane(motion_filter: Filter) -> None:
     """Noise-free values on a 0.01 m/s grid: the noise model never claims less than one bit's
     quantisation (0.01/√12 m/s), so the filter stays consistent and converges."""
-    f = MotionFilter(
+    f = motion_filter(
         FilterSettings(sideslip_source="vy"),
         0.0,
         frozenset({"vx", "vy"}),

@@ -10,8 +10,8 @@
 4. offline: ``c2n analyze`` on a 1,000,000-frame BLF and the same drive as MF4, against a loop that
    only iterates python-can's reader over the same file;
 5. memory: peak RSS of a 10-minute and an 8-hour session (accelerated, each in its own process);
-   and the Kalman kernel against filterpy's KalmanFilter, and what each stage costs a frame
-   (``parts``).
+   and the compiled motion filter against the reference on filterpy's KalmanFilter, and what each
+   stage costs a frame (``parts``).
 
 The mix: the optical sensor at 250 Hz (three messages), the vehicle messages at their cycle
 times, and 96 background ids at about 81 Hz each, 9,009 frames/s in all.
@@ -276,13 +276,13 @@ def memory(seconds: float) -> tuple[int, float]:
     return int(out[0]), float(out[1])
 
 
-# -- the Kalman kernel ------------------------------------------------------------------------------
+# -- the motion filter -------------------------------------------------------------------------------
 
 
 def kernel_rates(runs: int) -> dict[str, list[float]]:
+    from app.compiled_filter import CompiledMotionFilter
     from app.decode import Decoder
     from app.estimator import MotionFilter
-    from app.kalman import FilterpyKalman, PairKalman
 
     config = load_config()
     drive = simulate_drive(config, DriveOptions(seed=3))
@@ -290,8 +290,8 @@ def kernel_rates(runs: int) -> dict[str, list[float]]:
     records = [r for r in map(decoder.decode, drive.messages) if r is not None]
     rates: dict[str, list[float]] = {"fast": [], "filterpy": []}
     for _ in range(runs):
-        for name, kalman in (("fast", PairKalman), ("filterpy", FilterpyKalman)):
-            motion = MotionFilter(config.filter, 0.0, frozenset(config.roles), kalman=kalman)
+        for name, kind in (("fast", CompiledMotionFilter), ("filterpy", MotionFilter)):
+            motion = kind(config.filter, 0.0, frozenset(config.roles))
             start = time.perf_counter()
             for record in records:
                 motion.step(record)
@@ -371,10 +371,10 @@ def main() -> None:
     print(f"median (min, max) of {args.runs} runs; saturated mix = {SATURATED_FPS:,} frames/s")
     if "kernel" in only:
         kernels = kernel_rates(args.runs)
-        print(f"Kalman filter, fast kernel   {summary(kernels['fast'], 'records/s')}")
-        print(f"Kalman filter, filterpy      {summary(kernels['filterpy'], 'records/s')}")
+        print(f"motion filter, compiled      {summary(kernels['fast'], 'records/s')}")
+        print(f"motion filter, on filterpy   {summary(kernels['filterpy'], 'records/s')}")
         ratios = [f / r for f, r in zip(kernels["fast"], kernels["filterpy"], strict=True)]
-        print(f"  fast / filterpy            {summary(ratios, '×', digits=1)}")
+        print(f"  compiled / filterpy        {summary(ratios, '×', digits=1)}")
     if "parts" in only:
         messages = saturated_mix(20.0)
         costs = [part_costs(messages) for _ in range(args.runs)]

@@ -157,6 +157,8 @@ def _prepare(scratch: Array, params: Array) -> None:
     and for floats only: a signal that arrives as an int is converted, never compiled for
     mid-drive (the first compilation takes seconds)."""
     dispatcher: Any = _step
+    if not hasattr(dispatcher, "signatures"):
+        return  # NUMBA_DISABLE_JIT=1: the functions run as plain Python (to debug them)
     if not dispatcher.signatures:
         _step(scratch, params, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
         dispatcher.disable_compile()

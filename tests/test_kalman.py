@@ -132,3 +132,17 @@ def test_the_compiled_filter_gives_filterpys_estimates_over_a_drive(
     for ours, theirs in zip(fast.last_transition, reference.last_transition, strict=True):
         np.testing.assert_array_equal(ours, theirs)
     assert math.isfinite(fast.health)
+
+
+def test_the_step_is_compiled_once_for_floats_and_takes_ints() -> None:
+    """A signal that arrives as an int gives the float's estimate and no second compilation
+    (which would stall a live drive for seconds)."""
+    signals = {"vx": 12.0, "vy": 0.0, "yaw_rate": 0.0, "speed": 12.0}
+    estimates = []
+    for values in (signals, {k: int(v) for k, v in signals.items()}):
+        motion = CompiledMotionFilter(FilterSettings(), 0.0, frozenset(signals))
+        motion.step(Record(0.0, 0, 0x7E5, values))
+        estimates.append(motion.step(Record(0.01, 0, 0x7E5, values)))
+    assert estimates[0] == estimates[1]
+    assert estimates[0] is not None and estimates[0].u_mps == pytest.approx(12.0)
+    assert len(compiled._step.signatures) == 1  # type: ignore[attr-defined]

@@ -2,11 +2,11 @@
 
 A filtered frame used to cost ~15 µs of plain Python (Kalman predict and scalar updates, the
 innovation gate, the learned noise, the estimate), most of it the interpreter's per-operation
-cost on a dozen floats. Compiled, the same arithmetic in the same order costs ~1 µs plus the
-call (tools/bench.py, the kernel figure). ``MotionFilter`` on filterpy's ``KalmanFilter`` stays the
-readable reference: tests/test_kalman.py holds every estimate of whole drives, the counts and the
-learned noise of this filter to it within 1e-9, and the behaviour tests of tests/test_estimator.py
-run on both.
+cost on a dozen floats. Compiled, the same arithmetic in the same order costs ~2 µs, the call
+included (tools/bench.py: the motion filter and the parts). ``MotionFilter`` on filterpy's
+``KalmanFilter`` stays the readable reference: tests/test_kalman.py holds every estimate of whole
+drives, the counts and the learned noise of this filter to it within 1e-9, and the behaviour
+tests of tests/test_estimator.py run on both.
 
 The filter's whole state is one float64 array (layout below), the settings another; absent
 signals are NaN (the decoder passes only finite values). ``cache=True`` keeps the machine code
@@ -21,7 +21,16 @@ import numpy as np
 from numba import njit
 
 from app.config import FilterSettings
-from app.estimator import FilterCounts
+from app.estimator import (  # its constants: numba compiles them in as they are
+    _HEALTH_ALPHA,
+    _LATE_TOLERANCE_S,
+    _MAX_CONSECUTIVE_REJECTS,
+    _MIN_SPEED_FOR_ANGLE,
+    _NOISE_ALPHA,
+    _NOISE_CEILING,
+    _YAW_TIMEOUT_S,
+    FilterCounts,
+)
 from app.kalman import transition
 from app.records import Estimate, Record
 
@@ -48,15 +57,6 @@ _ANGLE, _LAST_DT = 53, 54
 _COUNTS = 55  # resets, time_jumps, late_frames, outliers
 _N_STATE = 59
 _VX, _LAT, _SPEED, _YAW = range(4)  # the kinds of measurement row
-
-# the MotionFilter constants, the same values
-_LATE_TOLERANCE_S = 0.05
-_YAW_TIMEOUT_S = 0.5
-_HEALTH_ALPHA = 0.02
-_MIN_SPEED_FOR_ANGLE = 1.0
-_MAX_CONSECUTIVE_REJECTS = 3
-_NOISE_ALPHA = 0.002
-_NOISE_CEILING = 5.0
 
 
 class CompiledMotionFilter:
@@ -237,8 +237,8 @@ def _initialise(s: Array, c: Array, t: float, vx: float, vy: float, beta: float,
 
 @_compiled
 def _predict(s: Array, c: Array, dt: float) -> None:
-    """x = F·x, P = F·P·Fᵀ + Q per [value, rate] pair (``PairKalman``'s arithmetic before it
-    was compiled, the same terms in the same order)."""
+    """x = F·x, P = F·P·Fᵀ + Q, per 2×2 block of the [value, rate] pairs: a value's row and
+    column gain dt × its rate's; Q adds to the diagonal blocks (``app.kalman.transition``)."""
     s[0] += dt * s[1]
     s[2] += dt * s[3]
     s[4] += dt * s[5]

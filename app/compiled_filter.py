@@ -69,8 +69,6 @@ class CompiledMotionFilter:
         roles: frozenset[str],
         resolutions: Mapping[str, float] | None = None,
     ) -> None:
-        self.settings = settings
-        self.roles = roles
         resolutions = resolutions or {}
         has_yaw = "yaw_rate" in roles or "ay" in roles
         params = np.zeros(_N_PARAMS)

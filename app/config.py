@@ -182,6 +182,10 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
         )
     tyres = _dataclass_from(path, "tyres", Tyres, _section(path, table, "tyres"))
     detector = _dataclass_from(path, "detector", DetectorSettings, _section(path, table, "detector"))
+    if not detector.radius_max_m > 0:
+        raise ConfigError(
+            f"{path}: [detector] radius_max_m must be > 0 (paths straighter than it are not cornering)"
+        )
     filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)

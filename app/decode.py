@@ -135,10 +135,17 @@ class _MessageBinding:
 
 
 class Decoder:
-    """Turns python-can messages into Records, counting every frame."""
+    """Turns python-can messages into Records, counting every frame.
+
+    The first data frame of a key (channel, id, extended) works out where its key goes; later
+    ones are tallied per key and the tallies are added to the counts whenever they are read, so
+    ``counts`` is exact at every read and a frame nothing needs costs a lookup and an addition
+    (tools/bench.py, ``decode, background frame``).
+    """
 
     def __init__(self, config: Config) -> None:
-        self.counts = FrameCounts()
+        self._counts = FrameCounts()
+        self._seen: dict[tuple[object, int, bool], _Seen] = {}
         self.status = SensorStatus(config.status, config.filter.status_timeout_s)
         self._bindings: dict[tuple[int, bool], list[_MessageBinding]] = {}
         self._routes: dict[tuple[object, int, bool], _MessageBinding | str] = {}
@@ -161,6 +168,14 @@ class Decoder:
                 self._bindings.setdefault(key, []).append(
                     _MessageBinding(message, dbc.channel, roles, status, read)
                 )
+
+    @property
+    def counts(self) -> FrameCounts:
+        """What every frame so far was."""
+        for key, seen in self._seen.items():
+            if seen.frames or seen.used:
+                self._add(key, seen)
+        return self._counts
 
     def message_name(self, frame_id: int, extended: bool) -> str | None:
         """The DBC name of a frame id (the first DBC's, if several define it)."""
@@ -196,7 +211,7 @@ class Decoder:
     ) -> None:
         """Count ``frames`` data frames of one key that ``skip_kind`` sent to ``kind``, as
         ``decode`` would have counted them one by one."""
-        counts = self.counts
+        counts = self._counts
         counts.total += frames
         counts.by_id[(channel, frame_id, extended)] += frames
         counts.fd_frames += fd_frames
@@ -204,9 +219,21 @@ class Decoder:
 
     def decode(self, msg: can.Message) -> Record | None:
         """Count the frame; return a Record when it carries role values (usable or not)."""
-        counts = self.counts
-        counts.total += 1
         key = (msg.channel, msg.arbitration_id, msg.is_extended_id)
+        seen = self._seen.get(key)
+        if seen is None or msg.is_error_frame or msg.is_remote_frame:
+            return self._decode_first(msg, key)
+        seen.frames += 1
+        if msg.is_fd:
+            seen.fd_frames += 1
+        binding = seen.binding
+        return None if binding is None else self._read(binding, seen, msg)
+
+    def _decode_first(self, msg: can.Message, key: tuple[object, int, bool]) -> Record | None:
+        """A frame of a key not seen yet, an error or a remote frame: counted here, and the
+        data frame's key learned for the tallies."""
+        counts = self._counts
+        counts.total += 1
         counts.by_id[key] += 1
         if msg.is_fd:
             counts.fd_frames += 1
@@ -216,24 +243,32 @@ class Decoder:
         if msg.is_remote_frame:
             counts.remote_frames += 1
             return None
-        binding = self._routes.get(key) or self._route(key)
-        if binding.__class__ is str:
-            if binding == "unknown_id":
-                counts.unknown_id += 1
-            elif binding == "other_channel":
-                counts.other_channel += 1
-            else:
-                counts.unused += 1
+        route = self._route(key)
+        if isinstance(route, str):
+            setattr(counts, route, getattr(counts, route) + 1)
+            if len(self._seen) < _MAX_ROUTES:
+                self._seen[key] = _Seen(route, None, ())
             return None
-        assert isinstance(binding, _MessageBinding)
+        seen = _Seen(None, route, route.roles_on(msg.channel))
+        record = self._read(route, seen, msg)
+        if len(self._seen) < _MAX_ROUTES:
+            self._seen[key] = seen
+        else:  # a bus of random ids must not grow the tallies without bound: count it now
+            self._add(key, seen)
+        return record
+
+    def _read(self, binding: "_MessageBinding", seen: "_Seen", msg: can.Message) -> Record | None:
+        """The role values of a data frame of a needed message."""
+        counts = self._counts
+        data = msg.data
         length = binding.message.length
-        if len(msg.data) != length:
+        if len(data) != length:
             counts.bad_length += 1
-            kind = "short" if len(msg.data) < length else "long"
+            kind = "short" if len(data) < length else "long"
             counts.bad_by_id[(msg.arbitration_id, kind)] += 1
             return None
         try:
-            decoded = binding.read(msg.data)  # type: ignore[misc]  # a needed binding reads
+            decoded = binding.read(data)  # type: ignore[misc]  # a needed binding reads
         except Exception:
             counts.undecodable += 1
             counts.bad_by_id[(msg.arbitration_id, "undecodable")] += 1
@@ -241,16 +276,15 @@ class Decoder:
         t = msg.timestamp
         if binding.status:
             self.status.update(t, {name: float(decoded[signal]) for name, signal in binding.status})
-        signals: dict[str, float] = {}
-        rejected: dict[str, str] = {}
-        roles = binding.roles_on(msg.channel)
+        roles = seen.roles
         if not roles and not binding.status:
             counts.other_channel += 1  # its roles are bound to another channel
             return None
-        counts.used += 1
-        role_frames, isfinite, why_not = counts.role_frames, math.isfinite, self.status.why_not
+        seen.used += 1
+        signals: dict[str, float] = {}
+        rejected: dict[str, str] = {}
+        isfinite, why_not = math.isfinite, self.status.why_not
         for role in roles:
-            role_frames[role.role] += 1
             value = float(decoded[role.signal]) * role.factor
             if not isfinite(value):
                 rejected[role.role] = "not a number"
@@ -269,6 +303,37 @@ class Decoder:
         elif not signals:
             return None
         return Record(t, msg.channel, msg.arbitration_id, signals, rejected)
+
+    def _add(self, key: tuple[object, int, bool], seen: "_Seen") -> None:
+        """Add a key's tallies to the counts and start them again."""
+        counts, frames, used = self._counts, seen.frames, seen.used
+        if frames:
+            counts.total += frames
+            counts.by_id[key] += frames
+            counts.fd_frames += seen.fd_frames
+            if seen.kind is not None:
+                setattr(counts, seen.kind, getattr(counts, seen.kind) + frames)
+        if used:
+            counts.used += used
+            for role in seen.roles:
+                counts.role_frames[role.role] += used
+        seen.frames = seen.fd_frames = seen.used = 0
+
+
+class _Seen:
+    """A key whose route is known, and its frames not yet added to the counts: ``frames`` data
+    frames after the first (``fd_frames`` of them CAN FD), each of kind ``kind`` when nothing
+    in them is needed; ``used`` of them gave the roles ``roles`` (or a sensor status)."""
+
+    __slots__ = ("binding", "fd_frames", "frames", "kind", "roles", "used")
+
+    def __init__(
+        self, kind: str | None, binding: "_MessageBinding | None", roles: "tuple[_RoleBinding, ...]"
+    ) -> None:
+        self.kind = kind
+        self.binding = binding
+        self.roles = roles
+        self.frames = self.fd_frames = self.used = 0
 
 
 def _bind_role(spec: RoleSpec, message: Any) -> _RoleBinding:

@@ -86,12 +86,15 @@ def run(
         try:
             if isinstance(live, Live):
                 sys.setswitchinterval(min(switch_s, _SWITCH_S))
+            decode, take = pipeline.decoder.decode, pipeline.take  # looked up once: they run per frame
+            record_frame = recorder.on_message if recorder is not None else None
             for msg in source:
                 if msg is not None:
-                    if recorder is not None:
-                        recorder.on_message(msg)
-                    record = pipeline.process(msg)
+                    if record_frame is not None:
+                        record_frame(msg)
+                    record = decode(msg)
                     if record is not None:
+                        record = take(record)
                         if on_record is not None:
                             on_record(record)
                         if record.events:

@@ -78,8 +78,11 @@ class Pipeline:
     def process(self, msg: can.Message) -> Record | None:
         """Take one frame; return its Record (None for frames that carry no role value)."""
         record = self.decoder.decode(msg)
-        if record is None:
-            return None
+        return None if record is None else self.take(record)
+
+    def take(self, record: Record) -> Record:
+        """Take one decoded frame (``process`` after the decoder): the Record with what the
+        filter, the gate and the detector made of it."""
         state = self.state
         if state.t_first is None:
             state.t_first = record.t

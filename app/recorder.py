@@ -7,6 +7,7 @@ bus is idle, so after a crash (even ``kill -9``) the log reads back up to the la
 
 import copy
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,8 @@ class _Spool:
         """Nothing: what is written reaches the file at ``drain``."""
 
     def drain(self) -> None:
+        if not self._pending:
+            return
         data = memoryview("".join(self._pending).encode())
         self._pending.clear()
         while data:
@@ -134,28 +137,21 @@ class SessionRecorder:
                 f"{folder}: cannot record the session ({error.strerror}) — use --record DIR"
             ) from None
         self._events = EventsTable(folder / "events.csv")
-        self.frames = 0
-        self._flushed = 0  # frames handed to the operating system
-
-    def on_message(self, msg: can.Message) -> None:
-        self._writer.on_message_received(msg)
-        self.frames += 1
+        # each frame as it arrives, straight to the writer: it runs for every frame on the bus
+        self.on_message: Callable[[can.Message], None] = self._writer.on_message_received
 
     def on_event(self, event: Crossing | CrossingRejected, t0: float) -> None:
         self._events.add(event, t0)
 
     def flush(self) -> None:
         """Hand everything received so far to the operating system."""
-        if self.frames == self._flushed:
-            return
         if self._spool is not None:
             self._spool.drain()
         else:
             # BLF buffers frames into compressed containers of 128 KiB; python-can has no public
             # call that writes a partial one, and its reader needs whole containers.
-            self._writer._flush()
+            self._writer._flush()  # nothing when nothing is new
             self._writer.file.flush()
-        self._flushed = self.frames
 
     def close(self, summary: dict[str, Any]) -> None:
         self._writer.stop()

@@ -6,6 +6,10 @@ live loop's time (tools/bench.py). A plain integer signal — little- or big-end
 not, linearly scaled, not multiplexed — is a shift, a mask and a multiply, done here. Anything
 else (floats, multiplexed messages, choices) goes through cantools. tests/test_signal_reader.py
 holds these equal to cantools' own decoding over every such signal of every DBC at hand.
+
+The reader of a message is written out as one expression per signal and compiled, as
+``collections.namedtuple`` and ``dataclasses`` write their methods: a loop over the signals'
+layouts costs twice as much per frame (tools/bench.py, ``decode, relevant frame``).
 """
 
 from collections.abc import Callable, Sequence
@@ -22,22 +26,24 @@ def signal_reader(message: Any, names: Sequence[str]) -> Reader:
     if message.is_multiplexed() or not all(_plain(signal) for signal in signals):
         return lambda data: _cantools_values(message, data, names)
     size = message.length
-    little = [_layout(signal, size) for signal in signals if signal.byte_order == "little_endian"]
-    big = [_layout(signal, size) for signal in signals if signal.byte_order != "little_endian"]
-
-    def read(data: bytes | bytearray) -> dict[str, float]:
-        values: dict[str, float] = {}
-        for layouts, order in ((little, "little"), (big, "big")):
-            if not layouts:
-                continue
-            bits = int.from_bytes(data, order)  # type: ignore[arg-type]
-            for name, shift, mask, sign, scale, offset in layouts:
-                raw = (bits >> shift) & mask
-                if raw & sign:
-                    raw -= sign << 1
-                values[name] = raw * scale + offset
-        return values
-
+    namespace: dict[str, Any] = {}
+    items = []
+    for k, signal in enumerate(signals):
+        shift, mask, sign = _layout(signal, size)
+        order = "little" if signal.byte_order == "little_endian" else "big"
+        raw = f"({order} >> {shift}) & {mask}"
+        if sign:  # two's complement: flipping the sign bit and taking it away extends it
+            raw = f"(({raw}) ^ {sign}) - {sign}"
+        namespace[f"scale{k}"], namespace[f"offset{k}"] = signal.scale, signal.offset
+        items.append(f"{signal.name!r}: ({raw}) * scale{k} + offset{k}")
+    orders = sorted({"little" if s.byte_order == "little_endian" else "big" for s in signals})
+    source = "\n".join(
+        ["def read(data):"]
+        + [f"    {order} = int.from_bytes(data, {order!r})" for order in orders]
+        + ["    return {" + ", ".join(items) + "}"]
+    )
+    exec(compile(source, f"<signal reader of {message.name}>", "exec"), namespace)
+    read: Reader = namespace["read"]
     return read
 
 
@@ -45,9 +51,9 @@ def _plain(signal: Any) -> bool:
     return not signal.is_float and not signal.is_multiplexer and signal.multiplexer_ids is None
 
 
-def _layout(signal: Any, size: int) -> tuple[str, int, int, int, Any, Any]:
-    """(name, shift, mask, sign bit or 0, scale, offset) of a signal in a frame of ``size`` bytes
-    read as one integer in the signal's byte order."""
+def _layout(signal: Any, size: int) -> tuple[int, int, int]:
+    """(shift, mask, sign bit or 0) of a signal in a frame of ``size`` bytes read as one integer
+    in the signal's byte order."""
     length = signal.length
     if signal.byte_order == "little_endian":
         shift = signal.start
@@ -55,7 +61,7 @@ def _layout(signal: Any, size: int) -> tuple[str, int, int, int, Any, Any]:
         msb = 8 * (signal.start // 8) + 7 - signal.start % 8  # counted from the first byte's MSB
         shift = 8 * size - msb - length
     sign = 1 << (length - 1) if signal.is_signed else 0
-    return signal.name, shift, (1 << length) - 1, sign, signal.scale, signal.offset
+    return shift, (1 << length) - 1, sign
 
 
 def _cantools_values(message: Any, data: bytes | bytearray, names: Sequence[str]) -> dict[str, float]:

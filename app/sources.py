@@ -446,17 +446,17 @@ class BusSource:
         """One bus is read in the caller's thread: no hand-off between threads per frame, which
         would cost more than decoding it (tools/bench.py). Several buses get a receive thread
         each, feeding one queue."""
-        direct = len(self.buses) == 1
-        if not direct:
+        return self._read_one() if len(self.buses) == 1 else self._read_queued()
+
+    def _read_queued(self) -> Iterator[can.Message | None]:
+        try:
             for index in range(len(self.buses)):
                 self._listen(index)
-        receive = self._receive_direct if direct else self._receive_queued
-        stop, health = self.stop, self.health
-        try:
+            stop, health = self.stop, self.health
             while not stop.is_set():
                 if self.lost:
-                    self._retry(self.clock(), listen=not direct)
-                item = receive()
+                    self._retry(self.clock())
+                item = self._receive_queued()
                 if item is None:
                     if self.finished is not None and self.finished.is_set():
                         return
@@ -478,18 +478,43 @@ class BusSource:
         except queue.Empty:
             return None
 
-    def _receive_direct(self) -> "can.Message | _Failure | None":
-        if self.lost:  # the only bus is away: wait for the next attempt
-            time.sleep(max(0.0, min(self.idle_s, self.lost[0].retry_at - self.clock())))
-            return None
-        bus = self.buses[0]
+    def _read_one(self) -> Iterator[can.Message | None]:
+        """``__iter__`` for one bus, read in this thread. While frames keep coming, each costs
+        its ``recv`` and a few checks (tools/bench.py, live throughput)."""
+        stop, health, idle_s = self.stop, self.health, self.idle_s
         try:
-            msg = bus.recv(self.idle_s)
-        except Exception as error:  # what a receive thread would report to its listener
-            return _Failure(bus, error)
-        if msg is not None and msg.channel is None:
-            msg.channel = bus.channel_info
-        return msg
+            while not stop.is_set():
+                if self.lost:
+                    self._retry(self.clock(), listen=False)
+                if self.lost:  # the only bus is away: wait for the next attempt
+                    time.sleep(max(0.0, min(idle_s, self.lost[0].retry_at - self.clock())))
+                    if self.finished is not None and self.finished.is_set():
+                        return
+                    yield None
+                    continue
+                bus = self.buses[0]
+                recv, channel = bus.recv, bus.channel_info
+                while True:
+                    try:
+                        msg = recv(idle_s)
+                    except Exception as error:  # what a receive thread would report to its listener
+                        if self._lose(_Failure(bus, error)):
+                            yield None  # the caller flushes the recording now
+                        break
+                    if msg is None:
+                        if self.finished is not None and self.finished.is_set():
+                            return
+                        yield None
+                        break
+                    if msg.channel is None:
+                        msg.channel = channel
+                    if msg.is_error_frame or health.troubled:
+                        self._check_health(msg)
+                    yield msg
+                    if stop.is_set():
+                        return
+        finally:
+            self.close()
 
     def _listen(self, index: int) -> None:
         bus = self.buses[index]

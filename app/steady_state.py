@@ -21,6 +21,14 @@ class SteadyStateGate:
         self.settings = settings
         self._since: float | None = None  # when every condition began to hold
         self._soft_since: float | None = None  # when a rate limit began to fail
+        # the settings' part of the words, written once: the gate words every sample it drops
+        s = settings
+        self._min_curvature = 1.0 / s.radius_max_m
+        self._straight = f"driving straight (radius over {s.radius_max_m:g} m)"
+        self._below = f" m/s below {s.speed_min_mps:g}"
+        self._ay_over = f" m/s² > {s.ay_max_mps2:g}"
+        self._sweep_over = f" m/s² > {s.sweep_max_mps2:g}"
+        self._settle = f" of {s.settle_s:g} s)"
 
     def step(
         self, t: float, estimate: Estimate, steer_rad: float | None, sensor_problem: str | None
@@ -49,7 +57,7 @@ class SteadyStateGate:
             self._since = t
         held = t - self._since
         if held < self.settings.settle_s:
-            return SteadyState(False, direction, (f"settling ({held:.1f} of {self.settings.settle_s:g} s)",))
+            return SteadyState(False, direction, (f"settling ({held:.1f}{self._settle}",))
         return _STEADY[direction]
 
     def _all_hold(self, e: Estimate) -> bool:
@@ -65,7 +73,7 @@ class SteadyStateGate:
         if e.r_dot_radps2 is not None and abs(e.r_dot_radps2) > s.yaw_accel_max_radps2:
             return False
         curvature = _curvature(e)
-        return not (curvature is not None and curvature < 1.0 / s.radius_max_m)
+        return not (curvature is not None and curvature < self._min_curvature)
 
     def _hard_reasons(self, e: Estimate, sensor_problem: str | None) -> tuple[str, ...]:
         s = self.settings
@@ -73,19 +81,19 @@ class SteadyStateGate:
         if sensor_problem is not None:
             reasons.append(f"sensor: {sensor_problem}")
         if e.u_mps < s.speed_min_mps:
-            reasons.append(f"speed {e.u_mps:.1f} m/s below {s.speed_min_mps:g}")
+            reasons.append(f"speed {e.u_mps:.1f}{self._below}")
         if e.ay_mps2 is not None and abs(e.ay_mps2) > s.ay_max_mps2:
-            reasons.append(f"lateral acceleration too high: {abs(e.ay_mps2):.1f} m/s² > {s.ay_max_mps2:g}")
+            reasons.append(f"lateral acceleration too high: {abs(e.ay_mps2):.1f}{self._ay_over}")
         curvature = _curvature(e)
-        if curvature is not None and curvature < 1.0 / s.radius_max_m:
-            reasons.append(f"driving straight (radius over {s.radius_max_m:g} m)")
+        if curvature is not None and curvature < self._min_curvature:
+            reasons.append(self._straight)
         return tuple(reasons)
 
     def _soft_reasons(self, e: Estimate) -> tuple[str, ...]:
         s = self.settings
         reasons = []
         if abs(e.u_dot_mps2) > s.sweep_max_mps2:
-            reasons.append(f"sweep too fast: {abs(e.u_dot_mps2):.2f} m/s² > {s.sweep_max_mps2:g}")
+            reasons.append(f"sweep too fast: {abs(e.u_dot_mps2):.2f}{self._sweep_over}")
         yaw_transient = e.r_dot_radps2 is not None and abs(e.r_dot_radps2) > s.yaw_accel_max_radps2
         if yaw_transient or abs(e.v_dot_mps2) > s.lateral_accel_rate_max_mps2:
             reasons.append("steering transient")

@@ -80,6 +80,7 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
             "not one for speed — set [units] speed to one of",
         ),
         (("sensor_ahead_of_rear_axle_m = 1.11", "sensor_ahead_of_rear_axle_m = -0.5"), "must be > 0"),
+        (("[sensor_status]", "[detector]\nradius_max_m = 0\n[sensor_status]"), "radius_max_m must be > 0"),
     ],
 )
 def test_mistakes_give_one_line_naming_file_key_and_fix(

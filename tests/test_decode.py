@@ -8,6 +8,7 @@ from typing import Any
 import can
 import pytest
 
+from app import decode
 from app.config import Config, load_config
 from app.decode import Decoder
 
@@ -93,6 +94,56 @@ def test_every_frame_is_counted_by_kind(config: Config) -> None:
     assert (
         by_id[(0, 0x7E5, False)] == 1 and by_id[(None, 0x7E5, False)] == 3 and by_id[(None, 0x7E5, True)] == 1
     )
+
+
+def test_counts_are_exact_at_every_read_when_frames_of_a_key_repeat(
+    config: Config, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a key's first frame its frames are tallied and added to the counts when they are
+    read: reading after every frame and reading once at the end give three times one pass's
+    counts, for every kind of frame, CAN FD ones, and past the number of keys tallied."""
+    monkeypatch.setattr(decode, "_MAX_ROUTES", 6)  # the last keys below are counted one by one
+    messages = [
+        status(config),
+        frame(config, "Correvit", VelX_cor=40.0),
+        can.Message(  # VelX_cor beyond the DBC's range: rejected, still used
+            timestamp=T0, arbitration_id=0x7E5, is_extended_id=False, data=b"\xff\x7f" + bytes(6), channel=0
+        ),
+        can.Message(timestamp=T0, arbitration_id=0x7E5, is_extended_id=False, data=bytes(5)),  # short
+        can.Message(timestamp=T0, arbitration_id=0x7E5, is_extended_id=False, is_error_frame=True),
+        can.Message(timestamp=T0, arbitration_id=0x7E5, is_extended_id=False, is_remote_frame=True, dlc=8),
+        can.Message(timestamp=T0, arbitration_id=0x123, is_extended_id=False, data=bytes(8)),  # unknown id
+        can.Message(timestamp=T0, arbitration_id=0x123, is_extended_id=False, is_fd=True, data=bytes(12)),
+        frame(config, "Coordinates"),  # known, nothing needs it
+        frame(config, "BrakeSysFeatures", channel=1, Veh_V_ActlBrk=40.0),
+    ]
+    messages += [can.Message(timestamp=T0, arbitration_id=0x200 + k, data=bytes(8)) for k in range(8)]
+    once, every_frame, at_the_end = Decoder(config), Decoder(config), Decoder(config)
+    for m in messages:
+        once.decode(m)
+    for _ in range(3):
+        for m in messages:
+            every_frame.decode(m)
+            every_frame.counts  # noqa: B018  # a read adds the tallies
+            at_the_end.decode(m)
+    one = once.counts
+    assert one.as_dict() == {
+        "total": 18,
+        "used": 4,
+        "unused": 1,
+        "unknown_id": 10,
+        "other_channel": 0,
+        "bad_length": 1,
+        "undecodable": 0,
+        "error_frames": 1,
+        "remote_frames": 1,
+        "fd_frames": 1,
+    }
+    for decoder in (every_frame, at_the_end):
+        counts = decoder.counts
+        assert counts.as_dict() == {kind: 3 * n for kind, n in one.as_dict().items()}
+        for field in ("by_id", "role_frames", "rejected", "bad_by_id"):
+            assert getattr(counts, field) == {k: 3 * n for k, n in getattr(one, field).items()}, field
 
 
 @pytest.mark.parametrize(

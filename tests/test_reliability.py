@@ -859,7 +859,7 @@ def test_an_8_hour_session_keeps_memory_flat_counts_exact_and_every_frame_record
     parked = range(80, int(CYCLE_S))
     unknown, errors = sum(s % 10 == 0 for s in parked), sum(s % 60 == 0 for s in parked)
     counts = pipeline.decoder.counts
-    assert counts.total == recorder.frames == cycles * (len(drive) + len(parked) + unknown + 2 * errors)
+    assert counts.total == cycles * (len(drive) + len(parked) + unknown + 2 * errors)  # and recorded: below
     assert (counts.unknown_id, counts.error_frames, counts.remote_frames) == (
         cycles * unknown,
         cycles * errors,

@@ -8,7 +8,8 @@ or remote frames, or several data groups whose times go back, are left to python
 """
 
 import heapq
-from collections.abc import Callable, Iterator
+import itertools
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -65,8 +66,7 @@ class TriagedMF4Reader:
     def _needed(self, frames: "_Frames") -> Iterator[can.Message]:
         keep = frames.triage(self.triage)
         self.skipped(len(keep) - int(np.count_nonzero(keep)))
-        for i in np.flatnonzero(keep).tolist():
-            yield frames.message(i)
+        return frames.messages(np.flatnonzero(keep))
 
 
 def open_mdf(path: Path) -> Any:
@@ -165,23 +165,50 @@ class _Frames:
                 triage.count_skipped(key_channel, frame_id, extended, kind, int(counts[k]), fd_frames)
         return needed[inverse]
 
-    def message(self, i: int) -> can.Message:
-        """Frame i as python-can's MF4Reader makes it."""
-        kv: dict[str, Any] = {
-            "timestamp": float(self.t[i]),
-            "arbitration_id": int(self.frame_id[i]),
-            "data": self.data[i][: int(self.length[i])].tobytes(),
-        }
-        if self.channel is not None:
-            kv["channel"] = int(self.channel[i])
-        if self.dir is not None:
-            kv["is_rx"] = self.dir[i] == b"Rx" if self.dir.dtype.kind == "S" else int(self.dir[i]) == 0
-        if self.ide is not None:
-            kv["is_extended_id"] = bool(self.ide[i])
-        if self.edl is not None:
-            kv["is_fd"] = bool(self.edl[i])
-        if self.brs is not None:
-            kv["bitrate_switch"] = bool(self.brs[i])
-        if self.esi is not None:
-            kv["error_state_indicator"] = bool(self.esi[i])
-        return can.Message(**kv)
+    def messages(self, rows: np.ndarray) -> Iterator[can.Message]:
+        """The frames at ``rows`` as python-can's MF4Reader makes them, each column turned into
+        Python values once for all of them rather than frame by frame."""
+        n = len(rows)
+
+        def values(column: np.ndarray | None, default: object) -> Iterable[Any]:
+            """A column's values at the rows, or python-can's default where the file has none."""
+            return column[rows].tolist() if column is not None else itertools.repeat(default, n)
+
+        if self.dir is None:
+            is_rx: Iterable[Any] = itertools.repeat(True, n)
+        else:
+            direction = self.dir[rows]
+            is_rx = (direction == b"Rx" if direction.dtype.kind == "S" else direction == 0).tolist()
+        columns = zip(
+            self.t[rows].tolist(),
+            self.frame_id[rows].tolist(),
+            self._payloads(rows),
+            values(self.channel, None),
+            is_rx,
+            values(self.ide, True),
+            values(self.edl, False),
+            values(self.brs, False),
+            values(self.esi, False),
+            strict=True,
+        )
+        for t, frame_id, data, channel, rx, extended, fd, brs, esi in columns:
+            yield can.Message(
+                timestamp=t,
+                arbitration_id=frame_id,
+                data=data,
+                channel=channel,
+                is_rx=rx,
+                is_extended_id=bool(extended),
+                is_fd=bool(fd),
+                bitrate_switch=bool(brs),
+                error_state_indicator=bool(esi),
+            )
+
+    def _payloads(self, rows: np.ndarray) -> list[bytes]:
+        """The data bytes of the frames at ``rows``, each cut to its length."""
+        lengths = self.length[rows].tolist()
+        data = self.data[rows]
+        if data.ndim != 2 or data.dtype != np.uint8:  # not a byte matrix: frame by frame
+            return [data[k][:length].tobytes() for k, length in enumerate(lengths)]
+        blob, width = data.tobytes(), data.shape[1]
+        return [blob[k * width : k * width + length] for k, length in enumerate(lengths)]

@@ -99,6 +99,7 @@ class SensorStatus:
 
 
 _MAX_ROUTES = 65_536  # (channel, id) keys whose route is remembered
+_MAX_SEEN = 4096  # keys whose frames are tallied: each read of the counts goes over them all
 
 
 @dataclass(frozen=True)
@@ -246,14 +247,14 @@ class Decoder:
         route = self._route(key)
         if isinstance(route, str):
             setattr(counts, route, getattr(counts, route) + 1)
-            if len(self._seen) < _MAX_ROUTES:
+            if len(self._seen) < _MAX_SEEN:
                 self._seen[key] = _Seen(route, None, ())
             return None
         seen = _Seen(None, route, route.roles_on(msg.channel))
         record = self._read(route, seen, msg)
-        if len(self._seen) < _MAX_ROUTES:
+        if len(self._seen) < _MAX_SEEN:
             self._seen[key] = seen
-        else:  # a bus of random ids must not grow the tallies without bound: count it now
+        else:  # a bus of random ids must not make every read of the counts long: count it now
             self._add(key, seen)
         return record
 

@@ -102,7 +102,7 @@ def test_counts_are_exact_at_every_read_when_frames_of_a_key_repeat(
     """After a key's first frame its frames are tallied and added to the counts when they are
     read: reading after every frame and reading once at the end give three times one pass's
     counts, for every kind of frame, CAN FD ones, and past the number of keys tallied."""
-    monkeypatch.setattr(decode, "_MAX_ROUTES", 6)  # the last keys below are counted one by one
+    monkeypatch.setattr(decode, "_MAX_SEEN", 6)  # the last keys below are counted one by one
     messages = [
         status(config),
         frame(config, "Correvit", VelX_cor=40.0),

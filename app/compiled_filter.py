@@ -57,6 +57,7 @@ _ANGLE, _LAST_DT = 53, 54
 _COUNTS = 55  # resets, time_jumps, late_frames, outliers
 _N_STATE = 59
 _VX, _LAT, _SPEED, _YAW = range(4)  # the kinds of measurement row
+_STEP_ROLES = ("vx", "vy", "beta", "speed", "yaw_rate", "ay")  # _step's arguments after t
 
 
 class CompiledMotionFilter:
@@ -106,23 +107,22 @@ class CompiledMotionFilter:
             get("yaw_rate", nan),
             get("ay", nan),
         )
-        if out is None:
-            return None
-        u, u_dot, v, v_dot, r, r_dot, sideslip, sigma, ay, health, v_meas, sideslip_meas = out
-        return Estimate(
-            u,
-            u_dot,
-            v,
-            v_dot,
-            None if r != r else r,  # NaN: unobserved
-            None if r_dot != r_dot else r_dot,
-            sideslip,
-            sigma,
-            None if ay != ay else ay,
-            health,
-            None if v_meas != v_meas else v_meas,
-            None if sideslip_meas != sideslip_meas else sideslip_meas,
+        return None if out is None else estimate_of(out)
+
+    def steps(self, t: Array, values: Mapping[str, Array]) -> tuple[Array, Array]:
+        """``step`` over many records in one compiled loop: ``values`` role -> column (NaN where
+        a record has none). Returns which records gave an estimate, and the estimates' fields
+        as rows (NaN where ``Estimate`` has None)."""
+        n = len(t)
+        nan = np.full(n, math.nan)
+        vx, vy, beta, speed, yaw_rate, ay = (
+            np.ascontiguousarray(values.get(role, nan), np.float64) for role in _STEP_ROLES
         )
+        out = np.empty((n, len(Estimate._fields)))
+        valid = np.zeros(n, np.bool_)
+        t = np.ascontiguousarray(t, np.float64)
+        _steps(self._state, self._params, t, vx, vy, beta, speed, yaw_rate, ay, out, valid)
+        return valid, out
 
     @property
     def counts(self) -> FilterCounts:
@@ -148,6 +148,25 @@ class CompiledMotionFilter:
         """F and Q of the last step (identity and zero when it did not predict): the smoother's."""
         dt = float(self._state[_LAST_DT])
         return (np.eye(6), np.zeros((6, 6))) if math.isnan(dt) else transition(dt, *self.q)
+
+
+def estimate_of(fields: "tuple[float, ...] | list[float]") -> Estimate:
+    """The Estimate of a step's fields (NaN: None)."""
+    u, u_dot, v, v_dot, r, r_dot, sideslip, sigma, ay, health, v_meas, sideslip_meas = fields
+    return Estimate(
+        u,
+        u_dot,
+        v,
+        v_dot,
+        None if r != r else r,  # NaN: unobserved
+        None if r_dot != r_dot else r_dot,
+        sideslip,
+        sigma,
+        None if ay != ay else ay,
+        health,
+        None if v_meas != v_meas else v_meas,
+        None if sideslip_meas != sideslip_meas else sideslip_meas,
+    )
 
 
 def _prepare(scratch: Array, params: Array) -> None:
@@ -198,6 +217,28 @@ def _step(
     if optical:
         s[_T_OPTICAL] = t
     return _estimate(s, t, v_meas, ay)
+
+
+@_compiled
+def _steps(
+    s: Array,
+    c: Array,
+    t: Array,
+    vx: Array,
+    vy: Array,
+    beta: Array,
+    speed: Array,
+    yaw_rate: Array,
+    ay: Array,
+    out: Array,
+    valid: Array,
+) -> None:
+    for k in range(len(t)):
+        result = _step(s, c, t[k], vx[k], vy[k], beta[k], speed[k], yaw_rate[k], ay[k])
+        if result is not None:
+            valid[k] = True
+            for j, value in enumerate(result):
+                out[k, j] = value
 
 
 @_compiled

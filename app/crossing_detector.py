@@ -130,6 +130,11 @@ class CrossingDetector:
         """Sign changes still being fitted: (direction, time, speed)."""
         return [(key, run.pending.t, run.pending.u) for key, run in self._runs.items() if run.pending]
 
+    @property
+    def running(self) -> bool:
+        """Whether a steady run is open (a step that is not steady may end it)."""
+        return bool(self._runs)
+
     def step(self, t: float, estimate: Estimate, steady: SteadyState) -> list[Event]:
         events: list[Event] = []
         for key in list(self._runs):

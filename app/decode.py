@@ -10,11 +10,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import can
+import numpy as np
 
+from app.blocks import FrameBlock, RecordBlock
 from app.config import Config, RoleSpec, StatusCondition
 from app.dbc import ChannelSpec, channel_matches
 from app.records import Record
-from app.signal_reader import Reader, signal_reader
+from app.signal_reader import ColumnReader, Reader, column_reader, signal_reader
 
 
 @dataclass
@@ -64,6 +66,11 @@ class SensorStatus:
         # role -> the conditions on it, as (signal name, value it needs)
         self._relevant: dict[str, tuple[tuple[str, float], ...]] = {}
         self._verdicts: dict[str, str | None] = {}  # role -> what the values say, until they change
+        self.stale = f"sensor status older than {timeout_s:g} s"
+
+    def applies(self, role: str) -> bool:
+        """Whether any condition is on ``role``."""
+        return any(role in c.applies_to for c in self.conditions)
 
     def update(self, t: float, values: dict[str, float]) -> None:
         self.values.update(values)
@@ -82,7 +89,7 @@ class SensorStatus:
         if self.t is None:
             return "no sensor status yet"
         if abs(t - self.t) > self.timeout_s:
-            return f"sensor status older than {self.timeout_s:g} s"
+            return self.stale
         verdicts = self._verdicts
         if role not in verdicts:
             verdicts[role] = self._verdict(relevant)
@@ -119,6 +126,7 @@ class _MessageBinding:
     roles: tuple[_RoleBinding, ...]
     status: tuple[tuple[str, str], ...]  # status signals in this message: ("Message.Signal", "Signal")
     read: Reader | None  # the needed signals' values from a frame's data (None: nothing needed)
+    columns: ColumnReader | None  # the same from many frames' data at once, where it can
     roles_by_channel: dict[object, tuple[_RoleBinding, ...]] = field(default_factory=dict)
 
     @property
@@ -165,9 +173,11 @@ class Decoder:
                 )
                 key = (message.frame_id, bool(message.is_extended_frame))
                 needed = [role.signal for role in roles] + [signal for _, signal in status]
-                read = signal_reader(message, list(dict.fromkeys(needed))) if needed else None
+                names = list(dict.fromkeys(needed))
+                read = signal_reader(message, names) if needed else None
+                columns = column_reader(message, names) if needed else None
                 self._bindings.setdefault(key, []).append(
-                    _MessageBinding(message, dbc.channel, roles, status, read)
+                    _MessageBinding(message, dbc.channel, roles, status, read, columns)
                 )
 
     @property
@@ -298,12 +308,161 @@ class Decoder:
                 else:
                     rejected[role.role] = reason
         if rejected:
-            for reason in dict.fromkeys(rejected.values()):
-                names = ", ".join(r for r, why in rejected.items() if why == reason)
-                counts.rejected[f"{reason} ({names})"] += 1
+            self._count_rejected(rejected)
         elif not signals:
             return None
         return Record(t, msg.channel, msg.arbitration_id, signals, rejected)
+
+    def _count_rejected(self, rejected: dict[str, str]) -> None:
+        for reason in dict.fromkeys(rejected.values()):
+            names = ", ".join(r for r, why in rejected.items() if why == reason)
+            self._counts.rejected[f"{reason} ({names})"] += 1
+
+    def decode_block(self, block: FrameBlock) -> RecordBlock:
+        """``decode`` over a block of frames at once: the same counts, and the Records ``decode``
+        would give one by one, as columns. The signals are read per message as columns; the
+        sensor status is applied in arrival order (tests/test_blocks.py holds the two equal)."""
+        counts, n = self._counts, len(block)
+        order, starts, firsts = _by_key(block)
+        carried: dict[str, np.ndarray] = {}  # role -> value, NaN where the frame has none
+        checked: dict[str, np.ndarray] = {}  # role -> why not usable: 0 fine, else a _Reasons code
+        roles_of: list[tuple[_RoleBinding, ...] | None] = [None] * n  # rows that make a Record
+        status_rows: list[tuple[np.ndarray, dict[str, np.ndarray]]] = []
+        reasons = _Reasons()
+        for first, rows in zip(firsts, np.split(order, starts), strict=True):
+            key_channel = block.channel[first].item() if block.channel is not None else None
+            frame_id, extended = int(block.frame_id[first]), bool(block.extended[first])
+            key = (key_channel, frame_id, extended)
+            counts.total += len(rows)
+            counts.by_id[key] += len(rows)
+            counts.fd_frames += int(np.count_nonzero(block.fd[rows]))
+            route = self._route(key)
+            if isinstance(route, str):  # a reader that passes frames nothing needs
+                setattr(counts, route, getattr(counts, route) + len(rows))
+                continue
+            rows, decoded = self._read_columns(route, frame_id, rows, block)
+            if route.status:
+                status_rows.append((rows, {name: decoded[signal] for name, signal in route.status}))
+            roles = route.roles_on(key_channel)
+            if not roles and not route.status:
+                counts.other_channel += len(rows)
+                continue
+            counts.used += len(rows)
+            for role in roles:
+                counts.role_frames[role.role] += len(rows)
+                value = decoded[role.signal] * role.factor
+                column = carried.setdefault(role.role, np.full(n, np.nan))
+                column[rows] = value
+                why = checked.setdefault(role.role, np.zeros(n, np.int64))
+                finite = np.isfinite(value)
+                why[rows] = np.where(
+                    ~finite,
+                    reasons.code("not a number"),
+                    np.where((role.low <= value) & (value <= role.high), 0, reasons.code("out of range")),
+                )
+            if roles:
+                for row in rows.tolist():
+                    roles_of[row] = roles
+        self._apply_status(block.t, status_rows, carried, checked, reasons)
+        return self._records(block, carried, checked, roles_of, reasons)
+
+    def _read_columns(
+        self, binding: "_MessageBinding", frame_id: int, rows: np.ndarray, block: FrameBlock
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The rows of one key that ``_read`` would read (bad lengths and undecodable frames
+        counted and left out), and the needed signals' columns at them."""
+        counts, length = self._counts, binding.message.length
+        lengths = block.length[rows]
+        bad = lengths != length
+        if bad.any():
+            short = int(np.count_nonzero(lengths[bad] < length))
+            counts.bad_length += int(np.count_nonzero(bad))
+            for kind, frames in (("short", short), ("long", int(np.count_nonzero(bad)) - short)):
+                if frames:
+                    counts.bad_by_id[(frame_id, kind)] += frames
+            rows = rows[~bad]
+        if binding.columns is not None and block.data.shape[1] >= length:
+            return rows, binding.columns(block.data[rows])
+        read: Reader = binding.read  # type: ignore[assignment]  # a needed binding reads
+        good, values = [], []
+        for row in rows.tolist():
+            try:
+                values.append(read(block.data[row, :length].tobytes()))
+            except Exception:
+                counts.undecodable += 1
+                counts.bad_by_id[(frame_id, "undecodable")] += 1
+                continue
+            good.append(row)
+        names = [role.signal for role in binding.roles] + [signal for _, signal in binding.status]
+        columns = {name: np.array([float(v[name]) for v in values]) for name in names}
+        return np.array(good, np.int64), columns
+
+    def _apply_status(
+        self,
+        t: np.ndarray,
+        status_rows: list[tuple[np.ndarray, dict[str, np.ndarray]]],
+        carried: dict[str, np.ndarray],
+        checked: dict[str, np.ndarray],
+        reasons: "_Reasons",
+    ) -> None:
+        """Update the sensor status with the block's status frames in arrival order, and mark
+        each role value that ``SensorStatus.why_not`` would drop at its frame."""
+        status = self.status
+        roles = [role for role in checked if status.applies(role)]
+        events: list[tuple[int, dict[str, float]]] = []
+        for rows, values in status_rows:
+            columns = {name: column.tolist() for name, column in values.items()}
+            events += [
+                (row, {name: c[k] for name, c in columns.items()}) for k, row in enumerate(rows.tolist())
+            ]
+        events.sort(key=lambda event: event[0])
+        # verdicts[k]: each role's verdict after k status frames; times[k]: that status's time
+        verdicts = np.zeros((len(events) + 1, len(roles)), np.int64)
+        times = np.full(len(events) + 1, np.nan)
+        if status.t is None:
+            verdicts[0] = reasons.code("no sensor status yet")
+        else:
+            times[0] = status.t
+            verdicts[0] = [reasons.code(status.why_not(role, status.t)) for role in roles]
+        for k, (row, update) in enumerate(events, start=1):
+            times[k] = now = float(t[row])
+            status.update(now, update)
+            verdicts[k] = [reasons.code(status.why_not(role, now)) for role in roles]
+        event_rows = np.array([row for row, _ in events], np.int64)
+        stale = reasons.code(status.stale)
+        for j, role in enumerate(roles):
+            rows = np.flatnonzero((checked[role] == 0) & ~np.isnan(carried[role]))
+            since = np.searchsorted(event_rows, rows, side="right")  # a frame's own status counts
+            old = np.abs(t[rows] - times[since]) > status.timeout_s
+            checked[role][rows] = np.where(old, stale, verdicts[since, j])
+
+    def _records(
+        self,
+        block: FrameBlock,
+        carried: dict[str, np.ndarray],
+        checked: dict[str, np.ndarray],
+        roles_of: "list[tuple[_RoleBinding, ...] | None]",
+        reasons: "_Reasons",
+    ) -> RecordBlock:
+        """The rows ``_read`` makes a Record of, with their usable values and rejections."""
+        n = len(block)
+        usable, dropped = np.zeros(n, bool), np.zeros(n, bool)
+        for role, why in checked.items():
+            usable |= (why == 0) & ~np.isnan(carried[role])
+            dropped |= why != 0
+        keep = np.array([roles is not None for roles in roles_of], bool) & (usable | dropped)
+        index = np.cumsum(keep) - 1
+        rejected: dict[int, dict[str, str]] = {}
+        for row in np.flatnonzero(dropped & keep).tolist():
+            codes = {binding.role: int(checked[binding.role][row]) for binding in roles_of[row] or ()}
+            why_not = {role: reasons.texts[code] for role, code in codes.items() if code}
+            self._count_rejected(why_not)
+            rejected[int(index[row])] = why_not
+        values = {
+            role: np.where(checked[role] == 0, column, np.nan)[keep] for role, column in carried.items()
+        }
+        channel = block.channel[keep].tolist() if block.channel is not None else [None] * int(keep.sum())
+        return RecordBlock(block.t[keep], channel, block.frame_id[keep].tolist(), values, rejected)
 
     def _add(self, key: tuple[object, int, bool], seen: "_Seen") -> None:
         """Add a key's tallies to the counts and start them again."""
@@ -335,6 +494,35 @@ class _Seen:
         self.binding = binding
         self.roles = roles
         self.frames = self.fd_frames = self.used = 0
+
+
+class _Reasons:
+    """Why a role value was dropped, as small integer codes (0: not dropped) for columns."""
+
+    def __init__(self) -> None:
+        self.texts: list[str] = [""]
+        self._codes: dict[str | None, int] = {None: 0}
+
+    def code(self, text: str | None) -> int:
+        code = self._codes.get(text)
+        if code is None:
+            code = self._codes[text] = len(self.texts)
+            self.texts.append(str(text))
+        return code
+
+
+def _by_key(block: FrameBlock) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The block's rows grouped by key (channel, id, extended), each group in arrival order:
+    (rows, where each group after the first starts, a row of each group)."""
+    n = len(block)
+    channel = block.channel.astype(np.uint64) if block.channel is not None else np.zeros(n, np.uint64)
+    keys = (
+        (channel << np.uint64(33))
+        | (block.extended.astype(np.uint64) << np.uint64(32))
+        | block.frame_id.astype(np.uint64)
+    )
+    _, first, inverse, sizes = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
+    return np.argsort(inverse, kind="stable"), np.cumsum(sizes)[:-1], first.tolist()
 
 
 def _bind_role(spec: RoleSpec, message: Any) -> _RoleBinding:

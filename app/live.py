@@ -21,6 +21,7 @@ from rich.live import Live
 from rich.protocol import rich_cast
 from rich.text import Text
 
+from app.blocks import FrameBlock
 from app.event_line import crossing_line, rejected_line
 from app.pipeline import Pipeline
 from app.recorder import SessionRecorder
@@ -51,7 +52,7 @@ class EventPrinter:
 
 
 def run(
-    source: Iterable[can.Message | None],
+    source: Iterable[can.Message | FrameBlock | None],
     pipeline: Pipeline,
     printer: Callable[[Sequence[Event]], None],
     display: RenderableType | None = None,
@@ -62,14 +63,19 @@ def run(
     transient: bool = False,
     on_record: Callable[[Record], None] | None = None,
     flush_s: float = 0.05,
+    blocks: bool = False,
 ) -> bool:
     """Run until the source ends (True) or Ctrl-C / SIGTERM (False); then fit what is pending.
 
     The display (dashboard, progress) is drawn only on a terminal, every ``refresh_s``, from a
     picture taken in this thread; elsewhere the printed lines are all there is. A transient
     display is cleared at the end. The recording is flushed every ``flush_s`` and whenever the
-    source is idle (it yields None). ``on_record`` sees every record.
+    source is idle (it yields None). ``on_record`` sees every record. With ``blocks``, the
+    source may yield FrameBlocks (``LogSource.items``): they go to ``process_block`` whole, with
+    no record to see and no frame to record.
     """
+    if blocks and (on_record is not None or recorder is not None):
+        raise ValueError("FrameBlocks give no records to see and no frames to record")
     live: Any = nullcontext()
     switch_s = sys.getswitchinterval()
     if display is not None and console is not None and console.is_terminal:
@@ -89,10 +95,16 @@ def run(
             decode, take = pipeline.decoder.decode, pipeline.take  # looked up once: they run per frame
             record_frame = recorder.on_message if recorder is not None else None
             for msg in source:
-                if msg is not None:
+                if msg is None:
+                    pass
+                elif blocks and type(msg) is FrameBlock:
+                    events = pipeline.process_block(msg)
+                    if events:
+                        printer(events)
+                else:
                     if record_frame is not None:
-                        record_frame(msg)
-                    record = decode(msg)
+                        record_frame(msg)  # type: ignore[arg-type]  # a Message: blocks are above
+                    record = decode(msg)  # type: ignore[arg-type]
                     if record is not None:
                         record = take(record)
                         if on_record is not None:

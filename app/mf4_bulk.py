@@ -18,6 +18,7 @@ import numpy as np
 from asammdf import MDF, Source
 from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
 
+from app.blocks import FrameBlock
 from app.triage import NotInBulk, Triage
 
 CHUNK = 200_000  # frames per asammdf request: bounded memory on files of any size
@@ -28,11 +29,15 @@ _DATA = "CAN_DataFrame"
 class TriagedMF4Reader:
     """The frames of an MF4 that ``triage`` needs, in python-can's order (its heapq merge of the
     groups by time); the others counted through ``triage``, and ``skipped`` hears how many.
-    Raises NotInBulk for a file python-can's reader should read."""
+    With ``blocks``, a file of one data group yields them as a FrameBlock per chunk, not as
+    Messages. Raises NotInBulk for a file python-can's reader should read."""
 
-    def __init__(self, path: Path, triage: Triage, skipped: Callable[[int], None]) -> None:
+    def __init__(
+        self, path: Path, triage: Triage, skipped: Callable[[int], None], blocks: bool = False
+    ) -> None:
         self.triage = triage
         self.skipped = skipped
+        self.blocks = blocks
         self.mdf = open_mdf(path)
         try:
             groups = data_groups(self.mdf)
@@ -49,7 +54,7 @@ class TriagedMF4Reader:
             self.mdf.close()
             raise
 
-    def __iter__(self) -> Iterator[can.Message]:
+    def __iter__(self) -> Iterator[can.Message | FrameBlock]:
         if self.whole:
             return heapq.merge(*(self._needed(f) for f in self.whole), key=lambda m: m.timestamp)
         return self._chunks(self.groups[0]) if self.groups else iter(())
@@ -57,16 +62,25 @@ class TriagedMF4Reader:
     def stop(self) -> None:
         self.mdf.close()
 
-    def _chunks(self, group: int) -> Iterator[can.Message]:
+    def _chunks(self, group: int) -> Iterator[can.Message | FrameBlock]:
         cycles = self.mdf.groups[group].channel_group.cycles_nr
         for offset in range(0, cycles, CHUNK):
             signal = self.mdf.get(_DATA, group, record_offset=offset, record_count=CHUNK, raw=False)
-            yield from self._needed(_Frames(signal, self.start))
+            frames = _Frames(signal, self.start)
+            if self.blocks and frames.byte_matrix:
+                rows = self._rows(frames)
+                if len(rows):
+                    yield frames.block(rows)
+            else:
+                yield from frames.messages(self._rows(frames))
 
     def _needed(self, frames: "_Frames") -> Iterator[can.Message]:
+        return frames.messages(self._rows(frames))
+
+    def _rows(self, frames: "_Frames") -> np.ndarray:
         keep = frames.triage(self.triage)
         self.skipped(len(keep) - int(np.count_nonzero(keep)))
-        return frames.messages(np.flatnonzero(keep))
+        return np.flatnonzero(keep)
 
 
 def open_mdf(path: Path) -> Any:
@@ -134,6 +148,7 @@ class _Frames:
 
         self.channel, self.ide, self.dir = column("BusChannel"), column("IDE"), column("Dir")
         self.edl, self.brs, self.esi = column("EDL"), column("BRS"), column("ESI")
+        self.byte_matrix = self.data.ndim == 2 and self.data.dtype == np.uint8  # python-can's writer's
 
     def triage(self, triage: Triage) -> np.ndarray:
         """Count the frames the pipeline does not need; return the mask of those it does."""
@@ -164,6 +179,19 @@ class _Frames:
                 fd_frames = int(fd[k]) if fd is not None else 0
                 triage.count_skipped(key_channel, frame_id, extended, kind, int(counts[k]), fd_frames)
         return needed[inverse]
+
+    def block(self, rows: np.ndarray) -> FrameBlock:
+        """The frames at ``rows`` as columns (the fields python-can's MF4Reader would give)."""
+        n = len(rows)
+        return FrameBlock(
+            t=self.t[rows],
+            frame_id=self.frame_id[rows],
+            extended=self.ide[rows].astype(bool) if self.ide is not None else np.ones(n, bool),
+            channel=self.channel[rows] if self.channel is not None else None,
+            data=self.data[rows],
+            length=self.length[rows].astype(np.int64),
+            fd=self.edl[rows].astype(bool) if self.edl is not None else np.zeros(n, bool),
+        )
 
     def messages(self, rows: np.ndarray) -> Iterator[can.Message]:
         """The frames at ``rows`` as python-can's MF4Reader makes them, each column turned into
@@ -208,7 +236,7 @@ class _Frames:
         """The data bytes of the frames at ``rows``, each cut to its length."""
         lengths = self.length[rows].tolist()
         data = self.data[rows]
-        if data.ndim != 2 or data.dtype != np.uint8:  # not a byte matrix: frame by frame
+        if not self.byte_matrix:  # frame by frame
             return [data[k][:length].tobytes() for k, length in enumerate(lengths)]
         blob, width = data.tobytes(), data.shape[1]
         return [blob[k * width : k * width + length] for k, length in enumerate(lengths)]

@@ -2,21 +2,26 @@
 
 Live and offline runs differ only in where the frames come from; both call ``process`` for each
 frame in arrival order and ``finish`` at the end, so the same frames give the same crossings.
+A bulk reader may hand over frames as a FrameBlock instead (``c2n analyze`` on MF4):
+``process_block`` leaves the pipeline as ``process`` over its frames one by one would
+(tests/test_blocks.py).
 """
 
 from dataclasses import dataclass, field
 
 import can
+import numpy as np
 
+from app.blocks import FrameBlock, RecordBlock
 from app.combine import Combined, combine
-from app.compiled_filter import CompiledMotionFilter
+from app.compiled_filter import CompiledMotionFilter, estimate_of
 from app.config import OPTICAL_ROLES, Config
 from app.crossing_detector import CrossingDetector
 from app.decode import Decoder
 from app.pairing import Paired, pair
-from app.records import Crossing, CrossingRejected, Event, Record
+from app.records import Crossing, CrossingRejected, Event, Record, SteadyState
 from app.regression import RegressionFit, SampleRegression
-from app.steady_state import SteadyStateGate
+from app.steady_state import DIRECTIONS, STEADY, SteadyStateGate
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)
@@ -120,6 +125,92 @@ class Pipeline:
         state.last = record
         return record
 
+    def process_block(self, block: FrameBlock) -> list[Event]:
+        """Take a block of frames: what ``process`` over each would do. Returns the events."""
+        return self.take_block(self.decoder.decode_block(block))
+
+    def take_block(self, block: RecordBlock) -> list[Event]:
+        """``take`` over a block of decoded frames, the filter and the gate's limits run over
+        the whole block at once; the detector and the regression see the estimates they would
+        have seen one by one. Returns the events, in order."""
+        n = len(block)
+        if n == 0:
+            return []
+        state, t = self.state, block.t
+        if state.t_first is None:
+            state.t_first = float(t[0])
+        state.t_last = float(t[-1])
+        steer = _held(block.values.get("steer"), state.latest.get("steer"), n)
+        for role, column in block.values.items():
+            given = np.flatnonzero(~np.isnan(column))
+            if len(given):
+                state.latest[role] = float(column[given[-1]])
+        problems, problem_texts = self._sensor_problems(block)
+        filtered = np.zeros(n, bool)
+        for role in _FILTER_ROLES.intersection(block.values):
+            filtered |= ~np.isnan(block.values[role])
+        rows = np.flatnonzero(filtered)
+        valid, out = self.filter.steps(t[rows], {role: column[rows] for role, column in block.values.items()})
+        rows, out = rows[valid], out[valid]
+        if not len(rows):
+            return []
+        kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
+        times = t[rows].tolist()
+        steady_fields = iter(out[np.equal(kinds, STEADY)].tolist())  # the rows the detector sees
+        detector, regression = self.detector, self.regression
+        events: list[Event] = []
+        own: tuple[Event, ...] = ()  # the last record's
+        for k, now in enumerate(times):
+            steady = kinds[k] == STEADY
+            if steady or detector.running:
+                estimate = estimate_of(next(steady_fields) if steady else out[k].tolist())
+                new = detector.step(now, estimate, SteadyState(steady, DIRECTIONS[directions[k]]))
+                if new:
+                    self._collect(new)
+                    events += new
+                    own = tuple(new) if k == len(times) - 1 else ()
+                if steady and estimate.r_radps is not None and estimate.v_meas_mps is not None:
+                    regression.add(now, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
+            if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
+                self._last_fit = now
+                state.regression = regression.fit()
+        last, k = int(rows[-1]), len(rows) - 1
+        estimate = estimate_of(out[k].tolist())
+        problem = problem_texts[problems[last]] if problems[last] >= 0 else None
+        steady_state = self.gate.verdict(kinds[k], DIRECTIONS[directions[k]], estimate, problem, held[k])
+        state.last = Record(
+            times[k],
+            block.channel[last],
+            block.frame_id[last],
+            block.signals(last),
+            block.rejected.get(last, {}),
+            estimate,
+            steady_state,
+            own,
+        )
+        return events
+
+    def _sensor_problems(self, block: RecordBlock) -> tuple[np.ndarray, list[str]]:
+        """``state.sensor_problem`` after each record of the block (an index into the texts,
+        -1 for None), as ``take`` sets it; leaves it as the last record left it."""
+        n, texts = len(block), []
+        change = np.full(n, -2)  # -2: no change, -1: cleared, else the new problem
+        for role in _OPTICAL.intersection(block.values):
+            change[~np.isnan(block.values[role])] = -1
+        for row, rejected in block.rejected.items():
+            optical = [rejected[r] for r in OPTICAL_ROLES if r in rejected]
+            if optical:
+                texts.append(optical[0])
+                change[row] = len(texts) - 1
+        before = -1
+        if self.state.sensor_problem is not None:
+            texts.append(self.state.sensor_problem)
+            before = len(texts) - 1
+        latest = np.maximum.accumulate(np.where(change != -2, np.arange(n), -1))
+        problems = np.where(latest >= 0, change[np.maximum(latest, 0)], before)
+        self.state.sensor_problem = texts[problems[-1]] if problems[-1] >= 0 else None
+        return problems, texts
+
     def finish(self) -> list[Event]:
         """End of input: fit pending sign changes. Returns the events this produced."""
         events = self.detector.finish()
@@ -136,3 +227,12 @@ class Pipeline:
                 state.paired = pair(state.crossings, self.config.d_m, self.config.vehicle.gravity_mps2)
             elif isinstance(event, CrossingRejected):
                 self.state.rejections.append(event)
+
+
+def _held(column: np.ndarray | None, before: float | None, n: int) -> np.ndarray:
+    """The latest value at each of n rows (the row's own included): sample and hold, NaN for none."""
+    start = np.nan if before is None else before
+    if column is None:
+        return np.full(n, start)
+    latest = np.maximum.accumulate(np.where(~np.isnan(column), np.arange(n), -1))
+    return np.where(latest >= 0, column[np.maximum(latest, 0)], start)

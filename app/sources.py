@@ -16,12 +16,14 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, cast, overload
 
 import can
 
 from app.blf_bulk import TriagedBLFReader
+from app.blocks import FrameBlock
 from app.bus_health import BusHealth
 from app.errors import BusError, C2nError, LogFileError
 from app.mf4_bulk import TriagedMF4Reader, holds_frames
@@ -142,13 +144,24 @@ def _sniff(path: Path) -> str | None:
     return None
 
 
-def read_log(path: Path, report: LogReport, triage: Triage | None = None) -> Iterator[can.Message]:
+@overload
+def read_log(
+    path: Path, report: LogReport, triage: Triage | None = None, blocks: Literal[False] = False
+) -> Iterator[can.Message]: ...
+@overload
+def read_log(
+    path: Path, report: LogReport, triage: Triage | None, blocks: bool
+) -> Iterator[can.Message | FrameBlock]: ...
+def read_log(
+    path: Path, report: LogReport, triage: Triage | None = None, blocks: bool = False
+) -> Iterator[can.Message | FrameBlock]:
     """Frames of one log file, in file order; damage ends the file, noted in ``report`` (the
     caller says so: the summary's warnings, or a line of its own).
 
     With ``triage`` (the decoder), BLF and MF4 files are read in bulk: only the frames the
-    pipeline decodes are yielded, the rest are counted by the decoder directly."""
-    reader = _bulk_reader(path, report, triage) if triage is not None else None
+    pipeline decodes are yielded, the rest are counted by the decoder directly. With ``blocks``
+    too, an MF4 yields them as FrameBlocks (``Pipeline.process_block``)."""
+    reader = _bulk_reader(path, report, triage, blocks) if triage is not None else None
     if reader is None:
         reader = open_log(path)
     report.reader = reader
@@ -166,7 +179,7 @@ def read_log(path: Path, report: LogReport, triage: Triage | None = None) -> Ite
             except Exception as error:
                 report.stopped = f"stopped after frame {report.frames}: {_one_line(error)}"
                 return
-            report.frames += 1
+            report.frames += len(message) if type(message) is FrameBlock else 1
             yield message
     finally:
         report.done, report.reader = True, None
@@ -175,16 +188,20 @@ def read_log(path: Path, report: LogReport, triage: Triage | None = None) -> Ite
             stop()
 
 
-_BULK_READERS: dict[str, Callable[[Path, Triage, Callable[[int], None]], Iterable[can.Message]]] = {
-    ".blf": TriagedBLFReader,
-    ".mf4": TriagedMF4Reader,
-}
+_BulkReader = Callable[[Path, Triage, Callable[[int], None]], Iterable[can.Message | FrameBlock]]
+_BULK_READERS: dict[str, _BulkReader] = {".blf": TriagedBLFReader, ".mf4": TriagedMF4Reader}
+_BLOCK_READERS: dict[str, _BulkReader] = {".mf4": partial(TriagedMF4Reader, blocks=True)}
 
 
-def _bulk_reader(path: Path, report: LogReport, triage: Triage) -> Iterable[can.Message] | None:
+def _bulk_reader(
+    path: Path, report: LogReport, triage: Triage, blocks: bool
+) -> Iterable[can.Message | FrameBlock] | None:
     """A bulk reader for the file, or None where none applies (another format, a file the bulk
     reader leaves to python-can's, or one that does not open: python-can's reader says why)."""
-    reader = _BULK_READERS.get(path.suffix.lower())
+    suffix = path.suffix.lower()
+    reader = _BLOCK_READERS.get(suffix) if blocks else None
+    if reader is None:
+        reader = _BULK_READERS.get(suffix)
     if reader is None:
         return None
 
@@ -295,9 +312,15 @@ class LogSource:
         return done
 
     def __iter__(self) -> Iterator[can.Message]:
-        streams = [read_log(p, r, self.triage) for p, r in zip(self.paths, self.reports, strict=True)]
+        return cast(Iterator[can.Message], self.items(blocks=False))  # no blocks: Messages only
+
+    def items(self, blocks: bool) -> Iterator[can.Message | FrameBlock]:
+        """The frames; with ``blocks``, those of an MF4 read in bulk as FrameBlocks (``c2n
+        analyze``: ``Pipeline.process_block``), unless the logs are merged."""
+        blocks = blocks and not self.merge
+        streams = [read_log(p, r, self.triage, blocks) for p, r in zip(self.paths, self.reports, strict=True)]
         if self.merge:
-            yield from heapq.merge(*streams, key=lambda m: m.timestamp)
+            yield from heapq.merge(*streams, key=lambda m: m.timestamp)  # type: ignore[union-attr]
         else:
             for stream in streams:
                 yield from stream

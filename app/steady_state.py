@@ -8,8 +8,14 @@ reason the dashboard turns into guidance for the driver.
 
 import math
 
+import numpy as np
+
 from app.config import DetectorSettings
 from app.records import Direction, Estimate, SteadyState
+
+# what a step decided, for a block of steps (``SteadyStateGate.steps``)
+STEADY, HARD, SOFT, SETTLING = range(4)
+DIRECTIONS: tuple[Direction | None, ...] = (None, "left", "right")
 
 
 class SteadyStateGate:
@@ -59,6 +65,71 @@ class SteadyStateGate:
         if held < self.settings.settle_s:
             return SteadyState(False, direction, (f"settling ({held:.1f}{self._settle}",))
         return _STEADY[direction]
+
+    def steps(
+        self, t: np.ndarray, estimates: np.ndarray, steer_rad: np.ndarray, sensor_ok: np.ndarray
+    ) -> tuple[list[int], list[int], list[float]]:
+        """``step`` over many estimates at once (rows of ``Estimate``'s fields, NaN for None;
+        ``steer_rad`` NaN where there is none): for each, what it decided (STEADY, HARD, SOFT,
+        SETTLING), its direction (an index into DIRECTIONS) and, when settling, how long the
+        conditions have held. ``verdict`` words one of them as ``step`` would."""
+        s = self.settings
+        u, u_dot, v_dot, r, r_dot, ay = (estimates[:, k] for k in (0, 1, 3, 4, 5, 8))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            curvature = np.where(~np.isnan(r), np.abs(r) / u, np.abs(ay) / (u * u))
+        straight = (u > 0) & (curvature < self._min_curvature)  # NaN: no curvature, no verdict
+        hard = ~sensor_ok | (u < s.speed_min_mps) | (np.abs(ay) > s.ay_max_mps2) | straight
+        soft = (
+            (np.abs(u_dot) > s.sweep_max_mps2)
+            | (np.abs(r_dot) > s.yaw_accel_max_radps2)
+            | (np.abs(v_dot) > s.lateral_accel_rate_max_mps2)
+        )
+        direction = np.zeros(len(t), np.int64)
+        for value in (steer_rad, ay, r):  # the last one given wins: yaw rate, then a_y, then steer
+            given = np.isfinite(value) & (value != 0)
+            direction = np.where(given, np.where(value > 0, 1, 2), direction)
+        kinds, held = [], []
+        since, soft_since = self._since, self._soft_since
+        debounce, settle = s.debounce_s, s.settle_s
+        for now, is_hard, is_soft in zip(t.tolist(), hard.tolist(), soft.tolist(), strict=True):
+            if since is not None and now < since:
+                since = None
+            held.append(0.0)
+            if is_hard:
+                since = soft_since = None
+                kinds.append(HARD)
+            elif is_soft:
+                if soft_since is None or now < soft_since:
+                    soft_since = now
+                if now - soft_since > debounce:
+                    since = None
+                kinds.append(SOFT)
+            else:
+                soft_since = None
+                if since is None:
+                    since = now
+                held[-1] = now - since
+                kinds.append(SETTLING if held[-1] < settle else STEADY)
+        self._since, self._soft_since = since, soft_since
+        return kinds, direction.tolist(), held
+
+    def verdict(
+        self,
+        kind: int,
+        direction: Direction | None,
+        estimate: Estimate,
+        sensor_problem: str | None,
+        held: float,
+    ) -> SteadyState:
+        """The SteadyState ``step`` gives for a step that ``steps`` decided was ``kind``."""
+        if kind == STEADY:
+            return _STEADY[direction]
+        if kind == SETTLING:
+            return SteadyState(False, direction, (f"settling ({held:.1f}{self._settle}",))
+        soft = self._soft_reasons(estimate)
+        return SteadyState(
+            False, direction, self._hard_reasons(estimate, sensor_problem) + soft if kind == HARD else soft
+        )
 
     def _all_hold(self, e: Estimate) -> bool:
         """Every limit of ``_hard_reasons`` and ``_soft_reasons`` holds (the common case, which

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from app import summary
+from app.blocks import FrameBlock
 from app.config import load_config
 from app.decode import Decoder
 from app.errors import LogFileError
@@ -48,10 +49,19 @@ def busy_drive(folder: Path, suffix: str, extra: tuple[can.Message, ...] = ()) -
 
 
 def analysed(path: Path, bulk: bool) -> dict[str, Any]:
+    """The drive's summary; ``bulk``: read as ``c2n analyze`` reads it (an MF4 as FrameBlocks)."""
     pipeline = Pipeline(load_config())
     source = LogSource([path], triage=pipeline.decoder if bulk else None)
-    for message in source:
-        pipeline.process(message)
+    blocks = 0
+    for item in source.items(blocks=bulk):
+        if isinstance(item, FrameBlock):
+            pipeline.process_block(item)
+            blocks += 1
+        else:
+            pipeline.process(item)
+    if bulk and path.suffix == ".mf4":  # blocks where asammdf's arrays are read: data frames only
+        with MDF(path) as mdf:
+            assert (blocks > 0) == (data_groups(mdf) is not None)
     pipeline.finish()
     result = summary.build(pipeline, [str(path)], source.reports)
     assert source.reports[0].done and source.reports[0].stopped is None

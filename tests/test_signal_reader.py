@@ -1,5 +1,6 @@
-"""The hand signal reader against cantools, the reference: every signal of every message of
-every DBC at hand (ours and the real third-party ones, Intel and Motorola), on random payloads."""
+"""The hand signal readers against cantools, the reference: every signal of every message of
+every DBC at hand (ours and the real third-party ones, Intel and Motorola), on random payloads,
+read frame by frame and as columns of many frames (the MF4 block path)."""
 
 from pathlib import Path
 from typing import Any
@@ -8,7 +9,7 @@ import cantools
 import numpy as np
 import pytest
 
-from app.signal_reader import signal_reader
+from app.signal_reader import column_reader, signal_reader
 from tests.real_data import REAL_DATA, needs_real_data
 
 OURS = sorted((Path(__file__).resolve().parent.parent / "dbc").glob("*.dbc"))
@@ -24,6 +25,7 @@ def check_against_cantools(path: Path, frames_per_message: int = 200) -> int | N
         return None
     rng = np.random.default_rng(7)
     by_hand = 0
+    by_columns = 0
     for message in database.messages:
         if message.length == 0 or not message.signals:
             continue
@@ -33,6 +35,14 @@ def check_against_cantools(path: Path, frames_per_message: int = 200) -> int | N
         by_hand += len(names) if hand else 0
         payloads = rng.integers(0, 256, (frames_per_message, message.length), dtype=np.uint8)
         payloads[0], payloads[1] = 0, 255  # the extremes of every field
+        columns = column_reader(message, names)
+        if columns is not None:  # a wider matrix, as an MF4's 64-byte data column
+            wide = np.concatenate([payloads, rng.integers(0, 256, (len(payloads), 5), np.uint8)], axis=1)
+            read_columns = columns(wide)
+            by_columns += len(names)
+            for k, payload in enumerate(payloads):
+                one = read(bytes(payload))
+                assert {name: float(read_columns[name][k]) for name in names} == one, (message.name, k)
         for payload in payloads:
             data = bytes(payload)
             try:
@@ -47,6 +57,7 @@ def check_against_cantools(path: Path, frames_per_message: int = 200) -> int | N
                     name,
                 )
                 assert type(values[name]) is type(reference[name]) or not hand
+    assert by_columns > 0 or by_hand == 0, (path.name, "no message read as columns")
     return by_hand
 
 

@@ -37,7 +37,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     pipeline = Pipeline(config)
     source = LogSource(args.logs, merge=args.merge, triage=pipeline.decoder)
     progress = ReadProgress(pipeline, source, ", ".join(p.name for p in args.logs))
-    run_pipeline(source, pipeline, EventPrinter(console, pipeline), progress, console, transient=True)
+    frames = source.items(blocks=True)  # an MF4's frames as FrameBlocks: Pipeline.process_block
+    run_pipeline(
+        frames, pipeline, EventPrinter(console, pipeline), progress, console, transient=True, blocks=True
+    )
     result = summary.build(pipeline, [str(p) for p in args.logs], source.reports)
     if args.json:
         summary.write(args.json, result)

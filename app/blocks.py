@@ -1,0 +1,49 @@
+"""Many frames at once, as columns: what a bulk reader hands the pipeline instead of a python-can
+Message per frame (``c2n analyze`` on MF4), and what the decoder makes of them.
+
+A block holds consecutive frames in arrival order, so the pipeline's result over blocks is its
+result frame by frame (tests/test_log_bulk.py, tests/test_blocks.py).
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+FloatArray = np.ndarray
+
+
+@dataclass(frozen=True)
+class FrameBlock:
+    """Data frames of keys the decoder needs: ``data`` a byte matrix (a row per frame, at least
+    as wide as the longest), ``length`` each frame's data length. ``channel`` is None where the
+    log has no channel column (python-can's None), ``extended`` and ``fd`` per frame."""
+
+    t: FloatArray
+    frame_id: np.ndarray
+    extended: np.ndarray
+    channel: np.ndarray | None
+    data: np.ndarray
+    length: np.ndarray
+    fd: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass
+class RecordBlock:
+    """The Records of a FrameBlock as columns: ``values`` role -> column, NaN where the record
+    has no usable value of the role; ``rejected`` row -> {role: why}, as ``Record.rejected``."""
+
+    t: FloatArray
+    channel: list[object]
+    frame_id: list[int]
+    values: dict[str, FloatArray]
+    rejected: dict[int, dict[str, str]] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def signals(self, row: int) -> dict[str, float]:
+        """``Record.signals`` of one row."""
+        return {role: value for role, column in self.values.items() if (value := float(column[row])) == value}

@@ -12,6 +12,17 @@ import numpy as np
 FloatArray = np.ndarray
 
 
+def key_codes(channel: np.ndarray | None, extended: np.ndarray, frame_id: np.ndarray) -> np.ndarray:
+    """Each frame's key (channel, extended, id) as one uint64, for grouping frames by key with
+    numpy (no channel column: channel 0 for all)."""
+    channels = channel.astype(np.uint64) if channel is not None else np.zeros(len(frame_id), np.uint64)
+    return (
+        (channels << np.uint64(33))
+        | (extended.astype(np.uint64) << np.uint64(32))
+        | frame_id.astype(np.uint64)
+    )
+
+
 @dataclass(frozen=True)
 class FrameBlock:
     """Data frames of keys the decoder needs: ``data`` a byte matrix (a row per frame, at least

@@ -12,7 +12,7 @@ from typing import Any
 import can
 import numpy as np
 
-from app.blocks import FrameBlock, RecordBlock
+from app.blocks import FrameBlock, RecordBlock, key_codes
 from app.config import Config, RoleSpec, StatusCondition
 from app.dbc import ChannelSpec, channel_matches
 from app.records import Record
@@ -514,13 +514,7 @@ class _Reasons:
 def _by_key(block: FrameBlock) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """The block's rows grouped by key (channel, id, extended), each group in arrival order:
     (rows, where each group after the first starts, a row of each group)."""
-    n = len(block)
-    channel = block.channel.astype(np.uint64) if block.channel is not None else np.zeros(n, np.uint64)
-    keys = (
-        (channel << np.uint64(33))
-        | (block.extended.astype(np.uint64) << np.uint64(32))
-        | block.frame_id.astype(np.uint64)
-    )
+    keys = key_codes(block.channel, block.extended, block.frame_id)
     _, first, inverse, sizes = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
     return np.argsort(inverse, kind="stable"), np.cumsum(sizes)[:-1], first.tolist()
 

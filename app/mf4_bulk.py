@@ -18,7 +18,7 @@ import numpy as np
 from asammdf import MDF, Source
 from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
 
-from app.blocks import FrameBlock
+from app.blocks import FrameBlock, key_codes
 from app.triage import NotInBulk, Triage
 
 CHUNK = 200_000  # frames per asammdf request: bounded memory on files of any size
@@ -152,14 +152,10 @@ class _Frames:
 
     def triage(self, triage: Triage) -> np.ndarray:
         """Count the frames the pipeline does not need; return the mask of those it does."""
-        n = len(self.t)
-        channel = self.channel.astype(np.uint64) if self.channel is not None else np.zeros(n, np.uint64)
-        ide = self.ide.astype(bool) if self.ide is not None else np.ones(n, bool)  # python-can's default
-        keys = (
-            (channel << np.uint64(33))
-            | (ide.astype(np.uint64) << np.uint64(32))
-            | self.frame_id.astype(np.uint64)
-        )
+        ide = (
+            self.ide.astype(bool) if self.ide is not None else np.ones(len(self.t), bool)
+        )  # python-can's default
+        keys = key_codes(self.channel, ide, self.frame_id)
         unique, first, inverse, counts = np.unique(
             keys, return_index=True, return_inverse=True, return_counts=True
         )

@@ -12,16 +12,16 @@ from dataclasses import dataclass, field
 import can
 import numpy as np
 
-from app.blocks import FrameBlock, RecordBlock
-from app.combine import Combined, combine
-from app.compiled_filter import CompiledMotionFilter, estimate_of
 from app.config import OPTICAL_ROLES, Config
-from app.crossing_detector import CrossingDetector
-from app.decode import Decoder
-from app.pairing import Paired, pair
+from app.decode.decoder import Decoder
+from app.detect.crossings import CrossingDetector
+from app.detect.steady_state import DIRECTIONS, STEADY, SteadyStateGate
+from app.estimate.compiled import CompiledMotionFilter, estimate_of
 from app.records import Crossing, CrossingRejected, Event, Record, SteadyState
-from app.regression import RegressionFit, SampleRegression
-from app.steady_state import DIRECTIONS, STEADY, SteadyStateGate
+from app.results.combine import Combined, combine
+from app.results.pairing import Paired, pair
+from app.results.regression import RegressionFit, SampleRegression
+from app.sources.blocks import FrameBlock, RecordBlock
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)

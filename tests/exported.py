@@ -6,10 +6,10 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
-from app import summary
 from app.config import load_config
 from app.pipeline import Pipeline
-from app.trace import Trace, TraceRecorder
+from app.sinks import summary
+from app.sinks.trace import Trace, TraceRecorder
 from tests.simulated import cached_drive
 
 

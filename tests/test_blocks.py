@@ -14,14 +14,14 @@ import can
 import numpy as np
 import pytest
 
-from app import summary
-from app.blocks import FrameBlock
 from app.config import load_config
-from app.decode import Decoder
-from app.live import run
+from app.decode.decoder import Decoder
+from app.detect.steady_state import DIRECTIONS, SteadyStateGate
 from app.pipeline import Pipeline
 from app.records import Record
-from app.steady_state import DIRECTIONS, SteadyStateGate
+from app.run_loop import run
+from app.sinks import summary
+from app.sources.blocks import FrameBlock
 from tests.simulated import cached_drive
 
 CONFIG = load_config()

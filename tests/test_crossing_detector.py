@@ -8,7 +8,7 @@ import pytest
 
 from app import paper
 from app.config import DetectorSettings
-from app.crossing_detector import CrossingDetector
+from app.detect.crossings import CrossingDetector
 from app.records import Crossing, CrossingRejected, Estimate, Event, SignChange, SteadyState
 
 C2N, D, G = 14.99, 1.11, 9.81

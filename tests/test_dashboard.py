@@ -2,9 +2,9 @@
 
 from rich.console import Console
 
-from app.dashboard import Dashboard, guidance
 from app.pipeline import Pipeline
 from app.records import SteadyState
+from app.sinks.dashboard import Dashboard, guidance
 
 
 def render(dashboard: Dashboard, width: int = 200) -> str:

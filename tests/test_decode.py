@@ -8,9 +8,9 @@ from typing import Any
 import can
 import pytest
 
-from app import decode
 from app.config import Config, load_config
-from app.decode import Decoder
+from app.decode import decoder as decode
+from app.decode.decoder import Decoder
 
 T0 = 1000.0
 

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from app.compiled_filter import CompiledMotionFilter
 from app.config import FilterSettings
-from app.estimator import MotionFilter
+from app.estimate.compiled import CompiledMotionFilter
+from app.estimate.reference import MotionFilter
 from app.records import Record
 
 ROLES = frozenset({"vx", "vy", "beta", "yaw_rate", "speed"})

@@ -16,10 +16,10 @@ from asammdf import MDF
 
 from app.cli import main
 from app.config import load_config
-from app.export import csv_header
 from app.sim.session import write_drive
-from app.sources import LogSource
-from app.trace import TraceRecorder
+from app.sinks.channels import csv_header
+from app.sinks.trace import TraceRecorder
+from app.sources.logs import LogSource
 from tests.simulated import cached_drive, run_pipeline
 
 TRUE_C2N = 15.1

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from app.line_fit import fit_line, lag1_autocorrelation
+from app.detect.line_fit import fit_line, lag1_autocorrelation
 
 
 def test_exact_line_and_its_zero() -> None:

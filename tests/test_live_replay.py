@@ -9,14 +9,14 @@ from pathlib import Path
 import can
 import pytest
 
-from app import summary
 from app.cli import main
 from app.cli.demo import Player
 from app.config import Config, load_config
-from app.live import run
 from app.pipeline import Pipeline
+from app.run_loop import run
 from app.sim.session import write_drive
-from app.sources import BusSource, LogSource
+from app.sinks import summary
+from app.sources.logs import BusSource, LogSource
 from tests.simulated import cached_drive
 
 
@@ -128,7 +128,7 @@ def test_the_dashboard_is_drawn_on_a_terminal_and_the_interpreter_left_as_it_was
 
     from rich.console import Console
 
-    from app.dashboard import Dashboard
+    from app.sinks.dashboard import Dashboard
 
     out = io.StringIO()
     console = Console(file=out, force_terminal=True, width=120, height=60)

@@ -10,14 +10,14 @@ import can
 import numpy as np
 import pytest
 
-from app import summary
-from app.blocks import FrameBlock
 from app.config import load_config
-from app.decode import Decoder
+from app.decode.decoder import Decoder
 from app.errors import LogFileError
-from app.mf4_bulk import MDF, data_groups, holds_frames
 from app.pipeline import Pipeline
-from app.sources import LogReport, LogSource, check_readable, read_log
+from app.sinks import summary
+from app.sources.blocks import FrameBlock
+from app.sources.logs import LogReport, LogSource, check_readable, read_log
+from app.sources.mf4_bulk import MDF, data_groups, holds_frames
 from tests.simulated import cached_drive
 
 
@@ -141,7 +141,7 @@ def test_error_and_remote_frames_are_counted_the_same(tmp_path: Path, suffix: st
 def test_mf4_chunks_of_any_size_read_the_same(
     drive_log: Path, by_frame: dict[str, Any], monkeypatch: pytest.MonkeyPatch, chunk: int
 ) -> None:
-    monkeypatch.setattr("app.mf4_bulk.CHUNK", chunk)
+    monkeypatch.setattr("app.sources.mf4_bulk.CHUNK", chunk)
     assert json.dumps(analysed(drive_log, bulk=True), sort_keys=True) == json.dumps(by_frame, sort_keys=True)
 
 

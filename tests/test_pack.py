@@ -23,7 +23,7 @@ from app.sim.sensors import SensorSetup, frames
 from app.sim.session import DBC_DIR
 from app.sim.standard import StandardPlan, standard_session
 from app.sim.two_track import TwoTrackParams, TwoTrackTrace, simulate_two_track
-from app.sources import open_log
+from app.sources.logs import open_log
 
 DESIGN_EFFECTS = (
     "none",

@@ -5,8 +5,8 @@ import math
 import pytest
 
 from app import paper
-from app.pairing import pair
 from app.records import Crossing, Direction, Sweep
+from app.results.pairing import pair
 
 G, D = 9.81, 1.11
 

@@ -3,7 +3,7 @@
 import can
 import pytest
 
-from app.playback import looped, paced
+from app.sources.playback import looped, paced
 
 
 class FakeClock:

@@ -15,7 +15,7 @@ from matplotlib.lines import Line2D
 
 from app.config import load_config
 from app.errors import C2nError
-from app.plots import (
+from app.sinks.plots import (
     DPI,
     MAX_LINE_POINTS,
     MAX_SCATTER_POINTS,
@@ -28,7 +28,7 @@ from app.plots import (
     stride,
     write_plots,
 )
-from app.trace import Trace, TraceRecorder
+from app.sinks.trace import Trace, TraceRecorder
 from tests.exported import Exported, exported_drive
 
 NAMES = ["sideslip_vs_speed.png", "vr_vs_u2.png", "c2n_per_crossing.png", "timeseries.png"]

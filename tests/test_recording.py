@@ -15,7 +15,7 @@ import pytest
 
 from app.cli import main
 from app.config import load_config
-from app.recorder import SessionRecorder
+from app.sinks.recorder import SessionRecorder
 from tests.simulated import REPO, cached_drive
 
 FLUSH_DEADLINE_S = 0.1  # every frame sent this long before a crash must be on disk

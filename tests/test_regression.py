@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from app import paper
-from app.regression import SampleRegression
+from app.results.regression import SampleRegression
 
 G = 9.81
 

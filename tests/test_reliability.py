@@ -22,26 +22,26 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rich.console import Console
 
-from app import summary
-from app.bus_health import (
+from app.cli import build_parser, main
+from app.cli import live as live_command
+from app.config import Config, load_config
+from app.decode.decoder import Decoder
+from app.errors import BusError
+from app.pipeline import Pipeline
+from app.records import Crossing
+from app.run_loop import run
+from app.sim.session import SimulatedDrive
+from app.sinks import summary
+from app.sinks.dashboard import Dashboard
+from app.sinks.recorder import SessionRecorder
+from app.sources.bus_health import (
     CAN_ERR_BUSOFF,
     CAN_ERR_CRTL,
     CAN_ERR_CRTL_RX_PASSIVE,
     CAN_ERR_RESTARTED,
     BusHealth,
 )
-from app.cli import build_parser, main
-from app.cli import live as live_command
-from app.config import Config, load_config
-from app.dashboard import Dashboard
-from app.decode import Decoder
-from app.errors import BusError
-from app.live import run
-from app.pipeline import Pipeline
-from app.recorder import SessionRecorder
-from app.records import Crossing
-from app.sim.session import SimulatedDrive
-from app.sources import Backoff
+from app.sources.logs import Backoff
 from tests.simulated import REPO, cached_drive
 from tests.test_decode import frame, status
 from tests.test_recording import stop_live

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from app.errors import C2nError
-from app.plots import write_plots
-from app.report import render, write_report
+from app.sinks.plots import write_plots
+from app.sinks.report import render, write_report
 from tests.exported import Exported, exported_drive
 
 HOSTILE = "<script>alert('pwned')</script> & \"quoted\""

@@ -9,7 +9,7 @@ import cantools
 import numpy as np
 import pytest
 
-from app.signal_reader import column_reader, signal_reader
+from app.decode.bits import column_reader, signal_reader
 from tests.real_data import REAL_DATA, needs_real_data
 
 OURS = sorted((Path(__file__).resolve().parent.parent / "dbc").glob("*.dbc"))

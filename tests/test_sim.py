@@ -14,7 +14,7 @@ from app.sim.drive import simulate
 from app.sim.scenarios import SweepPlan, constant_radius, constant_steer
 from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive, truth_path, write_drive
 from app.sim.vehicle_model import BicycleParams
-from app.sources import open_log
+from app.sources.logs import open_log
 
 
 def zero_crossings(speed: np.ndarray, lateral: np.ndarray, turning: np.ndarray) -> list[float]:

@@ -3,8 +3,8 @@
 import numpy as np
 
 from app.config import Config
+from app.estimate.smoother import smooth
 from app.sim.sensors import LOG_START
-from app.smoother import smooth
 from tests.simulated import cached_drive
 
 

@@ -5,8 +5,8 @@ import math
 import numpy as np
 
 from app.config import DetectorSettings
+from app.detect.steady_state import SteadyStateGate
 from app.records import Estimate
-from app.steady_state import SteadyStateGate
 
 
 def est(

@@ -41,13 +41,13 @@ from rich.console import Console
 
 from app.cli import main as c2n
 from app.config import load_config
-from app.dashboard import Dashboard
-from app.live import run
 from app.pipeline import Pipeline
-from app.recorder import SessionRecorder, _CandumpWriter
 from app.records import Record
+from app.run_loop import run
 from app.sim.session import DriveOptions, simulate_drive
-from app.sources import BusSource
+from app.sinks.dashboard import Dashboard
+from app.sinks.recorder import SessionRecorder, _CandumpWriter
+from app.sources.logs import BusSource
 
 SATURATED_FPS = 9009
 BACKGROUND_IDS = range(0x300, 0x360)
@@ -287,9 +287,9 @@ def memory(seconds: float) -> tuple[int, float]:
 
 
 def kernel_rates(runs: int) -> dict[str, list[float]]:
-    from app.compiled_filter import CompiledMotionFilter
-    from app.decode import Decoder
-    from app.estimator import MotionFilter
+    from app.decode.decoder import Decoder
+    from app.estimate.compiled import CompiledMotionFilter
+    from app.estimate.reference import MotionFilter
 
     config = load_config()
     drive = simulate_drive(config, DriveOptions(seed=3))
@@ -314,7 +314,7 @@ _REFRESH = "dashboard refresh, 120×50"
 
 def part_costs(messages: list[can.Message]) -> dict[str, float]:
     """µs a frame for each stage, on the frames that reach it."""
-    from app.decode import Decoder
+    from app.decode.decoder import Decoder
     from app.pipeline import _FILTER_ROLES
 
     config = load_config()

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from app.config import Config, load_config
+from app.estimate.smoother import smooth
 from app.pipeline import Pipeline
 from app.sim.sensors import LOG_START
 from app.sim.session import DriveOptions, simulate_drive
-from app.smoother import smooth
 
 
 def with_source(config: Config, source: str) -> Config:

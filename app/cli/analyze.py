@@ -6,16 +6,16 @@ from pathlib import Path
 from rich.console import Console
 from rich.text import Text
 
-from app import summary
 from app.cli.common import add_config, error_console
 from app.config import load_config
 from app.errors import NoResultError
-from app.event_line import result_line
-from app.live import EventPrinter
-from app.live import run as run_pipeline
 from app.pipeline import Pipeline
-from app.progress import ReadProgress
-from app.sources import LogSource
+from app.run_loop import EventPrinter
+from app.run_loop import run as run_pipeline
+from app.sinks import summary
+from app.sinks.event_printer import result_line
+from app.sinks.progress import ReadProgress
+from app.sources.logs import LogSource
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:

@@ -13,16 +13,16 @@ from rich.text import Text
 
 from app.cli.common import add_config
 from app.config import load_config
-from app.dashboard import Dashboard
 from app.errors import C2nError
-from app.event_line import result_line
-from app.live import EventPrinter
-from app.live import run as run_pipeline
 from app.pipeline import Pipeline
-from app.playback import paced
+from app.run_loop import EventPrinter
+from app.run_loop import run as run_pipeline
 from app.sim.scenarios import SCENARIOS
 from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
-from app.sources import BusSource, LogReport, read_log
+from app.sinks.dashboard import Dashboard
+from app.sinks.event_printer import result_line
+from app.sources.logs import BusSource, LogReport, read_log
+from app.sources.playback import paced
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:

@@ -7,20 +7,21 @@ from pathlib import Path
 from rich.console import Console
 from rich.text import Text
 
-from app import events, summary
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import C2nError
-from app.event_line import result_line
-from app.live import EventPrinter
-from app.live import run as run_pipeline
 from app.pipeline import Pipeline
-from app.progress import ReadProgress
-from app.recorder import read_session
-from app.sources import LogSource
-from app.trace import TraceRecorder
+from app.run_loop import EventPrinter
+from app.run_loop import run as run_pipeline
+from app.sinks import events_csv as events
+from app.sinks import summary
+from app.sinks.event_printer import result_line
+from app.sinks.progress import ReadProgress
+from app.sinks.recorder import read_session
+from app.sinks.trace import TraceRecorder
+from app.sources.logs import LogSource
 
-FORMATS = ("csv", "parquet", "mf4")  # app.export.FORMATS; pyarrow and asammdf load only when used
+FORMATS = ("csv", "parquet", "mf4")  # app.sinks.channels.FORMATS; pyarrow and asammdf load only when used
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -62,7 +63,7 @@ def _inputs(args: argparse.Namespace) -> tuple[Path, Config, Path]:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from app import export
+    from app.sinks import channels as export
 
     log, config, out = _inputs(args)
     pipeline = Pipeline(config)
@@ -96,8 +97,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
         summary.write(out / "summary.json", result)
         written += [out / "events.csv", out / "summary.json"]
         if not args.no_plots:
-            from app.plots import write_plots
-            from app.report import write_report
+            from app.sinks.plots import write_plots
+            from app.sinks.report import write_report
 
             plots = write_plots(trace, result, out)
             report = out / "report.html"

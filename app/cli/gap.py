@@ -38,7 +38,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         write_json(args.json, result)
     if args.report:
         from app.gap.report import render
-        from app.report import write_html
+        from app.sinks.report import write_html
 
         write_html(render(diagnosis, "c2n gap", [str(p) for p in args.logs]), args.report)
     console.print(verdict_line(result))

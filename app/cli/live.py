@@ -14,16 +14,16 @@ import can
 from rich.console import Console
 from rich.text import Text
 
-from app import summary
 from app.cli.common import add_bus, add_config, bus_kwargs, channels
 from app.config import load_config
-from app.dashboard import Dashboard
-from app.event_line import result_line
-from app.live import EventPrinter
-from app.live import run as run_pipeline
 from app.pipeline import Pipeline
-from app.recorder import RAW_FORMATS, SessionRecorder
-from app.sources import Backoff, BusSource, open_buses
+from app.run_loop import EventPrinter
+from app.run_loop import run as run_pipeline
+from app.sinks import summary
+from app.sinks.dashboard import Dashboard
+from app.sinks.event_printer import result_line
+from app.sinks.recorder import RAW_FORMATS, SessionRecorder
+from app.sources.logs import Backoff, BusSource, open_buses
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:

@@ -9,8 +9,8 @@ from rich.console import Console
 
 from app.cli.common import add_bus, bus_kwargs, channels
 from app.errors import BusError, C2nError
-from app.playback import looped, paced
-from app.sources import LogReport, open_buses, open_log, read_log
+from app.sources.logs import LogReport, open_buses, open_log, read_log
+from app.sources.playback import looped, paced
 
 log = logging.getLogger(__name__)
 

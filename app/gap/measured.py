@@ -19,10 +19,10 @@ from app.config import Config
 from app.errors import NoResultError
 from app.pipeline import Pipeline
 from app.records import Crossing
-from app.regression import RegressionFit
-from app.sources import LogSource
-from app.summary import build as build_summary
-from app.trace import Trace, TraceRecorder
+from app.results.regression import RegressionFit
+from app.sinks.summary import build as build_summary
+from app.sinks.trace import Trace, TraceRecorder
+from app.sources.logs import LogSource
 
 log = logging.getLogger(__name__)
 

@@ -10,8 +10,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from app.gap.diagnose import Diagnosis, Residuals
-from app.plots import DPI, SIZE_IN, stride
-from app.report import fields, figure, page, section, table, text
+from app.sinks.plots import DPI, SIZE_IN, stride
+from app.sinks.report import fields, figure, page, section, table, text
 
 _MAX_POINTS = 30_000
 

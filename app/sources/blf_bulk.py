@@ -28,7 +28,7 @@ from can.io.blf import (
     BLFParseError,
 )
 
-from app.triage import Triage
+from app.sources.triage import Triage
 
 _CHANNEL_FLAGS_ID = struct.Struct("<HBxL")  # a CAN message object's channel, flags, (dlc), id
 _V1_FRAME = struct.Struct("<4sHHLL16xHBxL")  # base header, v1 header, and those three fields

@@ -12,11 +12,11 @@ from typing import Any
 import can
 import numpy as np
 
-from app.blocks import FrameBlock, RecordBlock, key_codes
 from app.config import Config, RoleSpec, StatusCondition
 from app.dbc import ChannelSpec, channel_matches
+from app.decode.bits import ColumnReader, Reader, column_reader, signal_reader
 from app.records import Record
-from app.signal_reader import ColumnReader, Reader, column_reader, signal_reader
+from app.sources.blocks import FrameBlock, RecordBlock, key_codes
 
 
 @dataclass

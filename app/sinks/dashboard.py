@@ -14,9 +14,9 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from app.event_line import result_line
 from app.pipeline import Pipeline
-from app.summary import format_id
+from app.sinks.event_printer import result_line
+from app.sinks.summary import format_id
 
 _ADVICE = (
     ("lateral acceleration too high", "Too much lateral acceleration: slow down or widen the circle"),

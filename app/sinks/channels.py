@@ -19,7 +19,7 @@ import pyarrow.parquet
 
 from app import __version__
 from app.errors import C2nError
-from app.trace import TIME, Trace
+from app.sinks.trace import TIME, Trace
 
 FORMATS = ("csv", "parquet", "mf4")
 

@@ -11,11 +11,11 @@ from typing import Any
 from app import __version__
 from app.config import Config
 from app.errors import C2nError
-from app.pairing import Paired
 from app.pipeline import Pipeline
 from app.records import Crossing
-from app.regression import RegressionFit
-from app.sources import LogReport
+from app.results.pairing import Paired
+from app.results.regression import RegressionFit
+from app.sources.logs import LogReport
 
 REQUIRED_ROLES = (("vx",), ("vy", "beta"))
 

@@ -21,11 +21,11 @@ from rich.live import Live
 from rich.protocol import rich_cast
 from rich.text import Text
 
-from app.blocks import FrameBlock
-from app.event_line import crossing_line, rejected_line
 from app.pipeline import Pipeline
-from app.recorder import SessionRecorder
 from app.records import Crossing, CrossingRejected, Event, Record
+from app.sinks.event_printer import crossing_line, rejected_line
+from app.sinks.recorder import SessionRecorder
+from app.sources.blocks import FrameBlock
 
 _SWITCH_S = 0.0005  # the interpreter's thread switch interval while a display is drawn
 

@@ -13,7 +13,7 @@ Measurement models (y_s: sensor's lateral offset, + left):
     yaw rate        = r                         (or ay/u without a gyro)
 
 This class is the filter written to be read, its arithmetic filterpy's ``KalmanFilter``
-(``app.kalman``). The pipeline runs ``app.compiled_filter.CompiledMotionFilter``: the same steps
+(``app.estimate.model``). The pipeline runs ``app.estimate.compiled.CompiledMotionFilter``: the same steps
 compiled with numba, tested equal to this one within 1e-9 on every estimate of whole drives.
 """
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.config import FilterSettings
-from app.kalman import FilterpyKalman, H, Row, transition
+from app.estimate.model import FilterpyKalman, H, Row, transition
 from app.records import Estimate, Record
 
 _LATE_TOLERANCE_S = 0.05  # frames up to this much out of order are applied at the current time

@@ -16,9 +16,9 @@ from can.util import channel2int
 
 from app.config import Config
 from app.errors import C2nError
-from app.events import EventsTable
 from app.records import Crossing, CrossingRejected
-from app.summary import write as write_summary
+from app.sinks.events_csv import EventsTable
+from app.sinks.summary import write as write_summary
 
 RAW_FORMATS = (".log", ".asc", ".blf")
 CONFIG_FOLDER = "config"

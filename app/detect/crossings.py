@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.config import DetectorSettings
-from app.line_fit import LineFit, Zero, fit_line
+from app.detect.line_fit import LineFit, Zero, fit_line
 from app.records import Crossing, CrossingRejected, Direction, Estimate, Event, SignChange, SteadyState, Sweep
 
 _TRIM_EVERY = 2048  # samples between trims of a run's far-away history

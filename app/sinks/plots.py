@@ -19,7 +19,7 @@ from matplotlib.lines import Line2D
 from numpy.typing import ArrayLike
 
 from app.errors import C2nError
-from app.trace import Trace
+from app.sinks.trace import Trace
 
 SIZE_IN = (8.0, 5.0)
 DPI = 150

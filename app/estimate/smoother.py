@@ -16,9 +16,9 @@ import can
 import numpy as np
 from filterpy.kalman import rts_smoother
 
-from app.compiled_filter import CompiledMotionFilter
 from app.config import Config
-from app.decode import Decoder
+from app.decode.decoder import Decoder
+from app.estimate.compiled import CompiledMotionFilter
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _EPSILON = 1e-12  # keeps P invertible for states nothing observes (r without a yaw rate)

@@ -1,4 +1,4 @@
-"""The motion filter compiled: ``app.estimator.MotionFilter``'s step as one numba function.
+"""The motion filter compiled: ``app.estimate.reference.MotionFilter``'s step as one numba function.
 
 A filtered frame used to cost ~15 µs of plain Python (Kalman predict and scalar updates, the
 innovation gate, the learned noise, the estimate), most of it the interpreter's per-operation
@@ -21,7 +21,8 @@ import numpy as np
 from numba import njit
 
 from app.config import FilterSettings
-from app.estimator import (  # its constants: numba compiles them in as they are
+from app.estimate.model import transition
+from app.estimate.reference import (  # its constants: numba compiles them in as they are
     _HEALTH_ALPHA,
     _LATE_TOLERANCE_S,
     _MAX_CONSECUTIVE_REJECTS,
@@ -31,7 +32,6 @@ from app.estimator import (  # its constants: numba compiles them in as they are
     _YAW_TIMEOUT_S,
     FilterCounts,
 )
-from app.kalman import transition
 from app.records import Estimate, Record
 
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -277,7 +277,7 @@ def _initialise(s: Array, c: Array, t: float, vx: float, vy: float, beta: float,
 @_compiled
 def _predict(s: Array, c: Array, dt: float) -> None:
     """x = F·x, P = F·P·Fᵀ + Q, per 2×2 block of the [value, rate] pairs: a value's row and
-    column gain dt × its rate's; Q adds to the diagonal blocks (``app.kalman.transition``)."""
+    column gain dt × its rate's; Q adds to the diagonal blocks (``app.estimate.model.transition``)."""
     s[0] += dt * s[1]
     s[2] += dt * s[3]
     s[4] += dt * s[5]

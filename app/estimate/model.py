@@ -5,7 +5,7 @@ The transition F is block-diagonal with [[1, dt], [0, 1]] blocks and Q is the wh
 pair (filterpy's ``Q_continuous_white_noise``); each measurement row touches only u, v and r
 (``H = (h_u, h_v, h_r)``). ``FilterpyKalman`` forms F, Q and H as matrices each step and updates
 through filterpy's general ``KalmanFilter`` (joint update, Joseph form): the reference that
-``app.compiled_filter`` is tested equal to within 1e-9 over whole drives.
+``app.estimate.compiled`` is tested equal to within 1e-9 over whole drives.
 """
 
 from collections.abc import Sequence

@@ -22,12 +22,12 @@ from typing import Any, Literal, cast, overload
 
 import can
 
-from app.blf_bulk import TriagedBLFReader
-from app.blocks import FrameBlock
-from app.bus_health import BusHealth
 from app.errors import BusError, C2nError, LogFileError
-from app.mf4_bulk import TriagedMF4Reader, holds_frames
-from app.triage import NotInBulk, Triage
+from app.sources.blf_bulk import TriagedBLFReader
+from app.sources.blocks import FrameBlock
+from app.sources.bus_health import BusHealth
+from app.sources.mf4_bulk import TriagedMF4Reader, holds_frames
+from app.sources.triage import NotInBulk, Triage
 
 log = logging.getLogger(__name__)
 

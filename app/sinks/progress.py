@@ -12,7 +12,7 @@ from rich.progress import (
 )
 
 from app.pipeline import Pipeline
-from app.sources import LogSource
+from app.sources.logs import LogSource
 
 
 class ReadProgress:

@@ -18,8 +18,8 @@ import numpy as np
 from asammdf import MDF, Source
 from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
 
-from app.blocks import FrameBlock, key_codes
-from app.triage import NotInBulk, Triage
+from app.sources.blocks import FrameBlock, key_codes
+from app.sources.triage import NotInBulk, Triage
 
 CHUNK = 200_000  # frames per asammdf request: bounded memory on files of any size
 _ID_MASK = 0x1FFFFFFF

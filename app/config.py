@@ -163,12 +163,12 @@ def load_config(path: Path | str = DEFAULT_CONFIG, dbc_dir: Path | None = None) 
     try:
         with path.open("rb") as file:
             table = tomllib.load(file)
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: config file not found — pass --config with a TOML file") from None
+    except FileNotFoundError as error:
+        raise ConfigError(f"{path}: config file not found — pass --config with a TOML file") from error
     except tomllib.TOMLDecodeError as error:
-        raise ConfigError(f"{path}: not valid TOML ({error}) — fix the syntax") from None
+        raise ConfigError(f"{path}: not valid TOML ({error}) — fix the syntax") from error
     except OSError as error:
-        raise ConfigError(f"{path}: cannot read ({error.strerror})") from None
+        raise ConfigError(f"{path}: cannot read ({error.strerror})") from error
     return _build(path, table, dbc_dir)
 
 

@@ -8,7 +8,7 @@ from typing import Any
 
 import cantools
 
-from app.errors import DbcError
+from app.errors import DbcError, one_line
 
 log = logging.getLogger(__name__)
 
@@ -40,17 +40,12 @@ def load_dbc(path: Path, channel: ChannelSpec | None = None) -> Dbc:
         try:
             database = cantools.database.load_file(path, strict=False)
         except Exception as error:
-            reason = _one_line(error)
+            reason = one_line(error)
             raise DbcError(
                 f"{path}: not a readable DBC ({reason}) — fix the file or remove it from [dbc] files"
             ) from error
-        log.warning("%s: loaded with strict=False: %s", path, _one_line(strict_error))
+        log.warning("%s: loaded with strict=False: %s", path, one_line(strict_error))
         return Dbc(path, database, channel, relaxed=True)
-
-
-def _one_line(error: BaseException) -> str:
-    text = " ".join(str(error).split()) or type(error).__name__
-    return text if len(text) <= 200 else text[:197] + "..."
 
 
 _TRAILING_NUMBER = re.compile(r"(\d+)$")

@@ -1,7 +1,8 @@
 """The one error hierarchy of c2n.
 
 Library errors (tomllib, cantools, python-can, OS) are translated into these at the edge, with
-the file and the fix in the message, so the CLI can print one line and exit 1.
+the file and the fix in the message, so the CLI can print one line and exit 1 (2 for a
+UsageError). They are raised ``from`` the library's error, so ``--debug`` shows the cause.
 """
 
 
@@ -25,5 +26,20 @@ class BusError(C2nError):
     """A CAN interface could not be opened or failed."""
 
 
+class OutputError(C2nError):
+    """A result file or folder could not be written (full disk, no permission, a file in the way)."""
+
+
+class UsageError(C2nError):
+    """The command line asks for something impossible: exit code 2, like argparse's own errors."""
+
+
 class NoResultError(C2nError):
     """The input was read but cannot give a C2n (e.g. a required role had no frames)."""
+
+
+def one_line(error: BaseException, limit: int = 200) -> str:
+    """A library error's own words on one line, cut to ``limit`` characters: the part of a
+    C2nError's message that says what the library saw."""
+    text = " ".join(str(error).split()) or type(error).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."

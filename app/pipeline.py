@@ -7,7 +7,8 @@ A bulk reader may hand over frames as a FrameBlock instead (``c2n analyze`` on M
 (tests/test_blocks.py).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
 import can
 import numpy as np
@@ -21,6 +22,7 @@ from app.records import Crossing, CrossingRejected, Event, Record, SteadyState
 from app.results.combine import Combined, combine
 from app.results.pairing import Paired, pair
 from app.results.regression import RegressionFit, SampleRegression
+from app.snapshot import FilterState, Pending, Snapshot
 from app.sources.blocks import FrameBlock, RecordBlock
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
@@ -28,19 +30,9 @@ _OPTICAL = frozenset(OPTICAL_ROLES)
 _REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
 
 
-@dataclass(frozen=True)
-class Headline:
-    """The C2n to report: the regression's (linear, at zero a_y) where there is one, else the
-    paired crossings', else the crossings' mean."""
-
-    c2n: float
-    ci95: tuple[float, float]
-    method: str
-
-
 @dataclass
 class SessionState:
-    """What the run has produced so far; the dashboard and the summary read it."""
+    """What the run has produced so far: the pipeline's own, mutable; the sinks read a Snapshot."""
 
     t_first: float | None = None
     t_last: float | None = None
@@ -52,16 +44,6 @@ class SessionState:
     combined: Combined | None = None  # inverse-variance mean of the crossings
     paired: Paired | None = None  # crossings with misalignment and lag removed
     regression: RegressionFit | None = None  # every steady sample: the headline C2n
-
-    @property
-    def headline(self) -> Headline | None:
-        if self.regression is not None:
-            return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
-        if self.paired is not None:
-            return Headline(self.paired.c2n, self.paired.ci95, "paired crossings")
-        if self.combined is not None:
-            return Headline(self.combined.c2n, self.combined.ci95, "crossings")
-        return None
 
 
 class Pipeline:
@@ -79,6 +61,29 @@ class Pipeline:
         self.regression = SampleRegression(config.vehicle.gravity_mps2)
         self.state = SessionState()
         self._last_fit = -float("inf")
+
+    def snapshot(self) -> Snapshot:
+        """The run as it stands, for the sinks: frozen, and copies of what changes."""
+        state, f = self.state, self.filter
+        return Snapshot(
+            t_first=state.t_first,
+            t_last=state.t_last,
+            last=state.last,
+            latest=MappingProxyType(dict(state.latest)),
+            sensor_problem=state.sensor_problem,
+            crossings=tuple(state.crossings),
+            rejections=tuple(state.rejections),
+            combined=state.combined,
+            paired=state.paired,
+            regression=state.regression,
+            pending=tuple(Pending(direction, t, u) for direction, t, u in self.detector.pending),
+            frames=self.decoder.counts.copy(),
+            status=MappingProxyType(dict(self.decoder.status.values)),
+            filter=FilterState(replace(f.counts), f.health, MappingProxyType(f.noise_sigma())),
+            message_names=self.decoder.message_names,
+            d_m=self.config.d_m,
+            g_mps2=self.config.vehicle.gravity_mps2,
+        )
 
     def process(self, msg: can.Message) -> Record | None:
         """Take one frame; return its Record (None for frames that carry no role value)."""

@@ -11,6 +11,7 @@ events are rare and stay dataclasses.
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from enum import Enum
 from types import MappingProxyType
 from typing import Literal, NamedTuple
 
@@ -35,10 +36,23 @@ class Estimate(NamedTuple):
     sideslip_meas_rad: float | None = None  # this frame's measured sideslip
 
 
+class Reason(Enum):
+    """Why the steady-state gate dropped a sample: what the driver's advice is keyed by."""
+
+    SENSOR = "sensor"  # the sensor status is bad
+    SPEED_LOW = "speed low"
+    AY_HIGH = "lateral acceleration high"
+    STRAIGHT = "driving straight"
+    SWEEP_FAST = "sweep too fast"
+    TRANSIENT = "steering transient"
+    SETTLING = "settling"
+
+
 class SteadyState(NamedTuple):
     steady: bool
     direction: Direction | None
-    reasons: tuple[str, ...] = ()  # why not steady, for the dashboard's guidance
+    reasons: tuple[str, ...] = ()  # why not steady, in words, for the dashboard
+    causes: tuple[Reason, ...] = ()  # the same reasons as codes, one per word: the advice's key
 
 
 @dataclass(frozen=True, slots=True)

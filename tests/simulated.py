@@ -1,12 +1,15 @@
 """Seeded simulated drives for the tests, cached so each is made once per test session."""
 
+from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
 from typing import Any
 
 from app.config import Config, load_config
 from app.pipeline import Pipeline
+from app.records import Event
 from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive
+from app.sinks.sink import Sink
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -29,3 +32,13 @@ def run_pipeline(config: Config, drive: SimulatedDrive) -> Pipeline:
         pipeline.process(message)
     pipeline.finish()
     return pipeline
+
+
+class EventLog(Sink):
+    """A sink that keeps every event, in order."""
+
+    def __init__(self) -> None:
+        self.events: list[Event] = []
+
+    def on_events(self, events: Sequence[Event], t0: float) -> None:
+        self.events.extend(events)

@@ -21,6 +21,7 @@ from app.pipeline import Pipeline
 from app.records import Record
 from app.run_loop import run
 from app.sinks import summary
+from app.sinks.sink import Sink
 from app.sources.blocks import FrameBlock
 from tests.simulated import cached_drive
 
@@ -175,14 +176,16 @@ def test_a_pipeline_fed_blocks_ends_as_one_fed_frame_by_frame(size: int) -> None
     for a, b in zip(pipeline.filter.state(), reference.filter.state(), strict=True):
         np.testing.assert_array_equal(a, b)
     ours_json, theirs_json = (
-        json.dumps(summary.build(p, ["drive"]), sort_keys=True) for p in (pipeline, reference)
+        json.dumps(summary.build(p.snapshot(), CONFIG, ["drive"]).to_json(), sort_keys=True)
+        for p in (pipeline, reference)
     )
     assert ours_json == theirs_json
 
 
 def test_blocks_give_no_records_to_watch() -> None:
-    def watch(record: Record) -> None:
-        raise AssertionError("not reached")
+    class Watch(Sink):
+        def on_record(self, record: Record) -> None:
+            raise AssertionError("not reached")
 
     with pytest.raises(ValueError, match="no records"):
-        run([], Pipeline(CONFIG), printer=lambda events: None, on_record=watch, blocks=True)
+        run([], Pipeline(CONFIG), [Watch()], blocks=True)

@@ -84,6 +84,20 @@ def test_bad_usage_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["frobnicate"]) == 2
     assert main([]) == 2
     assert "usage" in capsys.readouterr().err
+    assert main(["live", "-i", "virtual", "-c", "x", "--no-record", "--bus-arg", "foo"]) == 2
+    assert one_error_line(capsys.readouterr().err) == "c2n: error: --bus-arg wants KEY=VALUE, got 'foo'"
+
+
+def test_an_output_error_names_the_file_and_debug_shows_its_cause(
+    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "blocker").write_text("a file where a folder should be")
+    out = tmp_path / "blocker" / "s.json"
+    assert main(["analyze", str(drive_log), "--json", str(out)]) == 1
+    assert f"c2n: error: {out}: cannot write the summary (" in one_error_line(capsys.readouterr().err)
+    assert main(["analyze", str(drive_log), "--json", str(out), "--debug"]) == 1
+    err = capsys.readouterr().err
+    assert "The above exception was the direct cause" in err and "OutputError" in err
 
 
 def test_truncated_log_uses_every_frame_before_the_damage(

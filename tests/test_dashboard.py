@@ -1,10 +1,19 @@
 """The dashboard, rendered into a recording console and read as text."""
 
+from dataclasses import replace
+
 from rich.console import Console
 
 from app.pipeline import Pipeline
-from app.records import SteadyState
+from app.records import Reason, SteadyState
 from app.sinks.dashboard import Dashboard, guidance
+
+
+def shown(pipeline: Pipeline, title: str) -> Dashboard:
+    """A dashboard fed the pipeline's snapshot, as the run loop feeds it."""
+    dashboard = Dashboard(title)
+    dashboard.on_snapshot(pipeline.snapshot())
+    return dashboard
 
 
 def render(dashboard: Dashboard, width: int = 200) -> str:
@@ -14,7 +23,7 @@ def render(dashboard: Dashboard, width: int = 200) -> str:
 
 
 def test_dashboard_after_a_drive(analysed: Pipeline) -> None:
-    text = render(Dashboard(analysed, "vcan0"))
+    text = render(shown(analysed, "vcan0"))
     assert "c2n live — vcan0" in text
     for label in (
         "speed",
@@ -44,7 +53,8 @@ def test_guidance_for_the_driver() -> None:
         "sweep too fast: 0.80 m/s² > 0.6",
         "sensor: Status.HeadStatus=0 (needs 1)",
     )
-    assert guidance(reasons) == [
+    causes = (Reason.AY_HIGH, Reason.SWEEP_FAST, Reason.SENSOR)
+    assert guidance(SteadyState(False, None, reasons, causes)) == [
         "Too much lateral acceleration: slow down or widen the circle",
         "Change speed more gently",
         "Sensor status bad (sensor: Status.HeadStatus=0 (needs 1))",
@@ -52,21 +62,12 @@ def test_guidance_for_the_driver() -> None:
 
 
 def test_not_steady_shows_the_guidance(analysed: Pipeline) -> None:
-    record = analysed.state.last
-    assert record is not None
-    analysed.state.last = type(record)(
-        record.t,
-        record.channel,
-        record.frame_id,
-        record.signals,
-        record.rejected,
-        record.estimate,
-        SteadyState(False, "left", ("driving straight (radius over 500 m)",)),
-    )
-    try:
-        text = render(Dashboard(analysed, "can0"))
-    finally:
-        analysed.state.last = record
+    snapshot = analysed.snapshot()
+    assert snapshot.last is not None
+    straight = SteadyState(False, "left", ("driving straight (radius over 500 m)",), (Reason.STRAIGHT,))
+    dashboard = Dashboard("can0")
+    dashboard.on_snapshot(replace(snapshot, last=snapshot.last._replace(steady=straight)))
+    text = render(dashboard)
     assert "not steady" in text and "Turn onto the circle" in text
 
 
@@ -74,5 +75,5 @@ def test_empty_dashboard_before_any_frame(config: object) -> None:
     from app.config import Config
 
     assert isinstance(config, Config)
-    text = render(Dashboard(Pipeline(config), "can0"))
+    text = render(shown(Pipeline(config), "can0"))
     assert "waiting for optical sensor frames" in text and "no result" in text

@@ -122,7 +122,7 @@ def test_export_of_a_live_session_uses_its_own_config_copy(tmp_path: Path) -> No
     assert run_cli(["export", str(session), "--format", "csv", "--no-plots"]) == 0
     summary = json.loads((session / "export" / "summary.json").read_text())
     expected = run_pipeline(load_config(), drive())
-    assert summary["c2n"] == pytest.approx(expected.state.headline.c2n, abs=1e-4)  # type: ignore[union-attr]
+    assert summary["c2n"] == pytest.approx(expected.snapshot().headline.c2n, abs=1e-4)  # type: ignore[union-attr]
     assert {p.name for p in (session / "export").iterdir()} == {"channels.csv", "events.csv", "summary.json"}
 
 
@@ -143,7 +143,7 @@ def test_trace_rows_are_one_per_decoded_frame() -> None:
     for message in drive().messages[:5000]:
         record = pipeline.process(message)
         if record is not None:
-            recorder(record)
+            recorder.on_record(record)
             decoded += bool(record.signals)
     trace = recorder.trace(pipeline.state.t_first or 0.0)
     assert len(trace) == decoded > 0

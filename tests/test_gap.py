@@ -18,8 +18,10 @@ from app.gap.check import CaseAnswer, score
 from app.gap.diagnose import diagnose, problem, roll_lever_m
 from app.gap.measured import Measured, measure
 from app.gap.model import Mods, simulate
+from app.gap.result import BeforeAfter, GapC2n, GapNoise, GapResult
 from app.sim.session import DriveOptions, simulate_drive, write_drive
 from app.sim.vehicle_model import BicycleParams
+from app.sinks.summary import Summary
 from tests.simulated import FAST_SENSORS
 
 
@@ -42,7 +44,7 @@ def steady_drive(u: float, delta: float, seconds: float = 20.0, dt: float = 0.02
         vehicle_roles=frozenset({"speed", "steer"}),
         crossings=(),
         regression=None,
-        summary={},
+        summary=Summary(),
     )
 
 
@@ -147,7 +149,7 @@ def measured_drive(tmp_path: Path, **sensor: float) -> Measured:
 
 
 def test_a_yawed_sensor_head_is_named_and_sized(tmp_path: Path) -> None:
-    result = diagnose(measured_drive(tmp_path, yaw_misalignment_deg=0.5), load_config()).result
+    result = diagnose(measured_drive(tmp_path, yaw_misalignment_deg=0.5), load_config()).result.to_json()
     assert result["diagnosis"] == "sensor_yaw_misalignment"
     best = result["candidates"][0]
     assert best["params"]["misalignment_deg"] == pytest.approx(0.5, abs=0.02)
@@ -156,7 +158,7 @@ def test_a_yawed_sensor_head_is_named_and_sized(tmp_path: Path) -> None:
 
 
 def test_a_drive_the_model_explains_is_none(tmp_path: Path) -> None:
-    result = diagnose(measured_drive(tmp_path), load_config()).result
+    result = diagnose(measured_drive(tmp_path), load_config()).result.to_json()
     assert result["diagnosis"] == "none" and result["confounded_with"] == []
     assert result["shrink_heldout"] == 0.0
     assert result["c2n"]["sim"] == pytest.approx(load_config().tyres.c2n_per_rad, rel=0.01)
@@ -176,8 +178,20 @@ def test_gap_check_scoring() -> None:
         }
     }
 
-    def said(effect: str, confounded: list[str] | None = None, shrink: float = 0.8) -> dict[str, object]:
-        return {"diagnosis": effect, "confounded_with": confounded or [], "shrink_heldout": shrink}
+    def said(effect: str, confounded: list[str] | None = None, shrink: float = 0.8) -> GapResult:
+        return GapResult(
+            diagnosis=effect,
+            confounded_with=tuple(confounded or ()),
+            separate_by={},
+            located=(),
+            candidates=(),
+            c2n=GapC2n(None, None, None, None, None),
+            shrink_heldout=shrink,
+            heldout_rms_deg=BeforeAfter(0.0, 0.0),
+            noise=GapNoise(0.0, 0.0),
+            manoeuvres=0,
+            speed_input="vehicle speed",
+        )
 
     answers = [
         CaseAnswer("case_001", said("none", shrink=0.0)),

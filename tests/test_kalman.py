@@ -9,12 +9,12 @@ import pytest
 from filterpy.common import Q_continuous_white_noise
 from scipy.linalg import block_diag
 
-from app.estimate import compiled
 from app.config import FilterSettings, load_config
 from app.decode.decoder import Decoder
+from app.estimate import compiled
 from app.estimate.compiled import CompiledMotionFilter
-from app.estimate.model import FilterpyKalman, transition
-from app.estimate.reference import MotionFilter
+from app.estimate.model import transition
+from app.estimate.reference import FilterpyKalman, MotionFilter
 from app.records import Record
 from tests.simulated import cached_drive
 

@@ -16,13 +16,14 @@ from app.pipeline import Pipeline
 from app.run_loop import run
 from app.sim.session import write_drive
 from app.sinks import summary
-from app.sources.logs import BusSource, LogSource
-from tests.simulated import cached_drive
+from app.sources.buses import BusSource
+from app.sources.logs import LogSource
+from tests.simulated import EventLog, cached_drive
 
 
 def offline(config: Config, log: Path) -> Pipeline:
     pipeline = Pipeline(config)
-    run(LogSource([log]), pipeline, printer=lambda events: None)
+    run(LogSource([log]), pipeline)
     return pipeline
 
 
@@ -33,7 +34,7 @@ def test_virtual_bus_replay_equals_analyze(
     log = tmp_path / "drive.blf"
     write_drive(drive, log)
     channel = f"test-{uuid.uuid4().hex}"
-    printed: list[object] = []
+    printed = EventLog()
     with (
         can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as tx,
         can.Bus(interface="virtual", channel=channel) as rx,
@@ -42,7 +43,7 @@ def test_virtual_bus_replay_equals_analyze(
         player = Player(log, tx, rate=1e6, stop=stop)  # the player thread sends the drive
         live = Pipeline(config)
         player.start()
-        completed = run(BusSource([rx], stop, finished=player.finished), live, printer=printed.extend)
+        completed = run(BusSource([rx], stop, finished=player.finished), live, [printed])
         player.join()
     assert completed and player.error is None and player.sent == len(drive.messages)
     assert live.decoder.counts.total == len(drive.messages)
@@ -50,7 +51,7 @@ def test_virtual_bus_replay_equals_analyze(
     assert len(live.state.crossings) == 4
     assert live.state.crossings == reference.state.crossings  # exactly, float for float
     assert [
-        e for e in printed if type(e).__name__ == "Crossing"
+        e for e in printed.events if type(e).__name__ == "Crossing"
     ] == live.state.crossings  # printed as they came
 
     # and the CLI's JSON says the same
@@ -58,7 +59,7 @@ def test_virtual_bus_replay_equals_analyze(
     import json
 
     cli = json.loads((tmp_path / "offline.json").read_text())
-    assert cli["crossings"] == summary.build(live, [str(log)])["crossings"]
+    assert cli["crossings"] == summary.build(live.snapshot(), config, [str(log)]).to_json()["crossings"]
 
 
 SEPARATE = """
@@ -109,9 +110,7 @@ def test_two_live_channels_kept_apart(write_config: Callable[[str], Path]) -> No
 
         player = threading.Thread(target=play)
         player.start()
-        run(
-            BusSource([sensor_rx, vehicle_rx], stop, finished=finished), pipeline, printer=lambda events: None
-        )
+        run(BusSource([sensor_rx, vehicle_rx], stop, finished=finished), pipeline)
         player.join()
     counts = pipeline.decoder.counts
     assert counts.total == 20001
@@ -141,7 +140,7 @@ def test_the_dashboard_is_drawn_on_a_terminal_and_the_interpreter_left_as_it_was
             seen.append(sys.getswitchinterval())
             yield message
 
-    run(frames(), pipeline, lambda events: None, Dashboard(pipeline, "vcan9"), console, refresh_s=0.01)
+    run(frames(), pipeline, display=Dashboard("vcan9"), console=console, refresh_s=0.01)
     assert max(seen) < switch_s  # shortened while the dashboard was up
     assert sys.getswitchinterval() == switch_s
     text = out.getvalue()

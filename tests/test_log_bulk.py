@@ -63,7 +63,7 @@ def analysed(path: Path, bulk: bool) -> dict[str, Any]:
         with MDF(path) as mdf:
             assert (blocks > 0) == (data_groups(mdf) is not None)
     pipeline.finish()
-    result = summary.build(pipeline, [str(path)], source.reports)
+    result = summary.build(pipeline.snapshot(), pipeline.config, [str(path)], source.reports).to_json()
     assert source.reports[0].done and source.reports[0].stopped is None
     result["frames_read"] = source.reports[0].frames
     return result

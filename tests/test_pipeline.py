@@ -135,4 +135,5 @@ def test_misaligned_head_on_two_radii(config: Config) -> None:
     lefts = [c.c2n for c in pipeline.state.crossings if c.direction == "left"]
     rights = [c.c2n for c in pipeline.state.crossings if c.direction == "right"]
     assert max(lefts) < 0.8 * 14.6 and min(rights) > 1.2 * 14.6
-    assert pipeline.state.headline is not None and pipeline.state.headline.method == "regression"
+    headline = pipeline.snapshot().headline
+    assert headline is not None and headline.method == "regression"

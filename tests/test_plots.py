@@ -3,8 +3,8 @@ regression plot's points on the paper's line (eq. 6), decimation that keeps spik
 edge cases (no data, NaN channels, no crossings, no regression) still drawn."""
 
 import math
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -28,6 +28,7 @@ from app.sinks.plots import (
     stride,
     write_plots,
 )
+from app.sinks.summary import Summary
 from app.sinks.trace import Trace, TraceRecorder
 from tests.exported import Exported, exported_drive
 
@@ -87,7 +88,7 @@ def ys(line: Line2D) -> np.ndarray:
     return np.asarray(line.get_ydata(), dtype=np.float64)
 
 
-def drawn(draw: Draw, trace: Trace, summary: dict[str, Any]) -> Figure:
+def drawn(draw: Draw, trace: Trace, summary: Summary) -> Figure:
     figure = Figure(figsize=SIZE_IN, dpi=DPI)
     FigureCanvasAgg(figure)
     draw(figure, trace, summary)
@@ -109,9 +110,9 @@ def test_left_and_right_turns_have_their_own_colours(plots: list[Path]) -> None:
 
 
 def test_regression_points_lie_on_the_line_that_crosses_zero_at_u0(exported: Exported) -> None:
-    summary = exported.summary
+    summary = exported.summary.to_json()
     fit = summary["regression"]
-    figure = drawn(draw_vr_vs_u2, exported.trace, summary)
+    figure = drawn(draw_vr_vs_u2, exported.trace, exported.summary)
     ax = figure.axes[0]
     series = {line.get_label(): line for line in ax.get_lines()}
     g, c2n, d = summary["g_mps2"], fit["c2n_linear_model"], fit["d_m"]
@@ -132,7 +133,7 @@ def test_regression_points_lie_on_the_line_that_crosses_zero_at_u0(exported: Exp
 
 
 def test_crossings_are_marked_at_u0_on_the_zero_line(exported: Exported) -> None:
-    crossings = exported.summary["crossings"]
+    crossings = exported.summary.to_json()["crossings"]
     ax = drawn(draw_sideslip_vs_speed, exported.trace, exported.summary).axes[0]
     markers = [line for line in ax.get_lines() if len(xs(line)) == 1]
     got = sorted((float(xs(m)[0]), float(ys(m)[0]), m.get_marker()) for m in markers)
@@ -142,7 +143,7 @@ def test_crossings_are_marked_at_u0_on_the_zero_line(exported: Exported) -> None
 
 def test_timeseries_marks_each_crossing_on_every_panel(exported: Exported) -> None:
     figure = drawn(draw_timeseries, exported.trace, exported.summary)
-    times = sorted(c["t"] for c in exported.summary["crossings"])
+    times = sorted(c["t"] for c in exported.summary.to_json()["crossings"])
     assert len(figure.axes) == 3
     for ax in figure.axes:
         vertical = sorted(
@@ -206,11 +207,11 @@ def test_edge_cases_still_write_four_drawn_pngs(exported: Exported, tmp_path: Pa
     elif case == "NaN channels":
         trace = all_nan(trace)
     elif case == "no crossings":
-        summary = summary | {"crossings": []}
+        summary = replace(summary, crossings=())
     elif case == "no regression":
-        summary = summary | {"regression": None}
+        summary = replace(summary, regression=None)
     else:
-        summary = {}
+        summary = Summary()
     paths = write_plots(trace, summary, tmp_path / "plots")
     assert [p.name for p in paths] == NAMES
     for path in paths:
@@ -218,7 +219,7 @@ def test_edge_cases_still_write_four_drawn_pngs(exported: Exported, tmp_path: Pa
 
 
 def test_without_a_regression_the_points_are_drawn_and_the_title_says_so(exported: Exported) -> None:
-    ax = drawn(draw_vr_vs_u2, exported.trace, exported.summary | {"regression": None}).axes[0]
+    ax = drawn(draw_vr_vs_u2, exported.trace, replace(exported.summary, regression=None)).axes[0]
     assert "no regression" in ax.get_title()
     labels = [line.get_label() for line in ax.get_lines()]
     assert "left turns" in labels and "right turns" in labels

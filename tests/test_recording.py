@@ -126,7 +126,7 @@ def test_any_channel_name_records_every_frame(tmp_path: Path, raw_format: str, c
     recorder = SessionRecorder(tmp_path / "session", config, raw_format)
     sent = cached_drive("constant_radius", 41, 15.1).messages[:500]
     for message in sent:
-        recorder.on_message(
+        recorder.on_frame(
             can.Message(
                 timestamp=message.timestamp,
                 arbitration_id=message.arbitration_id,
@@ -135,7 +135,7 @@ def test_any_channel_name_records_every_frame(tmp_path: Path, raw_format: str, c
                 channel=channel,
             )
         )
-    recorder.close({"frames": {"total": len(sent)}})
+    recorder.close()
     recorded = list(can.LogReader(recorder.raw_path))
     assert [(m.arbitration_id, bytes(m.data)) for m in recorded] == [
         (m.arbitration_id, bytes(m.data)) for m in sent
@@ -159,8 +159,8 @@ def test_candump_lines_are_python_cans_own_bytes(tmp_path: Path) -> None:
     ]
     recorder = SessionRecorder(tmp_path / "session", load_config(), ".log")
     for message in frames * 3:  # the second and third times through the cached heads
-        recorder.on_message(message)
-    recorder.close({})
+        recorder.on_frame(message)
+    recorder.close()
     reference = io.StringIO()
     writer = can.CanutilsLogWriter(reference)
     for message in frames * 3:

@@ -41,10 +41,17 @@ from app.sources.bus_health import (
     CAN_ERR_RESTARTED,
     BusHealth,
 )
-from app.sources.logs import Backoff
+from app.sources.buses import Backoff
 from tests.simulated import REPO, cached_drive
 from tests.test_decode import frame, status
 from tests.test_recording import stop_live
+
+
+def shown_after(pipeline: Pipeline, title: str) -> Dashboard:
+    """A dashboard fed the pipeline's snapshot, as the run loop feeds it."""
+    dashboard = Dashboard(title)
+    dashboard.on_snapshot(pipeline.snapshot())
+    return dashboard
 
 
 def render(dashboard: Dashboard) -> str:
@@ -82,7 +89,7 @@ def slow_drive() -> SimulatedDrive:
 @pytest.fixture(scope="module")
 def clean(config: Config) -> Pipeline:
     pipeline = Pipeline(config)
-    run(slow_drive().messages, pipeline, printer=lambda events: None)
+    run(slow_drive().messages, pipeline)
     return pipeline
 
 
@@ -125,8 +132,8 @@ def test_malformed_frames_are_counted_by_kind_never_fatal_and_shown(config: Conf
         "fd_frames": 2,
     }
     assert pipeline.decoder.counts.bad_by_id == {(0x7E5, "short"): 1, (0x7E5, "long"): 1, (0x7E4, "long"): 1}
-    assert summary.build(pipeline, ["can0"])["frames"] == counts
-    text = render(Dashboard(pipeline, "can0"))
+    assert summary.build(pipeline.snapshot(), config, ["can0"]).to_json()["frames"] == counts
+    text = render(shown_after(pipeline, "can0"))
     for shown in ("total 10", "used 3", "unknown id 2", "bad length 3", "error 1", "remote 1", "CAN FD 2"):
         assert shown in text, shown
 
@@ -203,13 +210,12 @@ def test_bad_values_are_dropped_explained_and_never_give_a_crossing(
         messages.append(m)
 
     pipeline = Pipeline(config)
-    dashboard = Dashboard(pipeline, "can0")
     shown: dict[str, str] = {}
     for m in messages:
         pipeline.process(m)
         for name, until in (("nan", nan_until), ("range", range_until), ("status", bad_until)):
             if name not in shown and until - 1.0 <= m.timestamp < until:
-                shown[name] = render(dashboard)
+                shown[name] = render(shown_after(pipeline, "can0"))
     pipeline.finish()
 
     assert (
@@ -226,7 +232,7 @@ def test_bad_values_are_dropped_explained_and_never_give_a_crossing(
     assert not any(t0 + 18.0 <= c.t <= t0 + 37.0 for c in crossings)
     assert len(crossings) == 3
     assert all(abs(c.c2n / TRUE_C2N - 1) <= 0.02 for c in crossings)
-    warnings = summary.warnings(pipeline)
+    warnings = summary.warnings(pipeline.snapshot(), config)
     assert f"{spoilt['nan']} frames' values dropped: not a number (vy)" in warnings
 
 
@@ -257,8 +263,7 @@ def test_time_going_backwards_or_jumping_neither_crashes_nor_gives_a_false_cross
         messages.append(m)
     pipeline = Pipeline(config)
     recorder = SessionRecorder(tmp_path / "session", config, ".log")
-    completed = run(iter(messages), pipeline, printer=lambda events: None, recorder=recorder)
-    recorder.close(summary.build(pipeline, ["glitch"]))
+    completed = run(iter(messages), pipeline, [recorder])
 
     assert completed
     assert pipeline.filter.counts.time_jumps >= 1
@@ -266,11 +271,11 @@ def test_time_going_backwards_or_jumping_neither_crashes_nor_gives_a_false_cross
     crossings = pipeline.state.crossings
     assert len(clean.state.crossings) == 4 and len(crossings) >= 2
     assert all(matches_a_clean_crossing(c, clean.state.crossings) for c in crossings)
-    assert any("timestamps went backwards" in w for w in summary.warnings(pipeline))
+    assert any("timestamps went backwards" in w for w in summary.warnings(pipeline.snapshot(), config))
     recorded = list(can.LogReader(recorder.raw_path))
     assert [round(m.timestamp, 6) for m in recorded] == [round(m.timestamp, 6) for m in messages]
-    dashboard = Dashboard(pipeline, "can0")
-    render(dashboard)  # the rate meter copes with time that went backwards
+    dashboard = shown_after(pipeline, "can0")
+    dashboard.on_snapshot(pipeline.snapshot())  # the rate meter copes with time that went backwards
     assert "rate" in render(dashboard)
 
 
@@ -793,8 +798,9 @@ def test_fuzz_detection_on_random_payloads_of_every_message(
     for crossing in pipeline.state.crossings:
         assert math.isfinite(crossing.c2n) and math.isfinite(crossing.u0_mps)
     assert all(math.isfinite(e.t) for e in events)
-    assert "Frames" in render(Dashboard(pipeline, "fuzz"))
-    assert json.loads(json.dumps(summary.build(pipeline, ["fuzz"])))["frames"]["total"] == 2 * len(injections)
+    assert "Frames" in render(shown_after(pipeline, "fuzz"))
+    result = summary.build(pipeline.snapshot(), pipeline.config, ["fuzz"])
+    assert json.loads(json.dumps(result.to_json()))["frames"]["total"] == 2 * len(injections)
 
 
 # -- 8. an 8-hour session ------------------------------------------------------------------------------
@@ -848,8 +854,7 @@ def test_an_8_hour_session_keeps_memory_flat_counts_exact_and_every_frame_record
 
     pipeline = Pipeline(config)
     recorder = SessionRecorder(tmp_path / "session", config, ".log")
-    assert run(frames(measure=True), pipeline, printer=lambda events: None, recorder=recorder)
-    recorder.close(summary.build(pipeline, ["8 h"]))
+    assert run(frames(measure=True), pipeline, [recorder])
 
     rss_10min, objects_10min = memory["10 min"]
     rss_8h, objects_8h = memory["8 h"]

@@ -12,6 +12,7 @@ import pytest
 from app.errors import C2nError
 from app.sinks.plots import write_plots
 from app.sinks.report import render, write_report
+from app.sinks.summary import RejectedRow, Summary
 from tests.exported import Exported, exported_drive
 
 HOSTILE = "<script>alert('pwned')</script> & \"quoted\""
@@ -21,8 +22,7 @@ BROWSERS = ("chromium", "chromium-browser", "google-chrome")
 @pytest.fixture(scope="module")
 def exported() -> Exported:
     result = exported_drive()
-    result.summary["warnings"].append(HOSTILE)
-    return result
+    return Exported(result.trace, result.summary.warned([HOSTILE]))
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def test_each_plot_is_inlined_byte_for_byte(report: Path, plots: list[Path]) -> 
 
 def test_the_headline_and_the_crossings_are_shown(report: Path, exported: Exported) -> None:
     document = report.read_text(encoding="utf-8")
-    summary = exported.summary
+    summary = exported.summary.to_json()
     low, high = summary["c2n_ci95"]
     assert f'<span class="value">{summary["c2n"]}</span> 95 % [{low}, {high}]' in document
     assert f"({summary['c2n_method']})" in document
@@ -88,20 +88,18 @@ def test_strings_from_the_data_are_escaped(report: Path) -> None:
 
 
 def test_missing_blocks_show_a_dash_or_a_note() -> None:
-    document = render(
-        {"c2n": None, "regression": None, "paired": None, "crossings": [], "warnings": []}, [], "empty"
-    )
+    document = render(Summary(c2n=None, regression=None, paired=None, crossings=(), warnings=()), [], "empty")
     assert '<span class="value">—</span>' in document
     assert "no regression" in document and "no pairs" in document and "no crossings" in document
     assert "No warnings." in document and "no plots" in document
     assert (
-        render({}, [], "nothing at all").count("<section>") == 8
+        render(Summary(), [], "nothing at all").count("<section>") == 8
     )  # every section, each saying it has nothing
 
 
 def test_rejected_sign_changes_are_listed_with_their_reasons() -> None:
     rejected = {"t": 12.5, "direction": "left", "sweep": "up", "u_mps": 10.0, "reason": "too few <samples>"}
-    document = render({"rejected_crossings": [rejected]}, [], "rejected")
+    document = render(Summary(rejected_crossings=(RejectedRow(**rejected),)), [], "rejected")
     assert "<h2>Rejected sign changes (1)</h2>" in document
     assert '<td class="number">36.00</td><td>too few &lt;samples&gt;</td>' in document
 

@@ -47,7 +47,8 @@ from app.run_loop import run
 from app.sim.session import DriveOptions, simulate_drive
 from app.sinks.dashboard import Dashboard
 from app.sinks.recorder import SessionRecorder, _CandumpWriter
-from app.sources.logs import BusSource
+from app.sinks.sink import Sink
+from app.sources.buses import BusSource
 
 SATURATED_FPS = 9009
 BACKGROUND_IDS = range(0x300, 0x360)
@@ -127,11 +128,9 @@ def live_throughput(messages: list[can.Message], floor: bool = False) -> float:
         run(
             BusSource([rx], threading.Event(), finished, idle_s=0.01),
             _NoPipeline() if floor else pipeline,  # type: ignore[arg-type]
-            lambda e: None,
-            recorder=recorder,
+            [recorder],
         )
         elapsed = time.perf_counter() - start
-        recorder.close({})
         with recorder.raw_path.open() as recording:
             assert sum(1 for _ in recording) == len(messages)
     for bus in (rx, tx):
@@ -182,9 +181,10 @@ def real_time(messages: list[can.Message]) -> tuple[float, list[float]]:
     pipeline = Pipeline(config)
     latencies: list[float] = []
 
-    def on_record(record: Record) -> None:
-        if record.estimate is not None:
-            latencies.append(time.time() - record.t)
+    class Latency(Sink):
+        def on_record(self, record: Record) -> None:
+            if record.estimate is not None:
+                latencies.append(time.time() - record.t)
 
     feeder_cpu: list[float] = []
     finished = threading.Event()
@@ -196,16 +196,13 @@ def real_time(messages: list[can.Message]) -> tuple[float, list[float]]:
         run(
             BusSource([rx], threading.Event(), finished),
             pipeline,
-            lambda e: None,
-            Dashboard(pipeline, "bench"),
-            console,
-            recorder,
-            on_record=on_record,
+            [recorder, Latency()],
+            display=Dashboard("bench"),
+            console=console,
         )
         feeder.join()
         elapsed = time.perf_counter() - wall
         share = (time.process_time() - cpu - feeder_cpu[0]) / elapsed
-        recorder.close({})
     terminal.close()
     os.close(master)
     rx.shutdown()
@@ -267,8 +264,7 @@ def session_memory(seconds: float) -> None:
     pipeline = Pipeline(config)
     with tempfile.TemporaryDirectory() as tmp:
         recorder = SessionRecorder(Path(tmp) / "session", config)
-        run(lengthened(seconds), pipeline, lambda e: None, recorder=recorder)
-        recorder.close({})
+        run(lengthened(seconds), pipeline, [recorder])
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(pipeline.decoder.counts.total, f"{peak:.1f}")
 
@@ -339,7 +335,8 @@ def part_costs(messages: list[can.Message]) -> dict[str, float]:
     for message in background:
         pipeline.decoder.decode(message)  # the frame counts the dashboard shows
     console = Console(file=io.StringIO(), force_terminal=True, width=120, height=50)
-    dashboard = Dashboard(pipeline, "bench")
+    dashboard = Dashboard("bench")
+    dashboard.on_snapshot(pipeline.snapshot())
     costs[_REFRESH] = per_frame(list(range(50)), lambda _: console.print(dashboard))  # µs a refresh
     for name, writer in (
         ("candump line, c2n", _CandumpWriter),

@@ -46,7 +46,7 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
         pipeline.process(message)
     pipeline.finish()
     elapsed = time.perf_counter() - started
-    state = pipeline.state
+    state = pipeline.snapshot()
 
     def error(value: float | None) -> float | None:
         return None if value is None else 100.0 * (value / truth - 1.0)

@@ -23,11 +23,12 @@ import numpy as np
 from app import paper
 from app.config import Config, load_config
 from app.dbc import load_dbc
-from app.pipeline import Pipeline, SessionState
+from app.pipeline import Pipeline
 from app.sim.drive import simulate
 from app.sim.scenarios import Scenario, Segment, Steer, SweepPlan, step_steer
 from app.sim.sensors import SensorSetup, frames
 from app.sim.session import DBC_DIR, DriveOptions, simulate_drive
+from app.snapshot import Snapshot
 
 C2N_TRUTH = paper.normalised_stiffness(46494, 4090)  # eq. 9: 11.37
 D2 = 11.88**2 / (C2N_TRUTH * paper.G)  # eq. 10 backwards: 1.265 m
@@ -66,7 +67,7 @@ def constant_steer_sweep(road_wheel_deg: tuple[float, ...], plan: SweepPlan) -> 
     return Scenario("constant_steer", lo, tuple(segments))
 
 
-def run_paper_car(job: tuple[str, tuple[float, ...], int]) -> tuple[str, tuple[float, ...], SessionState]:
+def run_paper_car(job: tuple[str, tuple[float, ...], int]) -> tuple[str, tuple[float, ...], Snapshot]:
     kind, angles, seed = job
     from app.sim.vehicle_model import BicycleParams
 
@@ -87,10 +88,10 @@ def run_paper_car(job: tuple[str, tuple[float, ...], int]) -> tuple[str, tuple[f
     for message in frames(trace, setup, kistler, ford, np.random.default_rng(seed)):
         pipeline.process(message)
     pipeline.finish()
-    return kind, angles, pipeline.state
+    return kind, angles, pipeline.snapshot()
 
 
-def run_mondeo(job: tuple[float, int]) -> tuple[float, SessionState]:
+def run_mondeo(job: tuple[float, int]) -> tuple[float, Snapshot]:
     c2n, seed = job
     config = load_config()
     drive = simulate_drive(config, DriveOptions(scenario="radii", seed=seed, c2n=c2n))
@@ -98,10 +99,10 @@ def run_mondeo(job: tuple[float, int]) -> tuple[float, SessionState]:
     for message in drive.messages:
         pipeline.process(message)
     pipeline.finish()
-    return c2n, pipeline.state
+    return c2n, pipeline.snapshot()
 
 
-def describe(state: SessionState) -> str:
+def describe(state: Snapshot) -> str:
     parts = []
     crossings = state.paired or state.combined
     if crossings is not None:

@@ -10,7 +10,7 @@ from rich.console import Console
 
 from app import __version__
 from app.cli import analyze, demo, export, gap, gap_check, live, replay, simulate
-from app.errors import C2nError
+from app.errors import C2nError, UsageError
 
 COMMANDS = (live, replay, analyze, export, simulate, gap, gap_check, demo)
 
@@ -62,7 +62,7 @@ def main(argv: Sequence[str] | None = None, console: Console | None = None) -> i
         if args.debug:
             traceback.print_exc()
         print(f"c2n: error: {error}", file=sys.stderr)
-        return 1
+        return 2 if isinstance(error, UsageError) else 1
     except KeyboardInterrupt:
         print("c2n: interrupted", file=sys.stderr)
         return 130

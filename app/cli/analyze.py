@@ -10,10 +10,9 @@ from app.cli.common import add_config, error_console
 from app.config import load_config
 from app.errors import NoResultError
 from app.pipeline import Pipeline
-from app.run_loop import EventPrinter
 from app.run_loop import run as run_pipeline
 from app.sinks import summary
-from app.sinks.event_printer import result_line
+from app.sinks.event_printer import EventPrinter, result_line
 from app.sinks.progress import ReadProgress
 from app.sources.logs import LogSource
 
@@ -36,19 +35,26 @@ def run(args: argparse.Namespace, console: Console) -> int:
     config = load_config(args.config)
     pipeline = Pipeline(config)
     source = LogSource(args.logs, merge=args.merge, triage=pipeline.decoder)
-    progress = ReadProgress(pipeline, source, ", ".join(p.name for p in args.logs))
+    progress = ReadProgress(source, ", ".join(p.name for p in args.logs))
     frames = source.items(blocks=True)  # an MF4's frames as FrameBlocks: Pipeline.process_block
     run_pipeline(
-        frames, pipeline, EventPrinter(console, pipeline), progress, console, transient=True, blocks=True
+        frames,
+        pipeline,
+        [EventPrinter(console)],
+        display=progress,
+        console=console,
+        transient=True,
+        blocks=True,
     )
-    result = summary.build(pipeline, [str(p) for p in args.logs], source.reports)
+    snapshot = pipeline.snapshot()
+    result = summary.build(snapshot, config, [str(p) for p in args.logs], source.reports)
     if args.json:
         summary.write(args.json, result)
-    console.print(Text(result_line(pipeline.state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    console.print(Text(result_line(snapshot), style="bold"))
     errors = error_console()
-    for warning in result["warnings"]:
+    for warning in result.warnings:
         errors.print(f"c2n: warning: {warning}", markup=False)
-    missing = summary.missing_required(pipeline)
+    missing = summary.missing_required(snapshot, config)
     if missing:
         raise NoResultError(f"{', '.join(str(p) for p in args.logs)}: {missing}")
     return 0

@@ -7,6 +7,7 @@ from pathlib import Path
 from rich.console import Console
 
 from app.config import DEFAULT_CONFIG
+from app.errors import UsageError
 
 
 def add_config(parser: argparse.ArgumentParser) -> None:
@@ -58,7 +59,7 @@ def bus_kwargs(args: argparse.Namespace) -> dict[str, object]:
     for item in args.bus_arg:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise SystemExit(f"c2n: error: --bus-arg wants KEY=VALUE, got {item!r}")
+            raise UsageError(f"--bus-arg wants KEY=VALUE, got {item!r}")
         options[key] = int(value) if value.isdigit() else value
     return options
 

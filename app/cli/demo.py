@@ -15,13 +15,13 @@ from app.cli.common import add_config
 from app.config import load_config
 from app.errors import C2nError
 from app.pipeline import Pipeline
-from app.run_loop import EventPrinter
 from app.run_loop import run as run_pipeline
 from app.sim.scenarios import SCENARIOS
 from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
 from app.sinks.dashboard import Dashboard
-from app.sinks.event_printer import result_line
-from app.sources.logs import BusSource, LogReport, read_log
+from app.sinks.event_printer import EventPrinter, result_line
+from app.sources.buses import BusSource
+from app.sources.logs import LogReport, read_log
 from app.sources.playback import paced
 
 
@@ -87,17 +87,18 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 run_pipeline(
                     BusSource([rx], stop, finished=player.finished),
                     pipeline,
-                    EventPrinter(console, pipeline),
-                    Dashboard(pipeline, f"virtual bus {channel}, replay ×{args.speedup:g}"),
-                    console,
+                    [EventPrinter(console)],
+                    display=Dashboard(f"virtual bus {channel}, replay ×{args.speedup:g}"),
+                    console=console,
                 )
             finally:
                 stop.set()
                 player.join(timeout=5.0)
     if player.error is not None:
         raise C2nError(f"the replay failed: {player.error}")
-    headline = pipeline.state.headline
-    console.print(Text(result_line(pipeline.state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    snapshot = pipeline.snapshot()
+    headline = snapshot.headline
+    console.print(Text(result_line(snapshot), style="bold"))
     if headline is not None:
         error = 100.0 * (headline.c2n / truth["c2n"] - 1.0)
         console.print(

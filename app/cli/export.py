@@ -9,13 +9,12 @@ from rich.text import Text
 
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
-from app.errors import C2nError
+from app.errors import OutputError
 from app.pipeline import Pipeline
-from app.run_loop import EventPrinter
 from app.run_loop import run as run_pipeline
 from app.sinks import events_csv as events
 from app.sinks import summary
-from app.sinks.event_printer import result_line
+from app.sinks.event_printer import EventPrinter, result_line
 from app.sinks.progress import ReadProgress
 from app.sinks.recorder import read_session
 from app.sinks.trace import TraceRecorder
@@ -69,31 +68,30 @@ def run(args: argparse.Namespace, console: Console) -> int:
     pipeline = Pipeline(config)
     source = LogSource([log], triage=pipeline.decoder)
     trace_recorder = TraceRecorder(config.roles)
-    progress = ReadProgress(pipeline, source, log.name)
+    progress = ReadProgress(source, log.name)
     run_pipeline(
         source,
         pipeline,
-        EventPrinter(console, pipeline),
-        progress,
-        console,
+        [EventPrinter(console), trace_recorder],
+        display=progress,
+        console=console,
         transient=True,
-        on_record=trace_recorder,
     )
-    state = pipeline.state
-    t0 = state.t_first or 0.0
+    snapshot = pipeline.snapshot()
+    t0 = snapshot.t0
     trace = trace_recorder.trace(t0)
-    result = summary.build(pipeline, [str(log)], source.reports)
+    result = summary.build(snapshot, config, [str(log)], source.reports)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        raise C2nError(f"{out}: cannot create the output folder ({error.strerror})") from None
+        raise OutputError(f"{out}: cannot create the output folder ({error.strerror})") from error
     written: list[Path] = []
     with console.status("writing the exports…"):
         for fmt in args.format or FORMATS:
             path = out / f"channels.{fmt}"
             export.write(trace, fmt, path)
             written.append(path)
-        events.write(out / "events.csv", [*state.crossings, *state.rejections], t0)
+        events.write(out / "events.csv", [*snapshot.crossings, *snapshot.rejections], t0)
         summary.write(out / "summary.json", result)
         written += [out / "events.csv", out / "summary.json"]
         if not args.no_plots:
@@ -104,9 +102,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
             report = out / "report.html"
             write_report(result, plots, report, title=f"c2n — {log.name}")
             written += [*plots, report]
-    console.print(Text(result_line(state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    console.print(Text(result_line(snapshot), style="bold"))
     errors = error_console()
-    for warning in result["warnings"]:
+    for warning in result.warnings:
         errors.print(f"c2n: warning: {warning}", markup=False)
     console.print(f"{len(trace):,} rows × {len(trace.channels)} channels → {out}", style="dim")
     for path in written:

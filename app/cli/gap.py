@@ -2,14 +2,14 @@
 unmodelled effect explains it, and how far the gap shrinks once it is added."""
 
 import argparse
-import json
 from pathlib import Path
 
 from rich.console import Console
 
 from app.cli.common import add_config
 from app.config import load_config
-from app.errors import C2nError
+from app.gap.result import GapResult
+from app.sinks.files import write_json
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -35,39 +35,27 @@ def run(args: argparse.Namespace, console: Console) -> int:
         diagnosis = diagnose(measured, config)
     result = diagnosis.result
     if args.json:
-        write_json(args.json, result)
+        write_json(args.json, result.to_json(), "the diagnosis")
     if args.report:
         from app.gap.report import render
-        from app.sinks.report import write_html
+        from app.sinks.html import write_html
 
         write_html(render(diagnosis, "c2n gap", [str(p) for p in args.logs]), args.report)
     console.print(verdict_line(result))
-    for row in result["located"][:3]:
+    for row in result.located[:3]:
         console.print(
-            f"  residual concentrates in {row['where']}: {100 * row['share']:.0f} % of it in "
-            f"{100 * row['samples_share']:.0f} % of the samples (mean {row['mean_deg']:+.3f}°)",
+            f"  residual concentrates in {row.where}: {100 * row.share:.0f} % of it in "
+            f"{100 * row.samples_share:.0f} % of the samples (mean {row.mean_deg:+.3f}°)",
             style="dim",
         )
     return 0
 
 
-def verdict_line(result: dict[str, object]) -> str:
-    c2n = result["c2n"]
-    assert isinstance(c2n, dict)
-    rms = result["heldout_rms_deg"]
-    assert isinstance(rms, dict)
-    confounded = result["confounded_with"]
-    also = f" (or {', '.join(confounded)})" if isinstance(confounded, list) and confounded else ""
+def verdict_line(result: GapResult) -> str:
+    c2n, rms = result.c2n, result.heldout_rms_deg
+    also = f" (or {', '.join(result.confounded_with)})" if result.confounded_with else ""
     return (
-        f"gap: {result['diagnosis']}{also}; held-out sideslip RMS {rms['before']:.4f}° → {rms['after']:.4f}° "
-        f"(shrink {result['shrink_heldout']:.0%}); C2n nominal {c2n['nominal']}, measured {c2n['measured']}, "
-        f"model with the effect {c2n['after']}"
+        f"gap: {result.diagnosis}{also}; held-out sideslip RMS {rms.before:.4f}° → {rms.after:.4f}° "
+        f"(shrink {result.shrink_heldout:.0%}); C2n nominal {c2n.nominal}, measured {c2n.measured}, "
+        f"model with the effect {c2n.after}"
     )
-
-
-def write_json(path: Path, data: object) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(data, indent=2) + "\n")
-    except OSError as error:
-        raise C2nError(f"{path}: cannot write ({error.strerror})") from None

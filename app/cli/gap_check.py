@@ -8,7 +8,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from app.cli.gap import write_json
+from app.sinks.files import write_json
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -32,10 +32,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     def on_case(answer: check.CaseAnswer) -> None:
         nonlocal done
         done += 1
-        said = answer.result["diagnosis"] if answer.result else f"error: {answer.error}"
+        said = answer.result.diagnosis if answer.result else f"error: {answer.error}"
         console.print(f"[{done}/{len(folders)}] {answer.case}: {said}", highlight=False)
         if answer.result:
-            write_json(out / f"{answer.case}.json", answer.result)
+            write_json(out / f"{answer.case}.json", answer.result.to_json(), "the case's diagnosis")
 
     answers = check.run_cases(folders, args.workers or check.default_workers(), on_case)
     scores = check.score(answers, check.open_seal(args.pack))  # the seal opens only now
@@ -61,7 +61,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         + (f"{shrink:.0%}" if shrink is not None else "—")
     )
     if args.json:
-        write_json(args.json, scores)
+        write_json(args.json, scores, "the scores")
     else:
-        write_json(out / "scores.json", scores)
+        write_json(out / "scores.json", scores, "the scores")
     return 0

@@ -17,13 +17,13 @@ from rich.text import Text
 from app.cli.common import add_bus, add_config, bus_kwargs, channels
 from app.config import load_config
 from app.pipeline import Pipeline
-from app.run_loop import EventPrinter
 from app.run_loop import run as run_pipeline
 from app.sinks import summary
 from app.sinks.dashboard import Dashboard
-from app.sinks.event_printer import result_line
+from app.sinks.event_printer import EventPrinter, result_line
 from app.sinks.recorder import RAW_FORMATS, SessionRecorder
-from app.sources.logs import Backoff, BusSource, open_buses
+from app.sinks.sink import Sink
+from app.sources.buses import Backoff, BusSource, open_buses
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -81,7 +81,6 @@ def run(
     buses = open_bus(args.interface, wanted, args.bitrate, **options)
     title = ", ".join(str(bus.channel_info) for bus in buses)
     pipeline = Pipeline(config)
-    dashboard = Dashboard(pipeline, title)
     recorder = (
         None if args.no_record else SessionRecorder(session_folder(args.record), config, args.raw_format)
     )
@@ -101,26 +100,28 @@ def run(
     source = BusSource(
         buses, stop, reopen=reopen, backoff=backoff or Backoff(), clock=clock, on_change=bus_changed
     )
-    dashboard.bus_problem = lambda: source.problem
+    dashboard = Dashboard(title, bus_problem=lambda: source.problem)
+    sinks: list[Sink] = [EventPrinter(console)]
+    if recorder is not None:
+        sinks.append(recorder)
     try:
         if timer is not None:
             timer.start()
-        printer = EventPrinter(console, pipeline, recorder)
-        run_pipeline(source, pipeline, printer, dashboard, console, recorder)
-    finally:
+        run_pipeline(source, pipeline, sinks, display=dashboard, console=console)
+    finally:  # the recording is finished (the run loop closed it); the summary goes beside it
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         if timer is not None:
             timer.cancel()
         for bus in source.buses:  # the ones open now (a lost bus was closed already)
             bus.shutdown()
-        result = summary.build(pipeline, [title])
-        result["warnings"].extend(source.losses)
+        snapshot = pipeline.snapshot()
+        result = summary.build(snapshot, config, [title]).warned(source.losses)
         if recorder is not None:
-            recorder.close(result)
+            recorder.write_summary(result)
         if args.json:
             summary.write(args.json, result)
-    console.print(Text(result_line(pipeline.state, config.vehicle.gravity_mps2, config.d_m), style="bold"))
+    console.print(Text(result_line(snapshot), style="bold"))
     if recorder is not None:
         console.print(f"session saved in {recorder.folder}", style="dim")
     return 0

@@ -9,7 +9,8 @@ from rich.console import Console
 
 from app.cli.common import add_bus, bus_kwargs, channels
 from app.errors import BusError, C2nError
-from app.sources.logs import LogReport, open_buses, open_log, read_log
+from app.sources.buses import open_buses
+from app.sources.logs import LogReport, open_log, read_log
 from app.sources.playback import looped, paced
 
 log = logging.getLogger(__name__)
@@ -86,7 +87,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             try:
                 router.bus_for(msg).send(msg)
             except can.CanError as error:
-                raise BusError(f"sending frame {sent + 1} failed: {error}") from None
+                raise BusError(f"sending frame {sent + 1} failed: {error}") from error
             sent += 1
     except KeyboardInterrupt:
         pass

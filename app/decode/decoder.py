@@ -1,109 +1,26 @@
-"""Frames in, role values out: cantools decoding, role mapping, sensor-status gating, frame counts.
+"""Frames in, role values out: cantools decoding and role mapping, gated by the sensor status and
+counted by what each frame was.
 
 Malformed frames are data, not exceptions: every frame is counted by what it was, and only
 values that are fit to use reach the pipeline.
 """
 
 import math
-from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
 import can
 import numpy as np
 
-from app.config import Config, RoleSpec, StatusCondition
+from app.config import Config, RoleSpec
 from app.dbc import ChannelSpec, channel_matches
 from app.decode.bits import ColumnReader, Reader, column_reader, signal_reader
+from app.decode.counts import FrameCounts
+from app.decode.status import SensorStatus
 from app.records import Record
 from app.sources.blocks import FrameBlock, RecordBlock, key_codes
-
-
-@dataclass
-class FrameCounts:
-    """What the frames were. ``total`` is the sum of the kinds below it (``fd_frames`` aside)."""
-
-    total: int = 0
-    used: int = 0  # gave the pipeline a role value or a sensor status
-    unused: int = 0  # a DBC message nothing in the config needs
-    unknown_id: int = 0
-    other_channel: int = 0  # a known id on a channel its DBC is not decoded on
-    bad_length: int = 0
-    undecodable: int = 0
-    error_frames: int = 0
-    remote_frames: int = 0
-    fd_frames: int = 0  # not a kind: how many of the total were CAN FD (decoded like the rest)
-    by_id: Counter[tuple[object, int, bool]] = field(
-        default_factory=Counter
-    )  # (channel, id, extended) -> frames
-    bad_by_id: Counter[tuple[int, str]] = field(default_factory=Counter)  # (id, kind) -> frames
-    role_frames: Counter[str] = field(default_factory=Counter)  # role -> frames carrying it
-    rejected: Counter[str] = field(default_factory=Counter)  # "reason (roles)" -> frames with values dropped
-
-    def as_dict(self) -> dict[str, int]:
-        return {
-            "total": self.total,
-            "used": self.used,
-            "unused": self.unused,
-            "unknown_id": self.unknown_id,
-            "other_channel": self.other_channel,
-            "bad_length": self.bad_length,
-            "undecodable": self.undecodable,
-            "error_frames": self.error_frames,
-            "remote_frames": self.remote_frames,
-            "fd_frames": self.fd_frames,
-        }
-
-
-class SensorStatus:
-    """The latest value of each status signal, and whether a role may be used at time t."""
-
-    def __init__(self, conditions: tuple[StatusCondition, ...], timeout_s: float) -> None:
-        self.conditions = conditions
-        self.timeout_s = timeout_s
-        self.values: dict[str, float] = {}
-        self.t: float | None = None
-        # role -> the conditions on it, as (signal name, value it needs)
-        self._relevant: dict[str, tuple[tuple[str, float], ...]] = {}
-        self._verdicts: dict[str, str | None] = {}  # role -> what the values say, until they change
-        self.stale = f"sensor status older than {timeout_s:g} s"
-
-    def applies(self, role: str) -> bool:
-        """Whether any condition is on ``role``."""
-        return any(role in c.applies_to for c in self.conditions)
-
-    def update(self, t: float, values: dict[str, float]) -> None:
-        self.values.update(values)
-        self.t = t
-        self._verdicts.clear()
-
-    def why_not(self, role: str, t: float) -> str | None:
-        """None when every condition on ``role`` holds at time t, else the reason it does not."""
-        relevant = self._relevant.get(role)
-        if relevant is None:
-            relevant = self._relevant[role] = tuple(
-                (c.name, c.value) for c in self.conditions if role in c.applies_to
-            )
-        if not relevant:
-            return None
-        if self.t is None:
-            return "no sensor status yet"
-        if abs(t - self.t) > self.timeout_s:
-            return self.stale
-        verdicts = self._verdicts
-        if role not in verdicts:
-            verdicts[role] = self._verdict(relevant)
-        return verdicts[role]
-
-    def _verdict(self, relevant: tuple[tuple[str, float], ...]) -> str | None:
-        for name, needed in relevant:
-            value = self.values.get(name)
-            if value is None:
-                return f"no {name} yet"
-            if value != needed:
-                return f"{name}={value:g} (needs {needed:g})"
-        return None
-
 
 _MAX_ROUTES = 65_536  # (channel, id) keys whose route is remembered
 _MAX_SEEN = 4096  # keys whose frames are tallied: each read of the counts goes over them all
@@ -179,6 +96,10 @@ class Decoder:
                 self._bindings.setdefault(key, []).append(
                     _MessageBinding(message, dbc.channel, roles, status, read, columns)
                 )
+        # (id, extended) -> the DBC's message name (the first DBC's, if several define it)
+        self.message_names: Mapping[tuple[int, bool], str] = MappingProxyType(
+            {key: str(bindings[0].message.name) for key, bindings in self._bindings.items()}
+        )
 
     @property
     def counts(self) -> FrameCounts:
@@ -187,11 +108,6 @@ class Decoder:
             if seen.frames or seen.used:
                 self._add(key, seen)
         return self._counts
-
-    def message_name(self, frame_id: int, extended: bool) -> str | None:
-        """The DBC name of a frame id (the first DBC's, if several define it)."""
-        bindings = self._bindings.get((frame_id, extended))
-        return str(bindings[0].message.name) if bindings else None
 
     def skip_kind(self, channel: object, frame_id: int, extended: bool) -> str | None:
         """For a data frame of this key: the count it goes to when nothing in it is needed

@@ -3,7 +3,7 @@
 The method holds for linear tyres in steady state (paper §2–3): lateral acceleration below
 ~4 m/s², slow speed changes, no steering transients, and the car must actually be turning
 (driving straight, the sideslip is ~0 and its sign is noise). Each failed condition becomes a
-reason the dashboard turns into guidance for the driver.
+Reason, with its words, that the dashboard turns into guidance for the driver.
 """
 
 import math
@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from app.config import DetectorSettings
-from app.records import Direction, Estimate, SteadyState
+from app.records import Direction, Estimate, Reason, SteadyState
 
 # what a step decided, for a block of steps (``SteadyStateGate.steps``)
 STEADY, HARD, SOFT, SETTLING = range(4)
@@ -40,10 +40,10 @@ class SteadyStateGate:
         self, t: float, estimate: Estimate, steer_rad: float | None, sensor_problem: str | None
     ) -> SteadyState:
         direction = _direction(estimate, steer_rad)
-        hard: tuple[str, ...]
-        soft: tuple[str, ...]
+        hard: list[tuple[Reason, str]]
+        soft: list[tuple[Reason, str]]
         if sensor_problem is None and self._all_hold(estimate):
-            hard = soft = ()
+            hard = soft = []
         else:  # the reasons, worded for the driver
             hard = self._hard_reasons(estimate, sensor_problem)
             soft = self._soft_reasons(estimate)
@@ -51,19 +51,19 @@ class SteadyStateGate:
             self._since = None  # time went backwards
         if hard:
             self._since = self._soft_since = None
-            return SteadyState(False, direction, hard + soft)
+            return _not_steady(direction, hard + soft)
         if soft:
             if self._soft_since is None or t < self._soft_since:
                 self._soft_since = t
             if t - self._soft_since > self.settings.debounce_s:
                 self._since = None
-            return SteadyState(False, direction, soft)
+            return _not_steady(direction, soft)
         self._soft_since = None
         if self._since is None:
             self._since = t
         held = t - self._since
         if held < self.settings.settle_s:
-            return SteadyState(False, direction, (f"settling ({held:.1f}{self._settle}",))
+            return self._settling(direction, held)
         return _STEADY[direction]
 
     def steps(
@@ -125,11 +125,14 @@ class SteadyStateGate:
         if kind == STEADY:
             return _STEADY[direction]
         if kind == SETTLING:
-            return SteadyState(False, direction, (f"settling ({held:.1f}{self._settle}",))
+            return self._settling(direction, held)
         soft = self._soft_reasons(estimate)
-        return SteadyState(
-            False, direction, self._hard_reasons(estimate, sensor_problem) + soft if kind == HARD else soft
+        return _not_steady(
+            direction, self._hard_reasons(estimate, sensor_problem) + soft if kind == HARD else soft
         )
+
+    def _settling(self, direction: Direction | None, held: float) -> SteadyState:
+        return SteadyState(False, direction, (f"settling ({held:.1f}{self._settle}",), _SETTLING)
 
     def _all_hold(self, e: Estimate) -> bool:
         """Every limit of ``_hard_reasons`` and ``_soft_reasons`` holds (the common case, which
@@ -146,32 +149,39 @@ class SteadyStateGate:
         curvature = _curvature(e)
         return not (curvature is not None and curvature < self._min_curvature)
 
-    def _hard_reasons(self, e: Estimate, sensor_problem: str | None) -> tuple[str, ...]:
+    def _hard_reasons(self, e: Estimate, sensor_problem: str | None) -> list[tuple[Reason, str]]:
         s = self.settings
         reasons = []
         if sensor_problem is not None:
-            reasons.append(f"sensor: {sensor_problem}")
+            reasons.append((Reason.SENSOR, f"sensor: {sensor_problem}"))
         if e.u_mps < s.speed_min_mps:
-            reasons.append(f"speed {e.u_mps:.1f}{self._below}")
+            reasons.append((Reason.SPEED_LOW, f"speed {e.u_mps:.1f}{self._below}"))
         if e.ay_mps2 is not None and abs(e.ay_mps2) > s.ay_max_mps2:
-            reasons.append(f"lateral acceleration too high: {abs(e.ay_mps2):.1f}{self._ay_over}")
+            reasons.append(
+                (Reason.AY_HIGH, f"lateral acceleration too high: {abs(e.ay_mps2):.1f}{self._ay_over}")
+            )
         curvature = _curvature(e)
         if curvature is not None and curvature < self._min_curvature:
-            reasons.append(self._straight)
-        return tuple(reasons)
+            reasons.append((Reason.STRAIGHT, self._straight))
+        return reasons
 
-    def _soft_reasons(self, e: Estimate) -> tuple[str, ...]:
+    def _soft_reasons(self, e: Estimate) -> list[tuple[Reason, str]]:
         s = self.settings
         reasons = []
         if abs(e.u_dot_mps2) > s.sweep_max_mps2:
-            reasons.append(f"sweep too fast: {abs(e.u_dot_mps2):.2f}{self._sweep_over}")
+            reasons.append((Reason.SWEEP_FAST, f"sweep too fast: {abs(e.u_dot_mps2):.2f}{self._sweep_over}"))
         yaw_transient = e.r_dot_radps2 is not None and abs(e.r_dot_radps2) > s.yaw_accel_max_radps2
         if yaw_transient or abs(e.v_dot_mps2) > s.lateral_accel_rate_max_mps2:
-            reasons.append("steering transient")
-        return tuple(reasons)
+            reasons.append((Reason.TRANSIENT, "steering transient"))
+        return reasons
 
 
 _STEADY = {direction: SteadyState(True, direction) for direction in ("left", "right", None)}
+_SETTLING = (Reason.SETTLING,)
+
+
+def _not_steady(direction: Direction | None, why: list[tuple[Reason, str]]) -> SteadyState:
+    return SteadyState(False, direction, tuple(words for _, words in why), tuple(cause for cause, _ in why))
 
 
 def _curvature(e: Estimate) -> float | None:

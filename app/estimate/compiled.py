@@ -21,16 +21,16 @@ import numpy as np
 from numba import njit
 
 from app.config import FilterSettings
-from app.estimate.model import transition
-from app.estimate.reference import (  # its constants: numba compiles them in as they are
-    _HEALTH_ALPHA,
-    _LATE_TOLERANCE_S,
-    _MAX_CONSECUTIVE_REJECTS,
-    _MIN_SPEED_FOR_ANGLE,
-    _NOISE_ALPHA,
-    _NOISE_CEILING,
-    _YAW_TIMEOUT_S,
+from app.estimate.model import (  # the shared constants: numba compiles them in as they are
+    HEALTH_ALPHA,
+    LATE_TOLERANCE_S,
+    MAX_CONSECUTIVE_REJECTS,
+    MIN_SPEED_FOR_ANGLE,
+    NOISE_ALPHA,
+    NOISE_CEILING,
+    YAW_TIMEOUT_S,
     FilterCounts,
+    transition,
 )
 from app.records import Estimate, Record
 
@@ -191,7 +191,7 @@ def _step(
     optical = vx == vx or vy == vy or beta == beta
     if s[_T] == s[_T]:
         dt = t - s[_T]
-        if dt < -_LATE_TOLERANCE_S:
+        if dt < -LATE_TOLERANCE_S:
             s[_COUNTS + 1] += 1.0
             s[_COUNTS] += 1.0
             _reset(s)
@@ -353,7 +353,7 @@ def _update(
         n += 1
     source = c[_SOURCE]
     lateral = 0  # 1: the angle, 2: vy
-    if source != 2 and beta == beta and abs(u_s) > _MIN_SPEED_FOR_ANGLE:
+    if source != 2 and beta == beta and abs(u_s) > MIN_SPEED_FOR_ANGLE:
         lateral = 1
     elif source != 1 and vy == vy:
         lateral = 2
@@ -382,7 +382,7 @@ def _update(
         _put(rows, n, yaw_rate, 0.0, 0.0, 1.0, c[_SIGMA_YAW] ** 2, _YAW)
         n += 1
         s[_T_YAW] = t
-    elif ay == ay and c[_AY_GIVES_YAW] != 0.0 and u > _MIN_SPEED_FOR_ANGLE:
+    elif ay == ay and c[_AY_GIVES_YAW] != 0.0 and u > MIN_SPEED_FOR_ANGLE:
         _put(rows, n, ay / u, 0.0, 0.0, 1.0, (c[_SIGMA_AY] / u) ** 2, _YAW)
         n += 1
         s[_T_YAW] = t
@@ -410,7 +410,7 @@ def _gate(s: Array, c: Array, rows: Array, n: int) -> Array:
         k = int(kind)
         innovation, hph = _innovation(s, z, hu, hv, hr)
         nis = innovation * innovation / (hph + r)
-        if nis > c[_GATE] and s[_REJECTS + k] < _MAX_CONSECUTIVE_REJECTS:
+        if nis > c[_GATE] and s[_REJECTS + k] < MAX_CONSECUTIVE_REJECTS:
             s[_COUNTS + 3] += 1.0
             s[_REJECTS + k] += 1.0
             continue
@@ -423,7 +423,7 @@ def _gate(s: Array, c: Array, rows: Array, n: int) -> Array:
             if c[_SIGMA_BETA] != c[_SIGMA_BETA] or k == _VX or not angle:
                 _learn_noise(s, c, k, innovation * innovation, hph, speed, angle)
     if nis_n:
-        s[_HEALTH] += _HEALTH_ALPHA * (nis_sum / nis_n - s[_HEALTH])
+        s[_HEALTH] += HEALTH_ALPHA * (nis_sum / nis_n - s[_HEALTH])
     return kept
 
 
@@ -433,8 +433,8 @@ def _learn_noise(
 ) -> None:
     """E[y²] = HPHᵀ + R: follow R from the innovations (velocity-equivalent units)."""
     sample = (innovation2 - hph) * (speed * speed if kind == _LAT and angle else 1.0)
-    ceiling = (_NOISE_CEILING * c[_SIGMA_V]) ** 2
-    value = s[_NOISE_VX + kind] + _NOISE_ALPHA * (sample - s[_NOISE_VX + kind])
+    ceiling = (NOISE_CEILING * c[_SIGMA_V]) ** 2
+    value = s[_NOISE_VX + kind] + NOISE_ALPHA * (sample - s[_NOISE_VX + kind])
     s[_NOISE_VX + kind] = min(max(value, 0.0), ceiling)
 
 
@@ -446,7 +446,7 @@ def _estimate(s: Array, t: float, v_meas: float, ay_meas: float) -> tuple[float,
     sigma = math.sqrt(max(variance, 0.0) * max(1.0, s[_HEALTH]))
     if ay_meas == ay_meas:
         s[_LAST_AY] = ay_meas
-    yaw_observed = t - s[_T_YAW] <= _YAW_TIMEOUT_S
+    yaw_observed = t - s[_T_YAW] <= YAW_TIMEOUT_S
     r = s[4] if yaw_observed else math.nan
     ay = u * r if yaw_observed else s[_LAST_AY]
     sideslip_meas = math.atan2(v_meas, u) if v_meas == v_meas else math.nan

@@ -1,21 +1,47 @@
-"""The Kalman filter arithmetic behind the motion filter, on filterpy: three [value, rate] pairs,
-x = [u, u̇, v, v̇, r, ṙ], and scalar measurements of u, v and r.
+"""The motion filter's model, shared by the readable reference (``app.estimate.reference``) and
+the compiled filter the pipeline runs (``app.estimate.compiled``).
 
-The transition F is block-diagonal with [[1, dt], [0, 1]] blocks and Q is the white-jerk block per
-pair (filterpy's ``Q_continuous_white_noise``); each measurement row touches only u, v and r
-(``H = (h_u, h_v, h_r)``). ``FilterpyKalman`` forms F, Q and H as matrices each step and updates
-through filterpy's general ``KalmanFilter`` (joint update, Joseph form): the reference that
-``app.estimate.compiled`` is tested equal to within 1e-9 over whole drives.
+State x = [u, u̇, v, v̇, r, ṙ] (ISO 8855): u the longitudinal velocity, v the lateral velocity at
+the sensor's longitudinal position (d ahead of the rear axle) on the centre line, r the yaw rate.
+Each pair is a continuous white-noise-jerk model, discretised for the time since the last frame,
+so sensors at different rates update the same state as their frames arrive: the transition F is
+block-diagonal with [[1, dt], [0, 1]] blocks and Q is the white-jerk block per pair (filterpy's
+``Q_continuous_white_noise``).
+
+Measurement models (y_s: sensor's lateral offset, + left), each a scalar row on u, v and r
+(``H = (h_u, h_v, h_r)``):
+    optical vx      = u − r·y_s                 (rigid body: the head sees the yaw's share)
+    optical vy      = v
+    optical angle β = atan2(v, u − r·y_s)       (linearised about the prior, as in an EKF)
+    vehicle speed   = u                         (weak: wheel-speed scale errors and lags)
+    yaw rate        = r                         (or ay/u without a gyro)
+
+The constants below tune both filters alike; numba compiles them in as they are.
 """
 
-from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 
 H = tuple[float, float, float]  # a measurement row's coefficients on u, v and r
 Row = tuple[float, H, float]  # (z, H, R): one scalar measurement
-_MEASURED = (0, 2, 4)  # where u, v and r sit in x
+MEASURED = (0, 2, 4)  # where u, v and r sit in x
+
+LATE_TOLERANCE_S = 0.05  # frames up to this much out of order are applied at the current time
+YAW_TIMEOUT_S = 0.5  # yaw information older than this leaves r unobserved
+HEALTH_ALPHA = 0.02  # memory of the health figure: about 50 updates
+MIN_SPEED_FOR_ANGLE = 1.0  # m/s: below this the angle says nothing about v
+MAX_CONSECUTIVE_REJECTS = 3  # a sensor rejected this often in a row is right and the model wrong
+NOISE_ALPHA = 0.002  # memory of the measured noise: about 500 optical frames
+NOISE_CEILING = 5.0  # the measured noise may grow to this many times the configured σ
+
+
+@dataclass
+class FilterCounts:
+    resets: int = 0
+    time_jumps: int = 0  # timestamps that went backwards
+    late_frames: int = 0
+    outliers: int = 0  # measurements rejected by the innovation gate
 
 
 def white_jerk(dt: float, q_u: float, q_v: float, q_r: float) -> np.ndarray:
@@ -36,37 +62,5 @@ def transition(dt: float, q_u: float, q_v: float, q_r: float) -> tuple[np.ndarra
 
 def full_row(h: H) -> np.ndarray:
     row = np.zeros(6)
-    row[list(_MEASURED)] = h
+    row[list(MEASURED)] = h
     return row
-
-
-class FilterpyKalman:
-    """The reference: filterpy's KalmanFilter, F, Q and H formed as matrices each step."""
-
-    def __init__(self, q_u: float, q_v: float, q_r: float) -> None:
-        self.q = (q_u, q_v, q_r)
-        self.kf = KalmanFilter(dim_x=6, dim_z=1)
-
-    def reset(self, x: Sequence[float], p_diagonal: Sequence[float]) -> None:
-        self.kf.x = np.array(x, dtype=float).reshape(6, 1)
-        self.kf.P = np.diag(np.asarray(p_diagonal, dtype=float))
-
-    def predict(self, dt: float) -> None:
-        f, q = transition(dt, *self.q)
-        self.kf.predict(F=f, Q=q)
-
-    def innovation(self, z: float, h: H) -> tuple[float, float]:
-        row = full_row(h)
-        return z - float(row @ self.kf.x[:, 0]), float(row @ self.kf.P @ row)
-
-    def update(self, rows: Sequence[Row]) -> None:
-        if rows:
-            z = np.array([[row[0]] for row in rows])
-            h = np.array([full_row(row[1]) for row in rows])
-            self.kf.update(z, R=np.diag([row[2] for row in rows]), H=h)
-
-    def value(self, i: int) -> float:
-        return float(self.kf.x[i, 0])
-
-    def state(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.kf.x[:, 0].copy(), self.kf.P.copy()

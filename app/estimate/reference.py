@@ -1,47 +1,64 @@
-"""Kalman filter on longitudinal velocity, lateral velocity and yaw rate, with their rates.
+"""The motion filter written to be read: the model of ``app.estimate.model`` on filterpy's
+``KalmanFilter``, F, Q and H formed as matrices each step and updated jointly (Joseph form).
 
-State x = [u, u̇, v, v̇, r, ṙ] (ISO 8855): u the longitudinal velocity, v the lateral velocity at
-the sensor's longitudinal position (d ahead of the rear axle) on the centre line, r the yaw rate.
-Each pair is a continuous white-noise-jerk model, discretised for the time since the last frame,
-so sensors at different rates update the same state as their frames arrive.
-
-Measurement models (y_s: sensor's lateral offset, + left):
-    optical vx      = u − r·y_s                 (rigid body: the head sees the yaw's share)
-    optical vy      = v
-    optical angle β = atan2(v, u − r·y_s)       (linearised about the prior, as in an EKF)
-    vehicle speed   = u                         (weak: wheel-speed scale errors and lags)
-    yaw rate        = r                         (or ay/u without a gyro)
-
-This class is the filter written to be read, its arithmetic filterpy's ``KalmanFilter``
-(``app.estimate.model``). The pipeline runs ``app.estimate.compiled.CompiledMotionFilter``: the same steps
-compiled with numba, tested equal to this one within 1e-9 on every estimate of whole drives.
+The pipeline runs ``app.estimate.compiled.CompiledMotionFilter``: the same steps compiled with
+numba, tested equal to this one within 1e-9 on every estimate of whole drives.
 """
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+from filterpy.kalman import KalmanFilter
 
 from app.config import FilterSettings
-from app.estimate.model import FilterpyKalman, H, Row, transition
+from app.estimate.model import (
+    HEALTH_ALPHA,
+    LATE_TOLERANCE_S,
+    MAX_CONSECUTIVE_REJECTS,
+    MIN_SPEED_FOR_ANGLE,
+    NOISE_ALPHA,
+    NOISE_CEILING,
+    YAW_TIMEOUT_S,
+    FilterCounts,
+    H,
+    Row,
+    full_row,
+    transition,
+)
 from app.records import Estimate, Record
 
-_LATE_TOLERANCE_S = 0.05  # frames up to this much out of order are applied at the current time
-_YAW_TIMEOUT_S = 0.5  # yaw information older than this leaves r unobserved
-_HEALTH_ALPHA = 0.02  # memory of the health figure: about 50 updates
-_MIN_SPEED_FOR_ANGLE = 1.0  # m/s: below this the angle says nothing about v
-_MAX_CONSECUTIVE_REJECTS = 3  # a sensor rejected this often in a row is right and the model wrong
-_NOISE_ALPHA = 0.002  # memory of the measured noise: about 500 optical frames
-_NOISE_CEILING = 5.0  # the measured noise may grow to this many times the configured σ
 
+class FilterpyKalman:
+    """The reference: filterpy's KalmanFilter, F, Q and H formed as matrices each step."""
 
-@dataclass
-class FilterCounts:
-    resets: int = 0
-    time_jumps: int = 0  # timestamps that went backwards
-    late_frames: int = 0
-    outliers: int = 0  # measurements rejected by the innovation gate
+    def __init__(self, q_u: float, q_v: float, q_r: float) -> None:
+        self.q = (q_u, q_v, q_r)
+        self.kf = KalmanFilter(dim_x=6, dim_z=1)
+
+    def reset(self, x: Sequence[float], p_diagonal: Sequence[float]) -> None:
+        self.kf.x = np.array(x, dtype=float).reshape(6, 1)
+        self.kf.P = np.diag(np.asarray(p_diagonal, dtype=float))
+
+    def predict(self, dt: float) -> None:
+        f, q = transition(dt, *self.q)
+        self.kf.predict(F=f, Q=q)
+
+    def innovation(self, z: float, h: H) -> tuple[float, float]:
+        row = full_row(h)
+        return z - float(row @ self.kf.x[:, 0]), float(row @ self.kf.P @ row)
+
+    def update(self, rows: Sequence[Row]) -> None:
+        if rows:
+            z = np.array([[row[0]] for row in rows])
+            h = np.array([full_row(row[1]) for row in rows])
+            self.kf.update(z, R=np.diag([row[2] for row in rows]), H=h)
+
+    def value(self, i: int) -> float:
+        return float(self.kf.x[i, 0])
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.kf.x[:, 0].copy(), self.kf.P.copy()
 
 
 class MotionFilter:
@@ -116,7 +133,7 @@ class MotionFilter:
         t = record.t
         if self._t is not None:
             dt = t - self._t
-            if dt < -_LATE_TOLERANCE_S:
+            if dt < -LATE_TOLERANCE_S:
                 self.counts.time_jumps += 1
                 self.counts.resets += 1
                 self._reset()
@@ -175,7 +192,7 @@ class MotionFilter:
         if "yaw_rate" in s:
             rows.append((s["yaw_rate"], _R_ROW, self.settings.sigma_yaw_rate_radps**2, "yaw"))
             self._t_yaw = record.t
-        elif "ay" in s and "yaw_rate" not in self.roles and u > _MIN_SPEED_FOR_ANGLE:
+        elif "ay" in s and "yaw_rate" not in self.roles and u > MIN_SPEED_FOR_ANGLE:
             rows.append((s["ay"] / u, _R_ROW, (self.settings.sigma_ay_mps2 / u) ** 2, "yaw"))
             self._t_yaw = record.t
         self.kalman.update(self._gate(rows))
@@ -183,7 +200,7 @@ class MotionFilter:
 
     def _lateral_source(self, s: Mapping[str, float], u_s: float) -> str | None:
         source = self.settings.sideslip_source
-        if source in ("auto", "beta") and "beta" in s and abs(u_s) > _MIN_SPEED_FOR_ANGLE:
+        if source in ("auto", "beta") and "beta" in s and abs(u_s) > MIN_SPEED_FOR_ANGLE:
             return "beta"
         if source in ("auto", "vy") and "vy" in s:
             return "vy"
@@ -197,8 +214,8 @@ class MotionFilter:
     def _learn_noise(self, kind: str, innovation2: float, hph: float, speed: float) -> None:
         """E[y²] = HPHᵀ + R: follow R from the innovations (velocity-equivalent units)."""
         sample = (innovation2 - hph) * (speed * speed if kind == "lateral" and self._angle else 1.0)
-        ceiling = (_NOISE_CEILING * self.settings.sigma_velocity_mps) ** 2
-        value = self.noise_var[kind] + _NOISE_ALPHA * (sample - self.noise_var[kind])
+        ceiling = (NOISE_CEILING * self.settings.sigma_velocity_mps) ** 2
+        value = self.noise_var[kind] + NOISE_ALPHA * (sample - self.noise_var[kind])
         self.noise_var[kind] = min(max(value, 0.0), ceiling)
 
     def noise_sigma(self) -> dict[str, float]:
@@ -217,7 +234,7 @@ class MotionFilter:
             z, h, r, kind = row
             innovation, hph = kalman.innovation(z, h)
             nis = innovation * innovation / (hph + r)
-            if nis > self.settings.innovation_gate and self._rejects.get(kind, 0) < _MAX_CONSECUTIVE_REJECTS:
+            if nis > self.settings.innovation_gate and self._rejects.get(kind, 0) < MAX_CONSECUTIVE_REJECTS:
                 self.counts.outliers += 1
                 self._rejects[kind] = self._rejects.get(kind, 0) + 1
                 continue
@@ -228,7 +245,7 @@ class MotionFilter:
                 if self.settings.sigma_beta_deg is None or kind == "vx" or not self._angle:
                     self._learn_noise(kind, innovation * innovation, hph, speed)
         if optical_nis:
-            self.health += _HEALTH_ALPHA * (sum(optical_nis) / len(optical_nis) - self.health)
+            self.health += HEALTH_ALPHA * (sum(optical_nis) / len(optical_nis) - self.health)
         return kept
 
     def _estimate(self, t: float, v_meas: float | None, ay_meas: float | None) -> Estimate:
@@ -239,7 +256,7 @@ class MotionFilter:
         sigma = math.sqrt(max(variance, 0.0) * max(1.0, self.health))
         if ay_meas is not None:
             self._last_ay = ay_meas
-        yaw_observed = t - self._t_yaw <= _YAW_TIMEOUT_S
+        yaw_observed = t - self._t_yaw <= YAW_TIMEOUT_S
         r = kalman.value(4) if yaw_observed else None
         ay = u * r if r is not None else self._last_ay
         sideslip_meas = math.atan2(v_meas, u) if v_meas is not None else None

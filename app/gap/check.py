@@ -14,6 +14,7 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError
+from app.gap.result import GapResult
 
 SEALED = "sealed"
 OUT = "gap"
@@ -22,7 +23,7 @@ OUT = "gap"
 @dataclass(frozen=True)
 class CaseAnswer:
     case: str
-    result: dict[str, Any] | None
+    result: GapResult | None
     error: str | None = None
 
 
@@ -80,8 +81,8 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
     rows = []
     for answer in answers:
         true_effect = truth["cases"][answer.case]["effect"]["name"]
-        said = answer.result["diagnosis"] if answer.result else "error"
-        group = answer.result["confounded_with"] if answer.result else []
+        said = answer.result.diagnosis if answer.result else "error"
+        group = list(answer.result.confounded_with) if answer.result else []
         ok = said == true_effect or (true_effect != "none" and said != "none" and true_effect in group)
         correct += ok
         confusion[(true_effect, said)] += 1
@@ -89,7 +90,7 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
             none_cases += 1
             none_alarms += said != "none"
         elif answer.result:
-            shrinks.append(float(answer.result["shrink_heldout"]))
+            shrinks.append(answer.result.shrink_heldout)
         rows.append(
             {
                 "case": answer.case,
@@ -98,7 +99,7 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
                 "diagnosis": said,
                 "confounded_with": group,
                 "correct": ok,
-                "shrink_heldout": answer.result["shrink_heldout"] if answer.result else None,
+                "shrink_heldout": answer.result.shrink_heldout if answer.result else None,
                 "error": answer.error,
             }
         )
@@ -119,9 +120,9 @@ def open_seal(pack: Path) -> dict[str, Any]:
     path = pack / SEALED / "truth.json"
     try:
         return dict(json.loads(path.read_text()))
-    except FileNotFoundError:
+    except FileNotFoundError as error:
         raise C2nError(
             f"{path}: no sealed truth — is {pack} a pack written by c2n simulate --pack?"
-        ) from None
+        ) from error
     except (OSError, json.JSONDecodeError) as error:
-        raise C2nError(f"{path}: cannot read ({error})") from None
+        raise C2nError(f"{path}: cannot read ({error})") from error

@@ -4,7 +4,6 @@ gap shrinks once it is added — each effect fitted on some manoeuvres and score
 import itertools
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -13,6 +12,7 @@ from app.config import Config
 from app.gap.candidates import CANDIDATES, Candidate, separating_manoeuvre
 from app.gap.measured import Measured
 from app.gap.model import NOMINAL, Mods, Simulated, simulate
+from app.gap.result import BeforeAfter, CandidateScore, GapC2n, GapNoise, GapResult, Located
 from app.sim.vehicle_model import BicycleParams
 
 NONE_THRESHOLD = 0.05  # a held-out improvement of the fit cost below this is noise: 'none'
@@ -227,7 +227,7 @@ def method_c2n(pb: Problem, beta: np.ndarray) -> float | None:
     return float(-1.0 / (g * coef[2])) if coef[2] < 0 else None
 
 
-def locate(pb: Problem, base: Simulated, fold: np.ndarray) -> list[dict[str, Any]]:
+def locate(pb: Problem, base: Simulated, fold: np.ndarray) -> list[Located]:
     """Where the sideslip residual concentrates: its share of the squared residual per slice,
     against the slice's share of the samples."""
     m = pb.measured
@@ -265,16 +265,16 @@ def locate(pb: Problem, base: Simulated, fold: np.ndarray) -> list[dict[str, Any
         share = float(np.sum(res[inside] ** 2)) / total
         samples = float(inside.sum()) / n
         out.append(
-            {
-                "where": where,
-                "share": round(share, 3),
-                "samples_share": round(samples, 3),
-                "concentration": round(share / samples, 2),
-                "mean_deg": round(float(np.mean(res[inside])), 4),
-                "rms_deg": round(float(np.sqrt(np.mean(res[inside] ** 2))), 4),
-            }
+            Located(
+                where=where,
+                share=round(share, 3),
+                samples_share=round(samples, 3),
+                concentration=round(share / samples, 2),
+                mean_deg=round(float(np.mean(res[inside])), 4),
+                rms_deg=round(float(np.sqrt(np.mean(res[inside] ** 2))), 4),
+            )
         )
-    return sorted(out, key=lambda row: -row["concentration"])
+    return sorted(out, key=lambda row: -row.concentration)
 
 
 @dataclass(frozen=True)
@@ -291,7 +291,7 @@ class Residuals:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    result: dict[str, Any]  # the JSON (DESIGN §6)
+    result: GapResult  # what c2n gap --json writes
     residuals: Residuals
 
 
@@ -322,46 +322,44 @@ def diagnose(m: Measured, config: Config) -> Diagnosis:
         after=np.degrees(m.beta - after.beta),
         rows=pb.rows,
     )
-    result = {
-        "diagnosis": diagnosis,
-        "confounded_with": confounded if named else [],
-        "separate_by": {other: separating_manoeuvre(diagnosis, other) for other in confounded}
-        if named
-        else {},
-        "located": locate(pb, base, fold),
-        "candidates": [
-            {
-                "effect": s.candidate.effect,
-                "params": {p.name: round(v, 5) for p, v in zip(s.candidate.params, s.params, strict=True)},
-                "heldout_rms_before": round(s.rms_before_deg, 5),
-                "heldout_rms_after": round(s.rms_after_deg, 5),
-                "heldout_cost_before": round(float(s.cost_before), 4),
-                "heldout_cost_after": round(float(s.cost_after), 4),
-                "improvement": round(float(s.improvement), 4),
-            }
+    result = GapResult(
+        diagnosis=diagnosis,
+        confounded_with=tuple(confounded) if named else (),
+        separate_by={other: separating_manoeuvre(diagnosis, other) for other in confounded} if named else {},
+        located=tuple(locate(pb, base, fold)),
+        candidates=tuple(
+            CandidateScore(
+                effect=s.candidate.effect,
+                params={p.name: round(v, 5) for p, v in zip(s.candidate.params, s.params, strict=True)},
+                heldout_rms_before=round(s.rms_before_deg, 5),
+                heldout_rms_after=round(s.rms_after_deg, 5),
+                heldout_cost_before=round(float(s.cost_before), 4),
+                heldout_cost_after=round(float(s.cost_after), 4),
+                improvement=round(float(s.improvement), 4),
+            )
             for s in scored
-        ],
-        "c2n": {
-            "nominal": nominal,
-            "sim": _r(c2n_sim),
-            "measured": _r(c2n_measured),
-            "after": _r(c2n_after),
-            "pipeline": m.summary.get("c2n"),
-        },
-        "shrink_heldout": round(1.0 - best.rms_after_deg / best.rms_before_deg, 4)
+        ),
+        c2n=GapC2n(
+            nominal=nominal,
+            sim=_r(c2n_sim),
+            measured=_r(c2n_measured),
+            after=_r(c2n_after),
+            pipeline=m.summary.c2n,
+        ),
+        shrink_heldout=round(1.0 - best.rms_after_deg / best.rms_before_deg, 4)
         if named and best.rms_before_deg > 0
         else 0.0,
-        "heldout_rms_deg": {
-            "before": round(best.rms_before_deg, 5),
-            "after": round(best.rms_after_deg if named else best.rms_before_deg, 5),
-        },
-        "noise": {
-            "sideslip_deg": round(math.degrees(pb.sigma_beta), 5),
-            "yaw_rate_degps": round(math.degrees(pb.sigma_r), 5),
-        },
-        "manoeuvres": len(np.unique(ids)),
-        "speed_input": m.speed_source,
-    }
+        heldout_rms_deg=BeforeAfter(
+            before=round(best.rms_before_deg, 5),
+            after=round(best.rms_after_deg if named else best.rms_before_deg, 5),
+        ),
+        noise=GapNoise(
+            sideslip_deg=round(math.degrees(pb.sigma_beta), 5),
+            yaw_rate_degps=round(math.degrees(pb.sigma_r), 5),
+        ),
+        manoeuvres=len(np.unique(ids)),
+        speed_input=m.speed_source,
+    )
     return Diagnosis(result, residuals)
 
 

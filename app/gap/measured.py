@@ -20,8 +20,11 @@ from app.errors import NoResultError
 from app.pipeline import Pipeline
 from app.records import Crossing
 from app.results.regression import RegressionFit
+from app.run_loop import run
+from app.sinks.summary import Summary
 from app.sinks.summary import build as build_summary
 from app.sinks.trace import Trace, TraceRecorder
+from app.snapshot import Snapshot
 from app.sources.logs import LogSource
 
 log = logging.getLogger(__name__)
@@ -48,7 +51,7 @@ class Measured:
     vehicle_roles: frozenset[str]  # roles read from the vehicle bus (they share its latency)
     crossings: tuple[Crossing, ...]
     regression: RegressionFit | None
-    summary: dict[str, object]
+    summary: Summary
 
     @property
     def heading(self) -> np.ndarray:
@@ -103,24 +106,20 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
     pipeline = Pipeline(config)
     source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
     recorder = TraceRecorder(config.roles)
-    for message in source:
-        record = pipeline.process(message)
-        if record is not None:
-            recorder(record)
-    pipeline.finish()
+    run(source, pipeline, [recorder])
     for report in source.reports:
         if report.stopped:
             log.warning("%s: %s", report.path, report.stopped)
-    state = pipeline.state
-    trace = recorder.trace(state.t_first or 0.0)
+    snapshot = pipeline.snapshot()
+    trace = recorder.trace(snapshot.t0)
     if not len(trace) or not np.isfinite(trace["sideslip_measured"]).any():
         raise NoResultError(
             f"{', '.join(map(str, logs))}: no optical sideslip — the gap needs the optical sensor's frames"
         )
-    return _on_grid(trace, config, pipeline, logs, dt)
+    return _on_grid(trace, config, snapshot, logs, dt)
 
 
-def _on_grid(trace: Trace, config: Config, pipeline: Pipeline, logs: Sequence[Path], dt: float) -> Measured:
+def _on_grid(trace: Trace, config: Config, snapshot: Snapshot, logs: Sequence[Path], dt: float) -> Measured:
     time = trace["time"]
     n = int(time[-1] / dt) + 1
     index = np.minimum((time / dt).astype(np.int64), n - 1)
@@ -153,7 +152,7 @@ def _on_grid(trace: Trace, config: Config, pipeline: Pipeline, logs: Sequence[Pa
         steady=steady,
         speed_source="vehicle speed" if has_speed else "optical speed",
         vehicle_roles=_vehicle_roles(config),
-        crossings=tuple(pipeline.state.crossings),
-        regression=pipeline.state.regression,
-        summary=build_summary(pipeline, [str(p) for p in logs]),
+        crossings=snapshot.crossings,
+        regression=snapshot.regression,
+        summary=build_summary(snapshot, config, [str(p) for p in logs]),
     )

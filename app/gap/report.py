@@ -2,7 +2,7 @@
 
 import html
 import io
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -10,8 +10,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from app.gap.diagnose import Diagnosis, Residuals
+from app.sinks.html import fields, figure, page, section, table, text
 from app.sinks.plots import DPI, SIZE_IN, stride
-from app.sinks.report import fields, figure, page, section, table, text
 
 _MAX_POINTS = 30_000
 
@@ -72,9 +72,9 @@ def _bars(fig: Figure, labels: Sequence[str], values: Sequence[float], title: st
 
 def plots(diagnosis: Diagnosis) -> list[tuple[str, bytes]]:
     res, result = diagnosis.residuals, diagnosis.result
-    effect = result["diagnosis"] if result["diagnosis"] != "none" else "no effect"
-    located = result["located"]
-    candidates = result["candidates"]
+    effect = result.diagnosis if result.diagnosis != "none" else "no effect"
+    located = result.located
+    candidates = result.candidates
     return [
         ("gap_residual_time.png", _png(_time, res, effect)),
         ("gap_residual_ay.png", _png(_scatter_pair, res, res.ay, "lateral acceleration [m/s²]", effect)),
@@ -83,8 +83,8 @@ def plots(diagnosis: Diagnosis) -> list[tuple[str, bytes]]:
             "gap_located.png",
             _png(
                 _bars,
-                [row["where"] for row in located],
-                [row["concentration"] for row in located],
+                [row.where for row in located],
+                [row.concentration for row in located],
                 "Where the residual concentrates (share of residual² / share of samples)",
                 "concentration",
             ),
@@ -93,8 +93,8 @@ def plots(diagnosis: Diagnosis) -> list[tuple[str, bytes]]:
             "gap_candidates.png",
             _png(
                 _bars,
-                [c["effect"] for c in candidates],
-                [100 * c["improvement"] for c in candidates],
+                [c.effect for c in candidates],
+                [100 * c.improvement for c in candidates],
                 "Held-out improvement of the fit per candidate effect",
                 "improvement [%]",
             ),
@@ -104,45 +104,43 @@ def plots(diagnosis: Diagnosis) -> list[tuple[str, bytes]]:
 
 def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
     result = diagnosis.result
-    c2n: Mapping[str, Any] = result["c2n"]
+    c2n = result.c2n
     verdict = fields(
         (
             ("inputs", ", ".join(html.escape(i) for i in inputs)),
-            ("diagnosis", f"<strong>{text(result['diagnosis'])}</strong>"),
-            ("confounded with", text(", ".join(result["confounded_with"]) or None)),
-            ("held-out shrink", text(result["shrink_heldout"])),
+            ("diagnosis", f"<strong>{text(result.diagnosis)}</strong>"),
+            ("confounded with", text(", ".join(result.confounded_with) or None)),
+            ("held-out shrink", text(result.shrink_heldout)),
             (
                 "held-out sideslip RMS",
-                f"{text(result['heldout_rms_deg']['before'])}° → {text(result['heldout_rms_deg']['after'])}°",
+                f"{text(result.heldout_rms_deg.before)}° → {text(result.heldout_rms_deg.after)}°",
             ),
             (
                 "C2n (nominal / model / measured / with effect)",
-                " / ".join(text(c2n.get(k)) for k in ("nominal", "sim", "measured", "after")),
+                " / ".join(text(value) for value in (c2n.nominal, c2n.sim, c2n.measured, c2n.after)),
             ),
         )
     )
-    separate = [
-        (html.escape(other), html.escape(how)) for other, how in result.get("separate_by", {}).items()
-    ]
+    separate = [(html.escape(other), html.escape(how)) for other, how in result.separate_by.items()]
     candidate_rows = [
         (
-            text(c["effect"]),
-            html.escape(", ".join(f"{k} = {v:g}" for k, v in c["params"].items())),
-            text(c["heldout_rms_before"]),
-            text(c["heldout_rms_after"]),
-            f"{100 * c['improvement']:.1f} %",
+            text(c.effect),
+            html.escape(", ".join(f"{k} = {v:g}" for k, v in c.params.items())),
+            text(c.heldout_rms_before),
+            text(c.heldout_rms_after),
+            f"{100 * c.improvement:.1f} %",
         )
-        for c in result["candidates"]
+        for c in result.candidates
     ]
     located_rows = [
         (
-            text(row["where"]),
-            text(row["share"]),
-            text(row["samples_share"]),
-            text(row["concentration"]),
-            text(row["mean_deg"]),
+            text(row.where),
+            text(row.share),
+            text(row.samples_share),
+            text(row.concentration),
+            text(row.mean_deg),
         )
-        for row in result["located"]
+        for row in result.located
     ]
     return page(
         title,

@@ -23,9 +23,10 @@ import can
 import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
-from app.errors import C2nError, ConfigError, LogFileError
+from app.errors import C2nError, ConfigError, OutputError
 from app.sim.effects import Effect, draw_effect
 from app.sim.standard import STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
+from app.sinks.files import write_json, write_text
 
 LOG_NAME = "drive.blf"
 _EFFECT_STREAM = 0xEFFEC7  # the effect's draw has a random stream of its own, apart from the noise
@@ -84,7 +85,7 @@ def write_pack(
     if n < 1:
         raise C2nError(f"a pack needs at least one case, not {n}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise C2nError(f"{out}: exists and is not an empty folder — choose a new one")
+        raise OutputError(f"{out}: exists and is not an empty folder — choose a new one")
     config_text = _portable_config(Path(config_path))
     load_config(config_path)  # a bad config fails here, once, not in every worker
     specs = plan_pack(n, pack_seed)
@@ -117,7 +118,7 @@ def write_pack(
         "config": str(Path(config_path).resolve()),
         "cases": {result.name: result.truth for result in results},
     }
-    truth_path.write_text(json.dumps(truth, indent=2) + "\n")
+    write_json(truth_path, truth, "the sealed truth")
     return PackResult(out, tuple(results), truth_path, clock() - start)
 
 
@@ -131,7 +132,7 @@ def _write_case(
     log = folder / LOG_NAME
     write_log(drive.messages, log)
     if config_text is not None:
-        (folder / "config.toml").write_text(config_text)
+        write_text(folder / "config.toml", config_text, "the case's config")
     truth = {"case": spec.name, "log": f"{spec.name}/{LOG_NAME}"} | drive.truth
     return CaseResult(
         spec.name, log, float(truth["duration_s"]), len(drive.messages), time.perf_counter() - start, truth
@@ -145,7 +146,7 @@ def write_log(messages: list[can.Message], log: Path) -> None:
             for message in messages:
                 writer.on_message_received(message)
     except OSError as error:
-        raise LogFileError(f"{log}: cannot write ({error.strerror})") from None
+        raise OutputError(f"{log}: cannot write ({error.strerror})") from error
 
 
 def _portable_config(path: Path) -> str | None:
@@ -157,7 +158,7 @@ def _portable_config(path: Path) -> str | None:
         text = path.read_text()
         table = tomllib.loads(text)
     except (OSError, tomllib.TOMLDecodeError) as error:
-        raise ConfigError(f"{path}: cannot read ({error})") from None
+        raise ConfigError(f"{path}: cannot read ({error})") from error
     files = table.get("dbc", {}).get("files", [])
     for name in files if isinstance(files, list) else []:
         if isinstance(name, str) and not Path(name).is_absolute():

@@ -1,6 +1,5 @@
 """A simulated test drive: manoeuvre → bicycle model → sensor frames → CAN log + truth."""
 
-import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -11,11 +10,12 @@ import numpy as np
 from app import paper
 from app.config import Config
 from app.dbc import load_dbc
-from app.errors import C2nError, LogFileError
+from app.errors import C2nError, LogFileError, OutputError
 from app.sim.drive import DriveTrace, simulate
 from app.sim.scenarios import SCENARIOS, SweepPlan
 from app.sim.sensors import SensorSetup, frames
 from app.sim.vehicle_model import BicycleParams, TyreModel
+from app.sinks.files import write_json
 
 DBC_DIR = Path(__file__).resolve().parents[2] / "dbc"
 LOG_SUFFIXES = (".asc", ".blf", ".log", ".csv", ".mf4", ".trc")
@@ -104,9 +104,9 @@ def write_drive(drive: SimulatedDrive, log: Path) -> Path:
             for message in drive.messages:
                 writer.on_message_received(message)
     except OSError as error:
-        raise LogFileError(f"{log}: cannot write ({error.strerror})") from None
+        raise OutputError(f"{log}: cannot write ({error.strerror})") from error
     path = truth_path(log)
-    path.write_text(json.dumps(drive.truth, indent=2) + "\n")
+    write_json(path, drive.truth, "the truth")
     return path
 
 

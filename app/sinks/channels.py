@@ -8,8 +8,8 @@ commented.
 """
 
 import datetime
-import os
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +18,7 @@ import pyarrow.csv
 import pyarrow.parquet
 
 from app import __version__
-from app.errors import C2nError
+from app.sinks.files import write_atomically
 from app.sinks.trace import TIME, Trace
 
 FORMATS = ("csv", "parquet", "mf4")
@@ -84,11 +84,5 @@ WRITERS: dict[str, Callable[[Trace, Path], None]] = {
 
 
 def write(trace: Trace, fmt: str, path: Path) -> None:
-    """Write atomically (a temporary file renamed into place), translating OS errors."""
-    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")  # asammdf insists on the suffix
-    try:
-        WRITERS[fmt](trace, tmp)
-        os.replace(tmp, path)
-    except OSError as error:
-        tmp.unlink(missing_ok=True)
-        raise C2nError(f"{path}: cannot write ({error.strerror or error})") from None
+    """Write atomically (``app.sinks.files``), translating OS errors."""
+    write_atomically(path, partial(WRITERS[fmt], trace), f"the {fmt.upper()} channels")

@@ -1,12 +1,12 @@
-"""The in-car dashboard: a rich renderable drawn from the pipeline's state.
+"""The in-car dashboard: a display sink that renders the last snapshot of the run.
 
-Nothing here reads a clock or the bus: it renders what the pipeline has seen (frame time), so a
-test renders it into ``Console(record=True)`` and reads the text.
+Nothing here reads a clock or the bus: it renders what the pipeline had seen (frame time), so a
+test feeds it a snapshot, renders it into ``Console(record=True)`` and reads the text.
 """
 
 import heapq
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from rich.console import Group, RenderableType
@@ -14,30 +14,30 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from app.pipeline import Pipeline
+from app.records import Reason, SteadyState
 from app.sinks.event_printer import result_line
+from app.sinks.sink import Display
 from app.sinks.summary import format_id
+from app.snapshot import Snapshot
 
-_ADVICE = (
-    ("lateral acceleration too high", "Too much lateral acceleration: slow down or widen the circle"),
-    ("sweep too fast", "Change speed more gently"),
-    ("below", "Speed up"),
-    ("driving straight", "Turn onto the circle"),
-    ("steering transient", "Hold the steering wheel steady"),
-    ("settling", "Hold it steady…"),
-    ("sensor:", "Sensor status bad"),
-)
+_ADVICE: Mapping[Reason, str] = {
+    Reason.AY_HIGH: "Too much lateral acceleration: slow down or widen the circle",
+    Reason.SWEEP_FAST: "Change speed more gently",
+    Reason.SPEED_LOW: "Speed up",
+    Reason.STRAIGHT: "Turn onto the circle",
+    Reason.TRANSIENT: "Hold the steering wheel steady",
+    Reason.SETTLING: "Hold it steady…",
+    Reason.SENSOR: "Sensor status bad",
+}
 
 
-def guidance(reasons: tuple[str, ...]) -> list[str]:
-    """Advice for the driver from the steady-state gate's reasons."""
-    advice = []
-    for reason in reasons:
-        for key, text in _ADVICE:
-            if key in reason:
-                advice.append(f"{text} ({reason})" if key == "sensor:" else text)
-                break
-    return advice
+def guidance(steady: SteadyState) -> list[str]:
+    """Advice for the driver, one line per reason the steady-state gate gave (the sensor's with
+    its words: which status is bad)."""
+    return [
+        f"{_ADVICE[cause]} ({words})" if cause is Reason.SENSOR else _ADVICE[cause]
+        for cause, words in zip(steady.causes, steady.reasons, strict=True)
+    ]
 
 
 @dataclass
@@ -94,40 +94,52 @@ def _pairs(rows: list[tuple[str, str]]) -> Text:
     return text
 
 
-class Dashboard:
-    def __init__(self, pipeline: Pipeline, title: str, max_ids: int = 10, max_crossings: int = 8) -> None:
-        self.pipeline = pipeline
+class Dashboard(Display):
+    """``bus_problem`` says which buses are lost, bus-off or error-passive (None while all are
+    well): it comes from the source, not the pipeline."""
+
+    def __init__(
+        self,
+        title: str,
+        max_ids: int = 10,
+        max_crossings: int = 8,
+        bus_problem: Callable[[], str | None] = lambda: None,
+    ) -> None:
         self.title = title
         self.max_ids = max_ids
         self.max_crossings = max_crossings
-        self.bus_problem: Callable[[], str | None] = lambda: None  # lost, bus-off or error-passive buses
+        self.bus_problem = bus_problem
+        self._snapshot: Snapshot | None = None
         self._rates = _RateMeter()
 
+    def on_snapshot(self, snapshot: Snapshot) -> None:
+        self._snapshot = snapshot
+        self._rates.update(snapshot.t_last, snapshot.frames.by_id)
+
     def __rich__(self) -> RenderableType:
-        state = self.pipeline.state
-        self._rates.update(state.t_last, self.pipeline.decoder.counts.by_id)
-        t0 = state.t_first or 0.0
-        elapsed = (state.t_last or t0) - t0
+        heading = Text()
+        heading.append(f" c2n live — {self.title}", style="bold")
+        snapshot = self._snapshot
+        if snapshot is None:
+            heading.append("   waiting for the first frames")
+            return Group(heading)
+        heading.append(f"   t = {snapshot.elapsed_s:.1f} s")
         top = Table.grid(expand=True, padding=(0, 2))
         top.add_column(ratio=1)
         top.add_column(ratio=1)
-        top.add_row(self._motion(), self._status())
-        heading = Text()
-        heading.append(f" c2n live — {self.title}", style="bold")
-        heading.append(f"   t = {elapsed:.1f} s")
+        top.add_row(self._motion(snapshot), self._status(snapshot))
         # No panel around the whole: every panel inside would be cut into lines once more, which
         # doubled the cost of a refresh (tools/bench.py --only parts: dashboard refresh).
-        return Group(heading, top, self._crossings(), self._frames())
+        return Group(heading, top, self._crossings(snapshot), self._frames(snapshot))
 
-    def _motion(self) -> RenderableType:
-        state = self.pipeline.state
-        record = state.last
+    def _motion(self, snapshot: Snapshot) -> RenderableType:
+        record = snapshot.last
         e = record.estimate if record else None
         if e is None:
             return Panel(_pairs([("speed", "—")]), title="Motion")
         sigma = math.degrees(e.sideslip_sigma_rad)
-        steer = state.latest.get("steer")
-        noise = self.pipeline.filter.noise_sigma()
+        steer = snapshot.latest.get("steer")
+        noise = snapshot.filter.noise_sigma
         rows = [
             ("speed", f"{e.u_mps * 3.6:6.1f} km/h  {e.u_mps:6.2f} m/s"),
             ("sweep", f"{e.u_dot_mps2:+6.2f} m/s²"),
@@ -140,13 +152,12 @@ class Dashboard:
         ]
         return Panel(_pairs(rows), title="Motion")
 
-    def _status(self) -> RenderableType:
-        state = self.pipeline.state
+    def _status(self, snapshot: Snapshot) -> RenderableType:
         lines: list[Text] = []
         bus_problem = self.bus_problem()
         if bus_problem:
             lines.append(Text(f"bus: {bus_problem}", style="bold red"))
-        steady = state.last.steady if state.last else None
+        steady = snapshot.last.steady if snapshot.last else None
         if steady is None:
             lines.append(Text("waiting for optical sensor frames", style="yellow"))
         elif steady.steady:
@@ -154,25 +165,27 @@ class Dashboard:
             lines.append(Text(f"● STEADY — {turn}", style="bold green"))
         else:
             lines.append(Text("○ not steady", style="yellow"))
-            lines.extend(Text(f"→ {advice}", style="yellow") for advice in guidance(steady.reasons))
-        if state.sensor_problem:
-            lines.append(Text(f"sensor: {state.sensor_problem}", style="bold red"))
-        status = self.pipeline.decoder.status
-        if status.values:
+            lines.extend(Text(f"→ {advice}", style="yellow") for advice in guidance(steady))
+        if snapshot.sensor_problem:
+            lines.append(Text(f"sensor: {snapshot.sensor_problem}", style="bold red"))
+        if snapshot.status:
             shown = ", ".join(
-                f"{name.partition('.')[2]} {value:g}" for name, value in sorted(status.values.items())
+                f"{name.partition('.')[2]} {value:g}" for name, value in sorted(snapshot.status.items())
             )
             lines.append(Text(f"status: {shown}"))
-        for direction, _t, u in self.pipeline.detector.pending:
-            lines.append(Text(f"sign change {direction or ''} at {u * 3.6:.1f} km/h: fitting…", style="cyan"))
+        for pending in snapshot.pending:
+            lines.append(
+                Text(
+                    f"sign change {pending.direction or ''} at {pending.u_mps * 3.6:.1f} km/h: fitting…",
+                    style="cyan",
+                )
+            )
         return Panel(Group(*lines), title="Steady state")
 
-    def _crossings(self) -> RenderableType:
-        state = self.pipeline.state
-        config = self.pipeline.config
+    def _crossings(self, snapshot: Snapshot) -> RenderableType:
         rows = [("t [s]", "dir", "sweep", "u0 [m/s]", "u0 [km/h]", "a_y [m/s²]", "C2n [1/rad]", "95 %")]
-        t0 = state.t_first or 0.0
-        for c in state.crossings[-self.max_crossings :]:
+        t0 = snapshot.t0
+        for c in snapshot.crossings[-self.max_crossings :]:
             lo, hi = c.ci95
             rows.append(
                 (
@@ -187,20 +200,20 @@ class Dashboard:
                 )
             )
         table = columns(rows)
-        result = Text(result_line(state, config.vehicle.gravity_mps2, config.d_m), style="bold")
+        result = Text(result_line(snapshot), style="bold")
         lines: list[RenderableType] = [table, result]
-        fit = state.regression
+        fit = snapshot.regression
         if fit is not None:
             psi0 = f"ψ0 {math.degrees(fit.psi0_rad):+.3f}°" if fit.psi0_rad is not None else "ψ0 —"
             model = "softening tyre model" if fit.model == "softening" else "linear"
             lines.append(
                 Text(
                     f"regression: d {fit.d_m:.3f} m [{fit.d_ci95[0]:.3f}, {fit.d_ci95[1]:.3f}] "
-                    f"(config {config.d_m:g}), {psi0}, {model}, "
+                    f"(config {snapshot.d_m:g}), {psi0}, {model}, "
                     f"a_y {fit.ay_range[0]:.1f}–{fit.ay_range[1]:.1f} m/s²"
                 )
             )
-        paired = state.paired
+        paired = snapshot.paired
         if paired is not None:
             parts = []
             if paired.misalignment_rad is not None:
@@ -212,19 +225,19 @@ class Dashboard:
             else:
                 parts.append("lag not removed yet (sweep the other way too)")
             lines.append(Text("pairing: " + ", ".join(parts)))
-        rejected = len(state.rejections)
+        rejected = len(snapshot.rejections)
         if rejected:
             lines.append(Text(f"{rejected} sign change(s) not used", style="dim"))
         return Panel(Group(*lines), title="Crossings")
 
-    def _frames(self) -> RenderableType:
-        counts = self.pipeline.decoder.counts
+    def _frames(self, snapshot: Snapshot) -> RenderableType:
+        counts = snapshot.frames
         rows = [("channel", "id", "message", "frames", "rate [1/s]")]
         busiest = heapq.nlargest(self.max_ids, counts.by_id.items(), key=lambda kv: kv[1])
         for key, n in sorted(busiest, key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])):
             channel, frame_id, extended = key
             rate = self._rates.rates.get(key)
-            name = self.pipeline.decoder.message_name(frame_id, extended) or "(unknown)"
+            name = snapshot.message_names.get((frame_id, extended), "(unknown)")
             rate_text = f"{rate:.0f}" if rate is not None else "—"
             rows.append((str(channel), format_id(frame_id, extended), name, str(n), rate_text))
         table = columns(rows, left={2})

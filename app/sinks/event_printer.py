@@ -1,9 +1,14 @@
-"""One line per event, the same on a terminal and in a pipe (plain text there)."""
+"""The event printer: one line per event, the same on a terminal and in a pipe (plain text there),
+and the run's result line."""
 
-import math
+from collections.abc import Sequence
 
-from app.pipeline import SessionState
-from app.records import Crossing, CrossingRejected
+from rich.console import Console
+from rich.text import Text
+
+from app.records import Crossing, CrossingRejected, Event
+from app.sinks.sink import Sink
+from app.snapshot import Snapshot
 
 
 def crossing_line(c: Crossing, t0: float) -> str:
@@ -23,25 +28,37 @@ def rejected_line(r: CrossingRejected, t0: float) -> str:
     )
 
 
-def result_line(state: SessionState, g: float, d_m: float) -> str:
+def result_line(snapshot: Snapshot) -> str:
     """The run's result: the headline C2n and how it was found, and the crossings beside it."""
-    headline = state.headline
+    headline, u0 = snapshot.headline, snapshot.u0_mps
     if headline is None:
         return "C2n: no result (no usable sideslip sign change or steady samples)"
     lo, hi = headline.ci95
-    u0 = math.sqrt(headline.c2n * g * d_m)
     how = headline.method
-    if state.regression is not None:
-        how = f"regression over {state.regression.n_samples:,} steady samples"
-        if state.regression.model == "softening":
+    fit = snapshot.regression
+    if fit is not None:
+        how = f"regression over {fit.n_samples:,} steady samples"
+        if fit.model == "softening":
             how += ", extrapolated to zero a_y"
-    text = (
-        f"C2n = {headline.c2n:.3f} 1/rad [{lo:.3f}, {hi:.3f}] (95 %, {how}); "
-        f"u0 = {u0:.3f} m/s = {u0 * 3.6:.2f} km/h"
-    )
-    crossings = state.paired or state.combined
+    text = f"C2n = {headline.c2n:.3f} 1/rad [{lo:.3f}, {hi:.3f}] (95 %, {how}); "
+    text += f"u0 = {u0:.3f} m/s = {u0 * 3.6:.2f} km/h" if u0 is not None else "u0: none (C2n is not positive)"
+    crossings = snapshot.paired or snapshot.combined
     if crossings is not None and headline.method == "regression":
         clo, chi = crossings.ci95
-        paired = " paired" if state.paired is not None else ""
+        paired = " paired" if snapshot.paired is not None else ""
         text += f"; {crossings.n}{paired} crossings: {crossings.c2n:.3f} [{clo:.3f}, {chi:.3f}]"
     return text
+
+
+class EventPrinter(Sink):
+    """Prints each crossing (and each sign change not used) as one line."""
+
+    def __init__(self, console: Console) -> None:
+        self.console = console
+
+    def on_events(self, events: Sequence[Event], t0: float) -> None:
+        for event in events:
+            if isinstance(event, Crossing):
+                self.console.print(Text(crossing_line(event, t0), style="bold green"), soft_wrap=True)
+            elif isinstance(event, CrossingRejected):
+                self.console.print(Text(rejected_line(event, t0), style="dim"), soft_wrap=True)

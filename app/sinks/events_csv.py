@@ -8,8 +8,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import IO
 
-from app.errors import C2nError
+from app.errors import OutputError
 from app.records import Crossing, CrossingRejected
+from app.sinks.files import write_atomically
 
 FIELDS = (
     "t",
@@ -70,7 +71,7 @@ class EventsTable:
         try:
             self._file: IO[str] = path.open("w", newline="", encoding="utf-8")
         except OSError as error:
-            raise C2nError(f"{path}: cannot write the events table ({error.strerror})") from None
+            raise OutputError(f"{path}: cannot write the events table ({error.strerror})") from error
         self._csv = csv.writer(self._file)
         self._csv.writerow(FIELDS)
         self._file.flush()
@@ -84,9 +85,14 @@ class EventsTable:
 
 
 def write(path: Path, events: Iterable[Crossing | CrossingRejected], t0: float) -> None:
-    table = EventsTable(path)
-    try:
-        for event in sorted(events, key=lambda e: e.t):
-            table.add(event, t0)
-    finally:
-        table.close()
+    """The whole table at once, atomically (``app.sinks.files``)."""
+
+    def rows(tmp: Path) -> None:
+        table = EventsTable(tmp)
+        try:
+            for event in sorted(events, key=lambda e: e.t):
+                table.add(event, t0)
+        finally:
+            table.close()
+
+    write_atomically(path, rows, "the events table")

@@ -6,10 +6,9 @@ are decimated before plotting, so a drive of millions of frames plots in seconds
 """
 
 import math
-import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -18,7 +17,9 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from numpy.typing import ArrayLike
 
-from app.errors import C2nError
+from app.errors import OutputError
+from app.sinks.files import write_atomically
+from app.sinks.summary import CrossingRow, Summary
 from app.sinks.trace import Trace
 
 SIZE_IN = (8.0, 5.0)
@@ -33,15 +34,13 @@ _COLOUR = {name: colour for name, _, colour in _DIRECTIONS}
 _MARKER = {"up": "^", "down": "v"}
 _LINESTYLE = {"up": "--", "down": ":"}
 
-Summary = Mapping[str, Any]
-
 
 def write_plots(trace: Trace, summary: Summary, folder: Path) -> list[Path]:
     """Write the four PNGs into ``folder``; return their paths in the order of ``PLOTS``."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        raise C2nError(f"{folder}: cannot create the plot folder ({error.strerror})") from None
+        raise OutputError(f"{folder}: cannot create the plot folder ({error.strerror})") from error
     paths = []
     for name, draw in PLOTS.items():
         figure = Figure(figsize=SIZE_IN, dpi=DPI)
@@ -49,20 +48,9 @@ def write_plots(trace: Trace, summary: Summary, folder: Path) -> list[Path]:
         draw(figure, trace, summary)
         figure.tight_layout()
         path = folder / name
-        _save(figure, path)
+        write_atomically(path, partial(figure.savefig, dpi=DPI, format="png"), "the plot")
         paths.append(path)
     return paths
-
-
-def _save(figure: Figure, path: Path) -> None:
-    """Atomically: a temporary file renamed into place."""
-    tmp = path.with_name(f".{path.stem}.partial{path.suffix}")
-    try:
-        figure.savefig(tmp, dpi=DPI, format="png")
-        os.replace(tmp, path)
-    except OSError as error:
-        tmp.unlink(missing_ok=True)
-        raise C2nError(f"{path}: cannot write the plot ({error.strerror or error})") from None
 
 
 # --- data helpers -------------------------------------------------------------------------------
@@ -100,25 +88,6 @@ def envelope(t: np.ndarray, y: np.ndarray, limit: int) -> tuple[np.ndarray, np.n
     return t[index], y[index]
 
 
-def _number(value: Any) -> float | None:
-    """A finite float from the summary, else None (missing, null or not a number)."""
-    if isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value):
-        return float(value)
-    return None
-
-
-def _interval(value: Any) -> tuple[float, float] | None:
-    if isinstance(value, Sequence) and len(value) == 2:
-        low, high = _number(value[0]), _number(value[1])
-        if low is not None and high is not None:
-            return low, high
-    return None
-
-
-def _crossings(summary: Summary) -> list[Mapping[str, Any]]:
-    return [c for c in summary.get("crossings") or () if isinstance(c, Mapping)]
-
-
 # --- drawing helpers ----------------------------------------------------------------------------
 
 
@@ -149,11 +118,10 @@ def _to_mps(kmh: ArrayLike) -> np.ndarray:
     return np.asarray(kmh) / _KMH_PER_MPS
 
 
-def _mark_crossings_at_zero(ax: Axes, crossings: list[Mapping[str, Any]]) -> None:
+def _mark_crossings_at_zero(ax: Axes, crossings: Sequence[CrossingRow]) -> None:
     labelled: set[tuple[str, str]] = set()
     for crossing in crossings:
-        u0 = _number(crossing.get("u0_mps"))
-        direction, sweep = str(crossing.get("direction")), str(crossing.get("sweep"))
+        u0, direction, sweep = crossing.u0_mps, crossing.direction, crossing.sweep
         if u0 is None:
             continue
         key = (direction, sweep)
@@ -190,7 +158,7 @@ def draw_sideslip_vs_speed(figure: Figure, trace: Trace, summary: Summary) -> No
         plotted += len(rows)
         _dots(ax, speed[rows], sideslip[rows], colour, f"{name} turns", alpha=0.6)
     ax.axhline(0.0, color="black", linewidth=0.8)
-    _mark_crossings_at_zero(ax, _crossings(summary))
+    _mark_crossings_at_zero(ax, summary.crossings)
     if not plotted:
         _note(ax, "no data" if len(trace) == 0 else "no steady samples")
     ax.secondary_xaxis("top", functions=(_to_kmh, _to_mps)).set_xlabel("speed [km/h]")
@@ -219,9 +187,8 @@ def draw_vr_vs_u2(figure: Figure, trace: Trace, summary: Summary) -> None:
     ax = figure.add_subplot()
     ax.set_xlabel("u² [m²/s²]")
     ax.set_ylabel("v/r − ψ0·u/r [m]")
-    regression = summary.get("regression")
-    fit = regression if isinstance(regression, Mapping) else None
-    psi0 = math.radians(_number(fit.get("psi0_deg")) or 0.0) if fit else 0.0
+    fit = summary.regression
+    psi0 = math.radians(fit.psi0_deg or 0.0) if fit else 0.0
     speed, v_meas = _column(trace, "speed"), _column(trace, "lateral_velocity_measured")
     r = np.radians(_column(trace, "yaw_rate"))
     ay, direction = _column(trace, "lateral_acceleration"), _column(trace, "direction")
@@ -242,9 +209,9 @@ def draw_vr_vs_u2(figure: Figure, trace: Trace, summary: Summary) -> None:
         mine = np.flatnonzero(direction[rows] == sign)
         mine = mine[stride(len(mine), MAX_SCATTER_POINTS)]
         _dots(ax, x[mine], y[mine], colour, f"{name} turns", alpha=0.5)
-    c2n = (_number(fit.get("c2n_linear_model")) or _number(fit.get("c2n"))) if fit else None
-    d = _number(fit.get("d_m")) if fit else None
-    g = _number(summary.get("g_mps2")) or 9.81
+    c2n = (fit.c2n_linear_model or fit.c2n) if fit else None
+    d = fit.d_m if fit else None
+    g = summary.g_mps2 or 9.81
     line_y: list[float] = []
     if c2n is not None and d is not None and c2n > 0:
         u0_squared = d * g * c2n
@@ -289,13 +256,12 @@ def draw_c2n_per_crossing(figure: Figure, trace: Trace, summary: Summary) -> Non
     ax.set_xlabel("|a_y| at the crossing [m/s²]")
     ax.set_ylabel("C2n [–]")
     shown = 0
-    for crossing in _crossings(summary):
-        c2n, ay = _number(crossing.get("c2n")), _number(crossing.get("ay_mps2"))
+    for crossing in summary.crossings:
+        c2n, ay, (low, high) = crossing.c2n, crossing.ay_mps2, crossing.ci95
         if c2n is None or ay is None:
             continue
-        ci = _interval(crossing.get("ci95"))
-        error = [[c2n - ci[0]], [ci[1] - c2n]] if ci else None
-        direction, sweep = str(crossing.get("direction")), str(crossing.get("sweep"))
+        error = [[c2n - low], [high - c2n]] if low is not None and high is not None else None
+        direction, sweep = crossing.direction, crossing.sweep
         ax.errorbar(
             [abs(ay)],
             [c2n],
@@ -309,13 +275,13 @@ def draw_c2n_per_crossing(figure: Figure, trace: Trace, summary: Summary) -> Non
             label=f"{direction} {sweep}",
         )
         shown += 1
-    headline = _number(summary.get("c2n"))
+    headline = summary.c2n
     if headline is not None:
-        method = summary.get("c2n_method") or "headline"
+        method = summary.c2n_method or "headline"
         ax.axhline(headline, color="black", linewidth=1.2, label=f"{method}: C2n = {headline:.3f}")
-        band = _interval(summary.get("c2n_ci95"))
-        if band:
-            ax.axhspan(*band, color="0.5", alpha=0.2, label=f"95 % [{band[0]:.3f}, {band[1]:.3f}]")
+        low, high = summary.c2n_ci95 or (None, None)
+        if low is not None and high is not None:
+            ax.axhspan(low, high, color="0.5", alpha=0.2, label=f"95 % [{low:.3f}, {high:.3f}]")
     if not shown:
         _note(ax, "no crossings")
     ax.grid(alpha=0.3)
@@ -357,11 +323,10 @@ def draw_timeseries(figure: Figure, trace: Trace, summary: Summary) -> None:
             ax.plot(x, y, color=colour, linewidth=0.9, label="filtered")
         else:
             _note(ax, "no data" if len(trace) == 0 else f"no {name.replace('_', ' ')}")
-    for crossing in _crossings(summary):
-        at = _number(crossing.get("t"))
+    for crossing in summary.crossings:
+        at, direction, sweep = crossing.t, crossing.direction, crossing.sweep
         if at is None:
             continue
-        direction, sweep = str(crossing.get("direction")), str(crossing.get("sweep"))
         for i, ax in enumerate(axes):
             ax.axvline(
                 at,

@@ -11,15 +11,16 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from app.pipeline import Pipeline
+from app.sinks.sink import Display
+from app.snapshot import Snapshot
 from app.sources.logs import LogSource
 
 
-class ReadProgress:
-    """A renderable for the run loop's display: each redraw reads where the source is."""
+class ReadProgress(Display):
+    """The run loop's display for a run over files: each snapshot updates the bar from where the
+    source is."""
 
-    def __init__(self, pipeline: Pipeline, source: LogSource, name: str) -> None:
-        self.pipeline = pipeline
+    def __init__(self, source: LogSource, name: str) -> None:
         self.source = source
         self._progress = Progress(
             TextColumn("{task.description}"),
@@ -32,16 +33,15 @@ class ReadProgress:
         )
         self._task = self._progress.add_task(name, total=source.total_bytes or None, status="")
 
-    def __rich__(self) -> RenderableType:
-        state = self.pipeline.state
-        t0 = state.t_first or 0.0
-        drive_s = (state.t_last or t0) - t0
-        frames = self.pipeline.decoder.counts.total
+    def on_snapshot(self, snapshot: Snapshot) -> None:
         position = self.source.bytes_read()
         self._progress.update(
             self._task,
             completed=position if position is not None else 0,
             total=self.source.total_bytes if position is not None else None,
-            status=f"{frames:,} frames, {drive_s:,.0f} s of drive, {len(state.crossings)} crossings",
+            status=f"{snapshot.frames.total:,} frames, {snapshot.elapsed_s:,.0f} s of drive, "
+            f"{len(snapshot.crossings)} crossings",
         )
+
+    def __rich__(self) -> RenderableType:
         return self._progress.get_renderable()

@@ -7,7 +7,7 @@ bus is idle, so after a crash (even ``kill -9``) the log reads back up to the la
 
 import copy
 import shutil
-from collections.abc import Callable
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -15,9 +15,11 @@ import can
 from can.util import channel2int
 
 from app.config import Config
-from app.errors import C2nError
-from app.records import Crossing, CrossingRejected
+from app.errors import C2nError, OutputError
+from app.records import Crossing, CrossingRejected, Event
 from app.sinks.events_csv import EventsTable
+from app.sinks.sink import Sink
+from app.sinks.summary import Summary
 from app.sinks.summary import write as write_summary
 
 RAW_FORMATS = (".log", ".asc", ".blf")
@@ -115,7 +117,11 @@ class _BLFWriter(can.BLFWriter):
 _TEXT_WRITERS: dict[str, Any] = {".log": _CandumpWriter, ".asc": can.ASCWriter}
 
 
-class SessionRecorder:
+class SessionRecorder(Sink):
+    """The session folder as a sink: every raw frame as it arrives, every event as a row of
+    events.csv; ``close`` finishes both (a BLF gets its header), ``write_summary`` adds the
+    summary beside them."""
+
     def __init__(self, folder: Path, config: Config, raw_format: str = ".log") -> None:
         if raw_format not in RAW_FORMATS:
             raise C2nError(f"raw format '{raw_format}' — use one of {', '.join(RAW_FORMATS)}")
@@ -133,15 +139,21 @@ class SessionRecorder:
                 _TEXT_WRITERS[raw_format](self._spool) if self._spool else _BLFWriter(self.raw_path)
             )
         except OSError as error:
-            raise C2nError(
+            raise OutputError(
                 f"{folder}: cannot record the session ({error.strerror}) — use --record DIR"
-            ) from None
+            ) from error
         self._events = EventsTable(folder / "events.csv")
+        self._closed = False
         # each frame as it arrives, straight to the writer: it runs for every frame on the bus
-        self.on_message: Callable[[can.Message], None] = self._writer.on_message_received
+        self.on_frame = self._writer.on_message_received  # type: ignore[method-assign]
 
-    def on_event(self, event: Crossing | CrossingRejected, t0: float) -> None:
-        self._events.add(event, t0)
+    def on_frame(self, msg: can.Message) -> None:
+        self._writer.on_message_received(msg)
+
+    def on_events(self, events: Sequence[Event], t0: float) -> None:
+        for event in events:
+            if isinstance(event, Crossing | CrossingRejected):
+                self._events.add(event, t0)
 
     def flush(self) -> None:
         """Hand everything received so far to the operating system."""
@@ -153,9 +165,17 @@ class SessionRecorder:
             self._writer._flush()  # nothing when nothing is new
             self._writer.file.flush()
 
-    def close(self, summary: dict[str, Any]) -> None:
-        self._writer.stop()
-        self._events.close()
+    def close(self) -> None:
+        """Finish the raw log and the events table (once; again is nothing)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.stop()
+        finally:
+            self._events.close()
+
+    def write_summary(self, summary: Summary) -> None:
         write_summary(self.folder / "summary.json", summary)
 
 

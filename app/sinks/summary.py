@@ -1,23 +1,204 @@
-"""The session summary (DESIGN §6): what ``c2n analyze --json`` and a live session write."""
+"""The session summary: what ``c2n analyze --json``, ``c2n export`` and a live session write.
 
-import json
+``Summary`` is the result file in typed form, its fields the file's keys (stable: the README's
+"Result file"), its numbers rounded as the file holds them, so the report shows what the file
+says. ``build`` makes it from a Snapshot; ``to_json`` gives the file's content.
+"""
+
 import math
-import os
-from collections.abc import Sequence
-from dataclasses import asdict
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from app import __version__
 from app.config import Config
-from app.errors import C2nError
-from app.pipeline import Pipeline
-from app.records import Crossing
+from app.records import Crossing, CrossingRejected, Direction, Sweep
+from app.results.combine import Combined
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
+from app.sinks.files import json_ready, write_json
+from app.snapshot import Snapshot
 from app.sources.logs import LogReport
 
 REQUIRED_ROLES = (("vx",), ("vy", "beta"))
+
+Interval = tuple[float | None, float | None]
+
+
+@dataclass(frozen=True)
+class CrossingRow:
+    t: float | None  # s since the first frame
+    t_abs: float
+    u0_mps: float | None
+    u0_kmh: float | None
+    u0_ci95: Interval
+    c2n: float | None
+    ci95: Interval
+    direction: Direction
+    sweep: Sweep
+    ay_mps2: float | None
+    radius_m: float | None
+    sweep_rate_mps2: float | None
+    n_samples: int
+    method: Literal["v/r", "beta"]
+
+
+@dataclass(frozen=True)
+class RejectedRow:
+    t: float | None
+    direction: Direction | None
+    sweep: Sweep
+    u_mps: float | None
+    reason: str
+
+
+@dataclass(frozen=True)
+class RegressionRow:
+    c2n: float | None
+    c2n_ci95: Interval
+    d_m: float | None
+    d_ci95: Interval
+    psi0_deg: float | None
+    psi0_ci95_deg: Interval | None
+    model: Literal["linear", "softening"]
+    softening_t: float | None
+    softening_per_mps2_2: float | None
+    c2n_linear_model: float | None
+    c2n_softening_model: float | None
+    n_samples: int
+    ay_range_mps2: Interval
+
+
+@dataclass(frozen=True)
+class PairedRow:
+    c2n: float | None
+    c2n_ci95: Interval
+    misalignment_deg: float | None
+    misalignment_ci95_deg: Interval | None
+    lag_s: float | None
+    lag_ci95_s: Interval | None
+    cancels: tuple[str, ...]
+    cells: Mapping[str, float | None]
+    n: int
+    birge_ratio: float | None
+
+
+@dataclass(frozen=True)
+class CombinedRow:
+    n: int
+    birge_ratio: float | None
+    se: float | None
+
+
+@dataclass(frozen=True)
+class Frames:
+    """What the frames were (``total`` is the sum of the kinds after it; ``fd_frames`` aside)."""
+
+    total: int = 0
+    used: int = 0
+    unused: int = 0
+    unknown_id: int = 0
+    other_channel: int = 0
+    bad_length: int = 0
+    undecodable: int = 0
+    error_frames: int = 0
+    remote_frames: int = 0
+    fd_frames: int = 0
+
+
+@dataclass(frozen=True)
+class FrameIdRow:
+    channel: str
+    id: str
+    frames: int
+
+
+@dataclass(frozen=True)
+class FilterRow:
+    resets: int = 0
+    time_jumps: int = 0
+    late_frames: int = 0
+    outliers: int = 0
+    health: float | None = None
+    noise: Mapping[str, float | None] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Summary:
+    """The result file; ``Summary()`` is a run that found nothing."""
+
+    c2n: float | None = None
+    c2n_ci95: Interval | None = None
+    c2n_method: str | None = None
+    u0_mps: float | None = None
+    crossings: tuple[CrossingRow, ...] = ()
+    regression: RegressionRow | None = None
+    paired: PairedRow | None = None
+    frames: Frames = Frames()
+    warnings: tuple[str, ...] = ()
+    combined: CombinedRow | None = None
+    rejected_crossings: tuple[RejectedRow, ...] = ()
+    d_m: float | None = None
+    g_mps2: float | None = None
+    duration_s: float | None = None
+    inputs: tuple[str, ...] = ()
+    config: str | None = None
+    frames_by_id: tuple[FrameIdRow, ...] = ()
+    filter: FilterRow = FilterRow()
+    version: str = __version__
+
+    def to_json(self) -> dict[str, Any]:
+        """The file's content: JSON types only, in the file's key order."""
+        return dict(json_ready(self))
+
+    def warned(self, more: Sequence[str]) -> "Summary":
+        """The same summary with more warnings after its own."""
+        return replace(self, warnings=(*self.warnings, *more)) if more else self
+
+
+def build(
+    snapshot: Snapshot, config: Config, inputs: Sequence[str], reports: Sequence[LogReport] = ()
+) -> Summary:
+    t0 = snapshot.t0
+    headline = snapshot.headline
+    counts = snapshot.frames
+    combined = snapshot.combined
+    u0 = snapshot.u0_mps
+    return Summary(
+        c2n=_round(headline.c2n) if headline else None,
+        c2n_ci95=_pair(headline.ci95) if headline else None,
+        c2n_method=headline.method if headline else None,
+        u0_mps=_round(u0) if u0 is not None else None,
+        crossings=tuple(_crossing(c, t0) for c in snapshot.crossings),
+        regression=_regression(snapshot.regression),
+        paired=_paired(snapshot.paired),
+        frames=Frames(**counts.as_dict()),
+        warnings=tuple(warnings(snapshot, config, reports)),
+        combined=_combined(combined) if combined else None,
+        rejected_crossings=tuple(_rejected(r, t0) for r in snapshot.rejections),
+        d_m=snapshot.d_m,
+        g_mps2=snapshot.g_mps2,
+        duration_s=_round(snapshot.elapsed_s, 3),
+        inputs=tuple(inputs),
+        config=str(config.path),
+        frames_by_id=tuple(
+            FrameIdRow(str(ch), format_id(i, ext), n)
+            for (ch, i, ext), n in sorted(
+                counts.by_id.items(), key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])
+            )
+        ),
+        filter=FilterRow(
+            **asdict(snapshot.filter.counts),
+            health=_round(snapshot.filter.health, 3),
+            noise={k: _round(v, 5) for k, v in snapshot.filter.noise_sigma.items()},
+        ),
+    )
+
+
+def write(path: Path, summary: Summary) -> None:
+    """Write atomically: a crash leaves the old file or the new one, never half of one."""
+    write_json(path, summary.to_json(), "the summary")
 
 
 def _frame_ids(config: Config, role: str) -> str:
@@ -30,33 +211,33 @@ def _frame_ids(config: Config, role: str) -> str:
     return spec.name
 
 
-def roles_without_frames(pipeline: Pipeline) -> list[str]:
-    counts = pipeline.decoder.counts.role_frames
-    return [role for role in pipeline.config.roles if counts[role] == 0]
+def roles_without_frames(snapshot: Snapshot, config: Config) -> list[str]:
+    counts = snapshot.frames.role_frames
+    return [role for role in config.roles if counts[role] == 0]
 
 
-def missing_required(pipeline: Pipeline) -> str | None:
+def missing_required(snapshot: Snapshot, config: Config) -> str | None:
     """A message naming the required role that had no frames, or None."""
-    silent = set(roles_without_frames(pipeline))
+    silent = set(roles_without_frames(snapshot, config))
     for group in REQUIRED_ROLES:
-        configured = [r for r in group if r in pipeline.config.roles]
+        configured = [r for r in group if r in config.roles]
         if configured and all(r in silent for r in configured):
             role = configured[0]
             return (
-                f"no frames for role '{role}' ({_frame_ids(pipeline.config, role)}) — "
+                f"no frames for role '{role}' ({_frame_ids(config, role)}) — "
                 "is the optical sensor on this bus/log and channel?"
             )
     return None
 
 
-def warnings(pipeline: Pipeline, reports: Sequence[LogReport] = ()) -> list[str]:
-    config = pipeline.config
-    counts = pipeline.decoder.counts
+def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = ()) -> list[str]:
+    """What the user should know about the run, one line each."""
+    counts = snapshot.frames
     out: list[str] = []
     for report in reports:
         if report.stopped:
             out.append(f"{report.path}: {report.stopped}")
-    for role in roles_without_frames(pipeline):
+    for role in roles_without_frames(snapshot, config):
         out.append(f"no frames for role '{role}' ({_frame_ids(config, role)})")
     if "yaw_rate" not in config.roles and "ay" not in config.roles:
         out.append(
@@ -73,7 +254,7 @@ def warnings(pipeline: Pipeline, reports: Sequence[LogReport] = ()) -> list[str]
         )
     for reason, n in counts.rejected.most_common():
         out.append(f"{n} frames' values dropped: {reason}")
-    f = pipeline.filter.counts
+    f = snapshot.filter.counts
     if f.time_jumps:
         out.append(f"timestamps went backwards {f.time_jumps} times: the filter restarted")
     if f.resets - f.time_jumps:
@@ -81,7 +262,7 @@ def warnings(pipeline: Pipeline, reports: Sequence[LogReport] = ()) -> list[str]
             f"the optical data stopped {f.resets - f.time_jumps} times for over "
             f"{config.filter.gap_reset_s:g} s: the filter restarted"
         )
-    fit = pipeline.state.regression
+    fit = snapshot.regression
     if fit is not None and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
         low, high = fit.d_ci95
         out.append(
@@ -94,17 +275,17 @@ def warnings(pipeline: Pipeline, reports: Sequence[LogReport] = ()) -> list[str]
             f"the tyres soften with slip (t = {fit.softening_t:.1f}): C2n is extrapolated to zero lateral "
             f"acceleration ({fit.c2n:.3f}; a straight-line fit would give {fit.c2n_linear_model:.3f})"
         )
-    paired = pipeline.state.paired
+    paired = snapshot.paired
     yaw, yaw_se = (paired.misalignment_rad, paired.misalignment_se) if paired is not None else (None, None)
     if yaw is not None and yaw_se is not None and abs(yaw) > max(1.96 * yaw_se, math.radians(0.1)):
         out.append(
             f"the sensor head looks yawed by {math.degrees(yaw):+.2f}° (left and right turns disagree); "
             "pairing and the regression remove it, but align the head"
         )
-    rejected = pipeline.state.rejections
+    rejected = snapshot.rejections
     if rejected:
         out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
-    if pipeline.state.t_first is not None and not pipeline.state.crossings:
+    if snapshot.t_first is not None and not snapshot.crossings:
         out.append(
             "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
         )
@@ -120,143 +301,83 @@ def _round(value: float, digits: int = 4) -> float | None:
     return round(float(value), digits) if math.isfinite(value) else None
 
 
-def _crossing(c: Crossing, t0: float) -> dict[str, Any]:
-    return {
-        "t": _round(c.t - t0, 3),
-        "t_abs": c.t,
-        "u0_mps": _round(c.u0_mps),
-        "u0_kmh": _round(c.u0_kmh, 3),
-        "u0_ci95": [_round(v) for v in c.u0_ci95],
-        "c2n": _round(c.c2n),
-        "ci95": [_round(v) for v in c.ci95],
-        "direction": c.direction,
-        "sweep": c.sweep,
-        "ay_mps2": _round(c.ay_mps2, 3),
-        "radius_m": _round(c.radius_m, 2),
-        "sweep_rate_mps2": _round(c.sweep_rate_mps2, 3),
-        "n_samples": c.n_samples,
-        "method": c.method,
-    }
+def _maybe(value: float | None, digits: int = 4, scale: float = 1.0) -> float | None:
+    return None if value is None else _round(value * scale, digits)
 
 
-def _pair(
-    values: tuple[float, float] | None, scale: float = 1.0, digits: int = 4
-) -> list[float | None] | None:
-    return None if values is None else [_round(v * scale, digits) for v in values]
+def _pair(values: tuple[float, float], scale: float = 1.0, digits: int = 4) -> Interval:
+    return (_round(values[0] * scale, digits), _round(values[1] * scale, digits))
 
 
-def _regression(fit: RegressionFit | None) -> dict[str, Any] | None:
+def _crossing(c: Crossing, t0: float) -> CrossingRow:
+    return CrossingRow(
+        t=_round(c.t - t0, 3),
+        t_abs=c.t,
+        u0_mps=_round(c.u0_mps),
+        u0_kmh=_round(c.u0_kmh, 3),
+        u0_ci95=_pair(c.u0_ci95),
+        c2n=_round(c.c2n),
+        ci95=_pair(c.ci95),
+        direction=c.direction,
+        sweep=c.sweep,
+        ay_mps2=_round(c.ay_mps2, 3),
+        radius_m=_round(c.radius_m, 2),
+        sweep_rate_mps2=_round(c.sweep_rate_mps2, 3),
+        n_samples=c.n_samples,
+        method=c.method,
+    )
+
+
+def _rejected(r: CrossingRejected, t0: float) -> RejectedRow:
+    return RejectedRow(_round(r.t - t0, 3), r.direction, r.sweep, _round(r.u_mps, 3), r.reason)
+
+
+def _regression(fit: RegressionFit | None) -> RegressionRow | None:
     if fit is None:
         return None
     deg = math.degrees(1.0)
-    return {
-        "c2n": _round(fit.c2n),
-        "c2n_ci95": _pair(fit.c2n_ci95),
-        "d_m": _round(fit.d_m),
-        "d_ci95": _pair(fit.d_ci95),
-        "psi0_deg": _round(fit.psi0_rad * deg) if fit.psi0_rad is not None else None,
-        "psi0_ci95_deg": _pair(fit.psi0_ci95, deg),
-        "model": fit.model,
-        "softening_t": _round(fit.softening_t, 2),
-        "softening_per_mps2_2": _round(fit.softening_per_mps2_2, 6)
-        if fit.softening_per_mps2_2 is not None
-        else None,
-        "c2n_linear_model": _round(fit.c2n_linear_model),
-        "c2n_softening_model": _round(fit.c2n_softening_model)
-        if fit.c2n_softening_model is not None
-        else None,
-        "n_samples": fit.n_samples,
-        "ay_range_mps2": _pair(fit.ay_range, digits=3),
-    }
+    return RegressionRow(
+        c2n=_round(fit.c2n),
+        c2n_ci95=_pair(fit.c2n_ci95),
+        d_m=_round(fit.d_m),
+        d_ci95=_pair(fit.d_ci95),
+        psi0_deg=_maybe(fit.psi0_rad, scale=deg),
+        psi0_ci95_deg=_pair(fit.psi0_ci95, deg) if fit.psi0_ci95 is not None else None,
+        model=fit.model,
+        softening_t=_round(fit.softening_t, 2),
+        softening_per_mps2_2=_maybe(fit.softening_per_mps2_2, 6),
+        c2n_linear_model=_round(fit.c2n_linear_model),
+        c2n_softening_model=_maybe(fit.c2n_softening_model),
+        n_samples=fit.n_samples,
+        ay_range_mps2=_pair(fit.ay_range, digits=3),
+    )
 
 
-def _paired(paired: Paired | None) -> dict[str, Any] | None:
+def _paired(paired: Paired | None) -> PairedRow | None:
     if paired is None:
         return None
     deg = math.degrees(1.0)
 
-    def ci(value: float | None, se: float | None, scale: float = 1.0) -> list[float | None] | None:
+    def ci(value: float | None, se: float | None, scale: float = 1.0) -> Interval | None:
         if value is None or se is None:
             return None
-        return [_round((value - 1.96 * se) * scale), _round((value + 1.96 * se) * scale)]
+        return (_round((value - 1.96 * se) * scale), _round((value + 1.96 * se) * scale))
 
-    return {
-        "c2n": _round(paired.c2n),
-        "c2n_ci95": _pair(paired.ci95),
-        "misalignment_deg": _round(paired.misalignment_rad * deg)
+    return PairedRow(
+        c2n=_round(paired.c2n),
+        c2n_ci95=_pair(paired.ci95),
+        misalignment_deg=_round(paired.misalignment_rad * deg)
         if paired.misalignment_rad is not None
         else None,
-        "misalignment_ci95_deg": ci(paired.misalignment_rad, paired.misalignment_se, deg),
-        "lag_s": _round(paired.lag_s) if paired.lag_s is not None else None,
-        "lag_ci95_s": ci(paired.lag_s, paired.lag_se),
-        "cancels": list(paired.cancels),
-        "cells": {key: _round(value) for key, value in paired.cells.items()},
-        "n": paired.n,
-        "birge_ratio": _round(paired.birge_ratio, 3),
-    }
+        misalignment_ci95_deg=ci(paired.misalignment_rad, paired.misalignment_se, deg),
+        lag_s=_maybe(paired.lag_s),
+        lag_ci95_s=ci(paired.lag_s, paired.lag_se),
+        cancels=tuple(paired.cancels),
+        cells={key: _round(value) for key, value in paired.cells.items()},
+        n=paired.n,
+        birge_ratio=_round(paired.birge_ratio, 3),
+    )
 
 
-def build(pipeline: Pipeline, inputs: Sequence[str], reports: Sequence[LogReport] = ()) -> dict[str, Any]:
-    state = pipeline.state
-    config = pipeline.config
-    t0 = state.t_first or 0.0
-    combined = state.combined
-    headline = state.headline
-    g, d = config.vehicle.gravity_mps2, config.d_m
-    counts = pipeline.decoder.counts
-    return {
-        "c2n": _round(headline.c2n) if headline else None,
-        "c2n_ci95": _pair(headline.ci95) if headline else None,
-        "c2n_method": headline.method if headline else None,
-        "u0_mps": _round(math.sqrt(headline.c2n * g * d)) if headline else None,
-        "crossings": [_crossing(c, t0) for c in state.crossings],
-        "regression": _regression(state.regression),
-        "paired": _paired(state.paired),
-        "frames": counts.as_dict(),
-        "warnings": warnings(pipeline, reports),
-        "combined": {
-            "n": combined.n,
-            "birge_ratio": _round(combined.birge_ratio, 3),
-            "se": _round(combined.se, 5),
-        }
-        if combined
-        else None,
-        "rejected_crossings": [
-            {
-                "t": _round(r.t - t0, 3),
-                "direction": r.direction,
-                "sweep": r.sweep,
-                "u_mps": _round(r.u_mps, 3),
-                "reason": r.reason,
-            }
-            for r in state.rejections
-        ],
-        "d_m": d,
-        "g_mps2": g,
-        "duration_s": _round((state.t_last or t0) - t0, 3),
-        "inputs": list(inputs),
-        "config": str(config.path),
-        "frames_by_id": [
-            {"channel": str(ch), "id": format_id(i, ext), "frames": n}
-            for (ch, i, ext), n in sorted(
-                counts.by_id.items(), key=lambda kv: (str(kv[0][0]), kv[0][1], kv[0][2])
-            )
-        ],
-        "filter": asdict(pipeline.filter.counts)
-        | {
-            "health": _round(pipeline.filter.health, 3),
-            "noise": {k: _round(v, 5) for k, v in pipeline.filter.noise_sigma().items()},
-        },
-        "version": __version__,
-    }
-
-
-def write(path: Path, summary: dict[str, Any]) -> None:
-    """Write atomically: a crash leaves the old file or the new one, never half of one."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(summary, indent=2) + "\n")
-        os.replace(tmp, path)
-    except OSError as error:
-        raise C2nError(f"{path}: cannot write the summary ({error.strerror})") from None
+def _combined(combined: Combined) -> CombinedRow:
+    return CombinedRow(combined.n, _round(combined.birge_ratio, 3), _round(combined.se, 5))

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.records import Record
+from app.sinks.sink import Sink
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,8 +122,8 @@ class Trace:
         return self.columns[name]
 
 
-class TraceRecorder:
-    """A pipeline sink: call with each Record; ``trace()`` gives the columns so far."""
+class TraceRecorder(Sink):
+    """A sink of every Record; ``trace()`` gives the columns so far."""
 
     def __init__(self, roles: Iterable[str]) -> None:
         self._decoded = [(role, *DECODED[role]) for role in DECODED if role in set(roles)]
@@ -136,7 +137,7 @@ class TraceRecorder:
         self._held = {role: _NAN for role, _, _ in self._decoded}
         self._filtered = [_NAN] * len(_FILTERED)
 
-    def __call__(self, record: Record) -> None:
+    def on_record(self, record: Record) -> None:
         for role, _, _ in self._decoded:
             value = record.signals.get(role)
             if value is not None:

@@ -79,10 +79,10 @@ class TriagedBLFReader(can.BLFReader):
                 if not data.startswith(b"LOBJ", pos):  # padding before the object
                     try:
                         pos = data.index(b"LOBJ", pos, pos + 8)
-                    except ValueError:
+                    except ValueError as error:
                         if pos + 8 > max_pos:
                             return
-                        raise BLFParseError("Could not find next object") from None
+                        raise BLFParseError("Could not find next object") from error
                 if pos + _V1_FRAME.size <= max_pos:  # the usual object: a CAN message, header v1
                     _, _, version, obj_size, obj_type, channel, flags, can_id = unpack_v1_frame(data, pos)
                 else:

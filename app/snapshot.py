@@ -1,0 +1,91 @@
+"""The run as it stands: what the sinks show and write, never the machine that made it.
+
+``Pipeline.snapshot()`` takes one; the dashboard, the progress bar, the result line and the
+summary read it. It is frozen and holds copies, so a sink can neither change the run nor see it
+change under its feet.
+"""
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from app.decode.counts import FrameCounts
+from app.estimate.model import FilterCounts
+from app.records import Crossing, CrossingRejected, Direction, Record
+from app.results.combine import Combined
+from app.results.pairing import Paired
+from app.results.regression import RegressionFit
+
+
+@dataclass(frozen=True)
+class Headline:
+    """The C2n to report: the regression's (linear, at zero a_y) where there is one, else the
+    paired crossings', else the crossings' mean."""
+
+    c2n: float
+    ci95: tuple[float, float]
+    method: str
+
+
+@dataclass(frozen=True, slots=True)
+class Pending:
+    """A sign change whose crossing is still being fitted."""
+
+    direction: Direction | None
+    t: float
+    u_mps: float
+
+
+@dataclass(frozen=True)
+class FilterState:
+    counts: FilterCounts
+    health: float  # mean normalised innovation²: ≈ 1 when the noise model fits
+    noise_sigma: Mapping[str, float]  # the learnt noise of each optical channel
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    t_first: float | None
+    t_last: float | None
+    last: Record | None  # the last record with an estimate
+    latest: Mapping[str, float]  # role -> last usable value
+    sensor_problem: str | None  # why optical samples are being dropped, if they are
+    crossings: tuple[Crossing, ...]
+    rejections: tuple[CrossingRejected, ...]
+    combined: Combined | None  # inverse-variance mean of the crossings
+    paired: Paired | None  # crossings with misalignment and lag removed
+    regression: RegressionFit | None  # every steady sample: the headline C2n
+    pending: tuple[Pending, ...]
+    frames: FrameCounts
+    status: Mapping[str, float]  # the sensor status signals' latest values
+    filter: FilterState
+    message_names: Mapping[tuple[int, bool], str]  # (id, extended) -> the DBC's message name
+    d_m: float
+    g_mps2: float
+
+    @property
+    def t0(self) -> float:
+        """The first frame's time (0 before any): event times are shown from it."""
+        return self.t_first or 0.0
+
+    @property
+    def elapsed_s(self) -> float:
+        return (self.t_last or self.t0) - self.t0
+
+    @property
+    def headline(self) -> Headline | None:
+        if self.regression is not None:
+            return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
+        if self.paired is not None:
+            return Headline(self.paired.c2n, self.paired.ci95, "paired crossings")
+        if self.combined is not None:
+            return Headline(self.combined.c2n, self.combined.ci95, "crossings")
+        return None
+
+    @property
+    def u0_mps(self) -> float | None:
+        """The crossing speed the headline C2n stands for (paper eq. 7: u0 = √(C2n·g·d))."""
+        headline = self.headline
+        if headline is None or headline.c2n * self.g_mps2 * self.d_m < 0:
+            return None
+        return math.sqrt(headline.c2n * self.g_mps2 * self.d_m)

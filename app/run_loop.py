@@ -127,7 +127,9 @@ def run(
                 completed = False
             finally:
                 sys.setswitchinterval(switch_s)
-            emit(pipeline.finish())
+            events = pipeline.finish()
+            if events:
+                emit(events)
             show()
             if isinstance(live, Live):
                 live.refresh()

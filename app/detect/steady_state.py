@@ -181,7 +181,11 @@ _SETTLING = (Reason.SETTLING,)
 
 
 def _not_steady(direction: Direction | None, why: list[tuple[Reason, str]]) -> SteadyState:
-    return SteadyState(False, direction, tuple(words for _, words in why), tuple(cause for cause, _ in why))
+    """The verdict for the (cause, words) pairs: most often one, on the per-frame path."""
+    if len(why) == 1:
+        ((cause, words),) = why
+        return SteadyState(False, direction, (words,), (cause,))
+    return SteadyState(False, direction, tuple(w for _, w in why), tuple(c for c, _ in why))
 
 
 def _curvature(e: Estimate) -> float | None:

@@ -36,6 +36,10 @@ class SensorSetup:
     sigma_ay_mps2: float = 0.05
     sigma_speed_kph: float = 0.05
     yaw_misalignment_deg: float = 0.0  # sensor head turned left by this much
+    gyro_bias_degps: float = 0.0  # the sensor's yaw gyro reads this much high
+    gyro_scale: float = 1.0  # ... and this many times the true rate
+    vehicle_gyro_bias_degps: float = 0.0  # the vehicle's yaw-rate sensor
+    steer_offset_deg: float = 0.0  # the steering-wheel angle reads this when the wheels are straight
     speed_scale: float = 1.0  # vehicle speed scale error (tyre radius)
     speed_latency_s: float = 0.0  # vehicle speed delay (on top of vehicle_latency_s)
     vehicle_latency_s: float = 0.0  # every vehicle-bus signal carries the value of this long ago
@@ -126,7 +130,7 @@ def _optical(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
     angle = np.where(np.hypot(vx, vy) < s.angle_cutoff_mps, 0.0, angle)
     kmh = 3.6
     velocity = {"vx": vx * kmh, "vy": vy * kmh, "vel": np.hypot(vx, vy) * kmh}
-    yaw = np.degrees(r) + rng.normal(0.0, s.sigma_yaw_rate_degps, len(t))
+    yaw = s.gyro_scale * np.degrees(r) + s.gyro_bias_degps + rng.normal(0.0, s.sigma_yaw_rate_degps, len(t))
     zeros = np.zeros(len(t))
     roll = zeros
     if isinstance(trace, TwoTrackTrace):
@@ -203,7 +207,9 @@ def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         channel,
         t,
         {
-            "VehYaw_W_Actl": r + rng.normal(0.0, math.radians(s.sigma_yaw_rate_degps), n),
+            "VehYaw_W_Actl": r
+            + math.radians(s.vehicle_gyro_bias_degps)
+            + rng.normal(0.0, math.radians(s.sigma_yaw_rate_degps), n),
             "VehRol_W_Actl": roll_rate,
             "VehYawWActl_D_Qf": qf_ok,
             "VehRolWActl_D_Qf": qf_ok,
@@ -225,7 +231,8 @@ def _vehicle(trace: DriveTrace, s: SensorSetup, db: Any, rng: np.random.Generato
         channel,
         t,
         {
-            "StePinComp_An_Est": np.degrees(_at(trace, sampled, trace.delta)) * s.steering_ratio,
+            "StePinComp_An_Est": np.degrees(_at(trace, sampled, trace.delta)) * s.steering_ratio
+            + s.steer_offset_deg,
             "StePinCompAnEst_D_Qf": qf_ok,
         },
     )

@@ -41,21 +41,49 @@ def run(args: argparse.Namespace, console: Console) -> int:
         from app.sinks.html import write_html
 
         write_html(render(diagnosis, "c2n gap", [str(p) for p in args.logs]), args.report)
-    console.print(verdict_line(result))
-    for row in result.located[:3]:
-        console.print(
-            f"  residual concentrates in {row.where}: {100 * row.share:.0f} % of it in "
-            f"{100 * row.samples_share:.0f} % of the samples (mean {row.mean_deg:+.3f}°)",
-            style="dim",
-        )
+    for line in lines(result):
+        console.print(line, highlight=False)
     return 0
 
 
-def verdict_line(result: GapResult) -> str:
-    c2n, rms = result.c2n, result.heldout_rms_deg
+_CALIBRATION_LABELS = {
+    "yaw_rate_bias_degps": ("yaw-rate sensor bias", "°/s"),
+    "steering_offset_deg": ("steering-wheel centre offset", "°"),
+    "steering_ratio": ("effective steering ratio", ""),
+    "c1n_per_rad": ("C1n (front axle)", "1/rad"),
+    "c2n_per_rad": ("C2n (rear axle)", "1/rad"),
+}
+
+
+def lines(result: GapResult) -> list[str]:
+    """What ``c2n gap`` prints: the verdict, what it means, the calibration, C2n, where the gap lies."""
     also = f" (or {', '.join(result.confounded_with)})" if result.confounded_with else ""
-    return (
-        f"gap: {result.diagnosis}{also}; held-out sideslip RMS {rms.before:.4f}° → {rms.after:.4f}° "
-        f"(shrink {result.shrink_heldout:.0%}); C2n nominal {c2n.nominal}, measured {c2n.measured}, "
-        f"model with the effect {c2n.after}"
+    out = [f"gap: {result.verdict.replace(result.diagnosis, result.diagnosis + also, 1)}"]
+    if result.action:
+        out.append(f"  what it means: {result.action}")
+    for other in result.secondary:
+        out.append(
+            f"  also {other.effect} (shrinks what is left by {other.shrink_heldout:.0%}): {other.action}"
+        )
+    out.append("  calibrated (the config's value → this drive's, 95 %):")
+    for name, value in result.calibration.items():
+        label, unit = _CALIBRATION_LABELS.get(name, (name, ""))
+        low, high = value.ci95
+        bound = "  — at its physical bound: not to be trusted" if value.at_bound else ""
+        out.append(
+            f"    {label:<30} {value.nominal:>8.4g} → {value.fitted:>8.4g} {unit:<5} "
+            f"[{low:.4g}, {high:.4g}]{bound}"
+        )
+    c2n = result.c2n
+    corrected = f", with the effect taken out {c2n.corrected}" if c2n.corrected is not None else ""
+    out.append(
+        f"  C2n [1/rad]: config {c2n.nominal}, calibrated model {c2n.calibrated}, "
+        f"the method on the measured sideslip {c2n.measured}{corrected} "
+        f"(the pipeline's headline {c2n.pipeline})"
     )
+    for row in result.located[:3]:
+        out.append(
+            f"  residual concentrates in {row.where}: {100 * row.share:.0f} % of it in "
+            f"{100 * row.samples_share:.0f} % of the samples (mean {row.mean_deg:+.3f}°)"
+        )
+    return out

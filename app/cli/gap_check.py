@@ -52,16 +52,33 @@ def run(args: argparse.Namespace, console: Console) -> int:
         ]
         table.add_row(f"{number} {truth}", *(str(c) if c else "·" for c in counts))
     console.print(table)
-    alarm = scores["false_alarm_rate"]
-    shrink = scores["shrink_heldout_median"]
-    console.print(
-        f"accuracy {scores['accuracy']:.0%} of {scores['n']} cases; false alarms on 'none' "
-        + (f"{alarm:.0%} of {scores['none_cases']}" if alarm is not None else "— (no 'none' case)")
-        + "; median held-out shrink "
-        + (f"{shrink:.0%}" if shrink is not None else "—")
-    )
+    for generator, summary in scores["generators"].items():
+        console.print(f"{generator}: {summary_line(summary)}", highlight=False)
+    if len(scores["generators"]) > 1:
+        console.print(f"all: {summary_line(scores)}", highlight=False)
     if args.json:
         write_json(args.json, scores, "the scores")
     else:
         write_json(out / "scores.json", scores, "the scores")
     return 0
+
+
+def summary_line(summary: dict[str, object]) -> str:
+    """Accuracy, false alarms on 'none', named effects that made the gap worse, median shrink."""
+    alarm, shrink, quartiles = (
+        summary["false_alarm_rate"],
+        summary["shrink_heldout_median"],
+        summary["shrink_heldout_quartiles"],
+    )
+    alarms = (
+        f"{summary['false_alarms']} of {summary['none_cases']}" if alarm is not None else "— (no 'none' case)"
+    )
+    spread = f" (quartiles {quartiles[0]:.0%}, {quartiles[1]:.0%})" if isinstance(quartiles, list) else ""
+    errors = f"; {summary['errors']} not diagnosed" if summary["errors"] else ""
+    return (
+        f"accuracy {summary['accuracy']:.0%} of {summary['n']} cases; false alarms on 'none' {alarms}; "
+        f"named effects with a negative shrink {summary['negative_shrinks']}; median held-out shrink "
+        + (f"{shrink:.0%}" if isinstance(shrink, float) else "—")
+        + spread
+        + errors
+    )

@@ -28,6 +28,12 @@ class CaseAnswer:
 
 
 def cases(pack: Path) -> list[Path]:
+    """The pack's case folders with a drive log. The seal must be there (it is opened only after
+    every case is diagnosed), so a pack without one fails before any work."""
+    if not pack.is_dir():
+        raise C2nError(f"{pack}: not a folder — give a pack written by c2n simulate --pack N")
+    if not (pack / SEALED / "truth.json").is_file():
+        raise C2nError(f"{pack}: no {SEALED}/truth.json — is it a pack written by c2n simulate --pack N?")
     found = sorted(p for p in pack.iterdir() if p.is_dir() and p.name != SEALED and p.name != OUT)
     found = [p for p in found if any(p.glob("drive.*"))]
     if not found:
@@ -41,9 +47,9 @@ def diagnose_case(folder: Path) -> CaseAnswer:
     from app.gap.measured import measure
 
     own = folder / "config.toml"
-    config = load_config(own if own.exists() else DEFAULT_CONFIG)
     logs = sorted(folder.glob("drive.*"))
     try:
+        config = load_config(own if own.exists() else DEFAULT_CONFIG)
         return CaseAnswer(folder.name, diagnose(measure(logs, config), config).result)
     except C2nError as error:
         return CaseAnswer(folder.name, None, str(error))
@@ -72,47 +78,60 @@ def default_workers() -> int:
 
 
 def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
-    """Confusion matrix, accuracy (the effect, or the truth within a correct confounded group),
-    false alarms on 'none', and the held-out shrink."""
-    confusion: Counter[tuple[str, str]] = Counter()
-    correct = 0
-    none_cases = none_alarms = 0
-    shrinks: list[float] = []
+    """Per generator and over all: the confusion matrix, the accuracy (the effect, or the truth
+    within a named effect's confounded group), false alarms on 'none', named effects that made the
+    held-out gap worse, and the held-out shrink. A sealed case without an answer (its log gone)
+    counts as a failure."""
+    by_case = {answer.case: answer for answer in answers}
     rows = []
-    for answer in answers:
-        true_effect = truth["cases"][answer.case]["effect"]["name"]
-        said = answer.result.diagnosis if answer.result else "error"
-        group = list(answer.result.confounded_with) if answer.result else []
-        ok = said == true_effect or (true_effect != "none" and said != "none" and true_effect in group)
-        correct += ok
-        confusion[(true_effect, said)] += 1
-        if true_effect == "none":
-            none_cases += 1
-            none_alarms += said != "none"
-        elif answer.result:
-            shrinks.append(answer.result.shrink_heldout)
+    for case, sealed in sorted(truth["cases"].items()):
+        answer = by_case.get(case) or CaseAnswer(case, None, "no drive log: the case was not diagnosed")
+        true_effect = sealed["effect"]["name"]
+        result = answer.result
+        said = result.diagnosis if result else "error"
+        group = list(result.confounded_with) if result else []
+        named = result is not None and said not in ("none", "unexplained")
+        ok = said == true_effect or (true_effect != "none" and named and true_effect in group)
         rows.append(
             {
-                "case": answer.case,
+                "case": case,
+                "generator": sealed.get("model", "two_track"),
                 "truth": true_effect,
-                "size": truth["cases"][answer.case]["effect"]["size"],
+                "size": sealed["effect"]["size"],
                 "diagnosis": said,
                 "confounded_with": group,
                 "correct": ok,
-                "shrink_heldout": answer.result.shrink_heldout if answer.result else None,
+                "shrink_heldout": result.shrink_heldout if result else None,
                 "error": answer.error,
             }
         )
-    n = len(answers)
+    generators = sorted({row["generator"] for row in rows})
+    return _summary(rows) | {
+        "generators": {g: _summary([r for r in rows if r["generator"] == g]) for g in generators},
+        "cases": rows,
+    }
+
+
+def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    n = len(rows)
+    none_rows = [r for r in rows if r["truth"] == "none"]
+    alarms = sum(r["diagnosis"] != "none" for r in none_rows)
+    shrinks = [
+        float(r["shrink_heldout"]) for r in rows if r["truth"] != "none" and r["shrink_heldout"] is not None
+    ]
+    named = [r for r in rows if r["diagnosis"] not in ("none", "unexplained", "error")]
+    confusion = Counter((r["truth"], r["diagnosis"]) for r in rows)
     return {
         "n": n,
-        "accuracy": correct / n if n else 0.0,
-        "false_alarm_rate": none_alarms / none_cases if none_cases else None,
-        "none_cases": none_cases,
+        "accuracy": sum(r["correct"] for r in rows) / n if n else 0.0,
+        "false_alarm_rate": alarms / len(none_rows) if none_rows else None,
+        "none_cases": len(none_rows),
+        "false_alarms": alarms,
+        "negative_shrinks": sum(float(r["shrink_heldout"] or 0.0) < 0 for r in named),
+        "errors": sum(r["diagnosis"] == "error" for r in rows),
         "shrink_heldout_median": float(np.median(shrinks)) if shrinks else None,
         "shrink_heldout_quartiles": [float(q) for q in np.percentile(shrinks, [25, 75])] if shrinks else None,
         "confusion": {f"{t} -> {s}": k for (t, s), k in sorted(confusion.items())},
-        "cases": rows,
     }
 
 

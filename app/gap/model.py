@@ -1,5 +1,5 @@
-"""The nominal bicycle model driven by the measured inputs, with each candidate effect as a
-modification (DESIGN §6 vocabulary).
+"""The nominal bicycle model driven by the measured inputs, with the calibrated nuisances and each
+candidate effect as a modification.
 
 Each axle's cornering stiffness is its normalised stiffness times its load, and the load moves
 rearward by m·h·a_x/L when the car speeds up (longitudinal load transfer: the CG height is the
@@ -12,14 +12,23 @@ sideslip of a tenth of a degree the planar model would otherwise not have.
 
 Linear tyres make the lateral dynamics a linear time-varying system in x = [v, r] (lateral velocity
 at the CG and yaw rate): ẋ = M(u)·x + f(δ, …). It is discretised per grid step (fourth-order
-series of exp(M·h), forcing held over the step) and stepped in one tight loop, so a whole session
-simulates in a few tens of milliseconds and effects can be fitted by least squares.
+series of exp(M·h), forcing held over the step) and stepped in one compiled loop, so a whole
+session simulates in about a millisecond and the nuisances and effects can be fitted by least
+squares.
+
+The model runs on the optical speed (no scale error, no lag); the vehicle's own speed signal is an
+output it predicts, (1 + s)·u(t − τ), so a speed scale error or a late vehicle bus shows there
+directly instead of being absorbed by the calibration. The nuisances act on the inputs and the
+measured yaw rate: the steering is read with its centre offset and effective ratio taken out,
+the yaw rate with its bias and scale; C1n and C2n are the config's times a factor.
 """
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numba import njit
 
 from app.gap.measured import Measured
 from app.sim.vehicle_model import BicycleParams
@@ -29,11 +38,21 @@ U_MIN_MPS = 3.0  # below this the model is not driven (and not compared)
 
 @dataclass(frozen=True)
 class Mods:
-    """Unmodelled effects added to the nominal model; zero is the nominal model itself."""
+    """What the model adds to the config's nominal car. Zero (and factors of 1) is the nominal
+    model itself. The first six are the nuisances every real drive has, calibrated before any
+    effect is attributed; the rest are the unmodelled effects of the vocabulary."""
 
+    # nuisances
+    yaw_bias_radps: float = 0.0  # the yaw-rate sensor reads this much high ...
+    yaw_scale: float = 0.0  # ... and (1 + this) times the true rate
+    steer_offset_rad: float = 0.0  # road-wheel angle the steering reads with the wheels straight
+    ratio_error: float = 0.0  # the effective steering ratio is the config's × (1 + this)
+    c1n_factor: float = 1.0  # the car's front axle: the config's C1n × this
+    c2n_factor: float = 1.0  # the car's rear axle: the config's C2n × this
+    # effects
     misalignment_rad: float = 0.0  # sensor head yawed left: it reads the sideslip this much low
     d_error_m: float = 0.0  # the true sensor position is the config's d plus this
-    speed_scale: float = 0.0  # the vehicle speed reads (1 + s) times the true speed
+    speed_scale: float = 0.0  # the vehicle speed signal reads (1 + s) times the true speed
     latency_s: float = 0.0  # vehicle-bus signals arrive this late
     slope_sin_mps2: float = 0.0  # lateral gravity of a cross-slope: A·sin ψ + B·cos ψ
     slope_cos_mps2: float = 0.0
@@ -49,10 +68,11 @@ NOMINAL = Mods()
 @dataclass(frozen=True)
 class Simulated:
     beta: np.ndarray  # sideslip at the sensor as the sensor would read it
-    r: np.ndarray
+    r: np.ndarray  # the model's yaw rate
     u: np.ndarray  # true speed the model was driven with
-    r_measured: np.ndarray  # the measured yaw rate on the model's clock
+    r_measured: np.ndarray  # the measured yaw rate on the model's clock, its bias and scale taken out
     ay: np.ndarray
+    speed_reading: np.ndarray  # what the vehicle's speed signal would read: its scale and its lag
 
 
 def _shift(values: np.ndarray, t: np.ndarray, by_s: float) -> np.ndarray:
@@ -60,6 +80,48 @@ def _shift(values: np.ndarray, t: np.ndarray, by_s: float) -> np.ndarray:
     if by_s == 0.0:
         return values
     return np.asarray(np.interp(t + by_s, t, values))
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """What the model takes from the drive and the nominal car, worked out once: every fit runs
+    the model thousands of times and only the modifications change between runs."""
+
+    params: BicycleParams
+    t: np.ndarray
+    dt: float
+    u_optical: np.ndarray  # NaN as 0: the speed signal the vehicle's is compared with
+    u: np.ndarray  # the speed the model runs at
+    delta: np.ndarray  # road-wheel steer as read (offset and ratio not taken out)
+    delta_late: bool  # the steering rides the vehicle bus (its latency)
+    r: np.ndarray  # the yaw rate as read
+    r_late: bool
+    c1_nominal: np.ndarray  # axle stiffnesses with the longitudinal load transfer, N/rad
+    c2_nominal: np.ndarray
+    sway: np.ndarray  # the head's lateral velocity from rolling, p·h
+
+
+def prepare(
+    p: BicycleParams, m: Measured, cg_height_m: float | None = None, roll_lever_m: float = 0.0
+) -> Prepared:
+    # the load moved rearward by speeding up, m·h·a_x/L, never more than 70 % of an axle's load
+    transfer = p.mass_kg * cg_height_m * m.ax / p.wheelbase_m if cg_height_m else np.zeros(len(m.t))
+    transfer = np.clip(transfer, -0.7 * p.w2_n, 0.7 * p.w1_n)
+    u_optical = np.nan_to_num(m.u_optical)
+    return Prepared(
+        params=p,
+        t=m.t,
+        dt=m.dt,
+        u_optical=u_optical,
+        u=np.maximum(u_optical, U_MIN_MPS),  # the optical speed: no scale error, no lag
+        delta=np.nan_to_num(m.delta),
+        delta_late="steer" in m.vehicle_roles,
+        r=m.r,
+        r_late="yaw_rate" in m.vehicle_roles,
+        c1_nominal=p.c1n * (p.w1_n - transfer),
+        c2_nominal=p.c2n * (p.w2_n + transfer),
+        sway=m.p * roll_lever_m,
+    )
 
 
 def simulate(
@@ -70,56 +132,118 @@ def simulate(
     cg_height_m: float | None = None,
     roll_lever_m: float = 0.0,
 ) -> Simulated:
-    t, h = m.t, m.dt
-    late = m.vehicle_roles
+    """The model on the drive ``m`` (``run`` on a ``prepare``d drive, for one run)."""
+    return run(prepare(p, m, cg_height_m, roll_lever_m), d_m, mods)
 
-    def vehicle(values: np.ndarray, role: str) -> np.ndarray:
-        return _shift(values, t, mods.latency_s) if role in late else values
 
-    u_in = vehicle(m.u_vehicle, "speed") if m.speed_source == "vehicle speed" else m.u_optical
-    u = np.maximum(u_in / (1.0 + mods.speed_scale), U_MIN_MPS)
-    delta = np.nan_to_num(vehicle(m.delta, "steer"))
-    ay = np.nan_to_num(m.ay)
-    r_meas = vehicle(m.r, "yaw_rate")
-    heading = np.cumsum(np.nan_to_num(r_meas)) * h
-
-    transfer = p.mass_kg * cg_height_m * m.ax / p.wheelbase_m if cg_height_m else 0.0  # N, to the rear
-    c1 = p.c1n * (p.w1_n - transfer) * np.clip(1.0 - mods.softening1_per_mps4 * ay * ay, 0.2, 2.0)
-    c2 = p.c2n * (p.w2_n + transfer) * np.clip(1.0 - mods.softening2_per_mps4 * ay * ay, 0.2, 2.0)
-    a, b, mass, iz = p.a_m, p.b_m, p.mass_kg, p.yaw_inertia_kgm2
-    delta1 = delta
-    delta2 = mods.roll_steer_rad_per_mps2 * ay + mods.ply_rad
-    lateral = mods.slope_sin_mps2 * np.sin(heading) + mods.slope_cos_mps2 * np.cos(heading)
-
+def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
+    p, t = w.params, w.t
+    late = mods.latency_s
+    delta = _shift(w.delta, t, late) if w.delta_late else w.delta
+    delta = (delta - mods.steer_offset_rad) / (1.0 + mods.ratio_error)
+    r_meas = _shift(w.r, t, late) if w.r_late else w.r
+    r_meas = (r_meas - mods.yaw_bias_radps) / (1.0 + mods.yaw_scale)
+    ay = np.nan_to_num(w.u_optical * r_meas)  # steady lateral acceleration u·r
+    speed_reading = (1.0 + mods.speed_scale) * _shift(w.u_optical, t, -late)  # the vehicle's signal
+    c1, c2 = w.c1_nominal * mods.c1n_factor, w.c2_nominal * mods.c2n_factor
+    if mods.softening1_per_mps4 or mods.softening2_per_mps4:
+        ay2 = ay * ay
+        c1 = c1 * np.clip(1.0 - mods.softening1_per_mps4 * ay2, 0.2, 2.0)
+        c2 = c2 * np.clip(1.0 - mods.softening2_per_mps4 * ay2, 0.2, 2.0)
     n = len(t)
-    mat = np.empty((n, 2, 2))
-    mat[:, 0, 0] = -(c1 + c2) / (mass * u)
-    mat[:, 0, 1] = -(a * c1 - b * c2) / (mass * u) - u
-    mat[:, 1, 0] = -(a * c1 - b * c2) / (iz * u)
-    mat[:, 1, 1] = -(a * a * c1 + b * b * c2) / (iz * u)
-    force = np.stack(
-        [(c1 * delta1 + c2 * delta2) / mass + lateral, (a * c1 * delta1 - b * c2 * delta2) / iz], axis=1
+    delta2 = mods.roll_steer_rad_per_mps2 * ay + mods.ply_rad if mods.roll_steer_rad_per_mps2 else None
+    if mods.slope_sin_mps2 or mods.slope_cos_mps2:
+        heading = np.cumsum(np.nan_to_num(r_meas)) * w.dt
+        lateral = mods.slope_sin_mps2 * np.sin(heading) + mods.slope_cos_mps2 * np.cos(heading)
+    else:
+        lateral = np.zeros(n)
+    v_cg, yaw = step_lateral(
+        w.u,
+        np.ascontiguousarray(c1, dtype=np.float64),
+        np.ascontiguousarray(c2, dtype=np.float64),
+        np.ascontiguousarray(delta, dtype=np.float64),
+        np.ascontiguousarray(delta2 if delta2 is not None else np.full(n, mods.ply_rad), dtype=np.float64),
+        lateral,
+        p.a_m,
+        p.b_m,
+        p.mass_kg,
+        p.yaw_inertia_kgm2,
+        w.dt,
     )
-    hm = mat * h
-    hm2 = hm @ hm
-    hm3 = hm2 @ hm
-    eye = np.eye(2)
-    step = eye + hm + hm2 / 2 + hm3 / 6 + hm3 @ hm / 24  # exp(M·h)
-    gain = h * (eye + hm / 2 + hm2 / 6 + hm3 / 24)  # ∫ exp(M·s) ds over the step
-    drive = np.einsum("kij,kj->ki", gain, force)
+    x_sensor = d_m + mods.d_error_m - p.b_m
+    beta = np.arctan2(v_cg + yaw * x_sensor - w.sway, w.u) - mods.misalignment_rad
+    return Simulated(beta=beta, r=yaw, u=w.u, r_measured=r_meas, ay=ay, speed_reading=speed_reading)
 
-    x0 = -np.linalg.solve(mat[0], force[0]) if abs(np.linalg.det(mat[0])) > 1e-12 else np.zeros(2)
-    a11, a12, a21, a22 = (step[:, i, j].tolist() for i, j in ((0, 0), (0, 1), (1, 0), (1, 1)))
-    g1, g2 = drive[:, 0].tolist(), drive[:, 1].tolist()
-    v_out, r_out = [0.0] * n, [0.0] * n
-    v, r = float(x0[0]), float(x0[1])
+
+def _compiled(function: Any) -> Any:
+    """numba's ``njit``, its machine code cached beside this file."""
+    return njit(cache=True)(function)
+
+
+@_compiled
+def step_lateral(
+    u: np.ndarray,
+    c1: np.ndarray,
+    c2: np.ndarray,
+    delta1: np.ndarray,
+    delta2: np.ndarray,
+    lateral: np.ndarray,
+    a: float,
+    b: float,
+    mass: float,
+    iz: float,
+    h: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lateral velocity at the CG and yaw rate of the linear bicycle model, step by step:
+
+        ẋ = M(u)·x + f,   M = −[[(C1+C2)/(m·u), (a·C1 − b·C2)/(m·u) + u],
+                                [(a·C1 − b·C2)/(I_z·u), (a²·C1 + b²·C2)/(I_z·u)]],
+        f = [(C1·δ1 + C2·δ2)/m + g_y, (a·C1·δ1 − b·C2·δ2)/I_z]
+
+    with the inputs held over each step: x ← exp(M·h)·x + ∫₀ʰ exp(M·s) ds·f, both as their
+    series to the fourth power of M·h (tests/test_gap.py holds it to scipy's expm). The start
+    is the steady state of the first step's inputs."""
+    n = len(u)
+    v_out = np.empty(n)
+    r_out = np.empty(n)
+    v = 0.0
+    r = 0.0
     for k in range(n):
-        v_out[k], r_out[k] = v, r
-        v, r = a11[k] * v + a12[k] * r + g1[k], a21[k] * v + a22[k] * r + g2[k]
-    v_cg, yaw = np.array(v_out), np.array(r_out)
-    x_sensor = d_m + mods.d_error_m - b
-    beta = np.arctan2(v_cg + yaw * x_sensor - m.p * roll_lever_m, u) - mods.misalignment_rad
-    return Simulated(beta=beta, r=yaw, u=u, r_measured=r_meas, ay=ay)
+        uk, k1, k2 = u[k], c1[k], c2[k]
+        m00 = -(k1 + k2) / (mass * uk)
+        m01 = -(a * k1 - b * k2) / (mass * uk) - uk
+        m10 = -(a * k1 - b * k2) / (iz * uk)
+        m11 = -(a * a * k1 + b * b * k2) / (iz * uk)
+        f0 = (k1 * delta1[k] + k2 * delta2[k]) / mass + lateral[k]
+        f1 = (a * k1 * delta1[k] - b * k2 * delta2[k]) / iz
+        if k == 0:
+            det = m00 * m11 - m01 * m10
+            if abs(det) > 1e-12:  # x0 = −M⁻¹·f
+                v = -(m11 * f0 - m01 * f1) / det
+                r = -(-m10 * f0 + m00 * f1) / det
+        v_out[k] = v
+        r_out[k] = r
+        # A = M·h and its powers
+        a00, a01, a10, a11 = m00 * h, m01 * h, m10 * h, m11 * h
+        b00, b01 = a00 * a00 + a01 * a10, a00 * a01 + a01 * a11  # A²
+        b10, b11 = a10 * a00 + a11 * a10, a10 * a01 + a11 * a11
+        c00, c01 = b00 * a00 + b01 * a10, b00 * a01 + b01 * a11  # A³
+        c10, c11 = b10 * a00 + b11 * a10, b10 * a01 + b11 * a11
+        d00, d01 = c00 * a00 + c01 * a10, c00 * a01 + c01 * a11  # A⁴
+        d10, d11 = c10 * a00 + c11 * a10, c10 * a01 + c11 * a11
+        e00 = 1.0 + a00 + b00 / 2.0 + c00 / 6.0 + d00 / 24.0  # exp(A)
+        e01 = a01 + b01 / 2.0 + c01 / 6.0 + d01 / 24.0
+        e10 = a10 + b10 / 2.0 + c10 / 6.0 + d10 / 24.0
+        e11 = 1.0 + a11 + b11 / 2.0 + c11 / 6.0 + d11 / 24.0
+        g00 = h * (1.0 + a00 / 2.0 + b00 / 6.0 + c00 / 24.0)  # h·(I + A/2 + A²/6 + A³/24)
+        g01 = h * (a01 / 2.0 + b01 / 6.0 + c01 / 24.0)
+        g10 = h * (a10 / 2.0 + b10 / 6.0 + c10 / 24.0)
+        g11 = h * (1.0 + a11 / 2.0 + b11 / 6.0 + c11 / 24.0)
+        v, r = (
+            e00 * v + e01 * r + g00 * f0 + g01 * f1,
+            e10 * v + e11 * r + g10 * f0 + g11 * f1,
+        )
+    return v_out, r_out
 
 
 def deg(x: float) -> float:

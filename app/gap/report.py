@@ -2,7 +2,7 @@
 
 import html
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -29,7 +29,7 @@ def _png(draw: Any, *args: Any) -> bytes:
 def _scatter_pair(fig: Figure, res: Residuals, x: np.ndarray, xlabel: str, effect: str) -> None:
     rows = res.rows
     pick = np.flatnonzero(rows)[stride(int(rows.sum()), _MAX_POINTS)]
-    for i, (values, label) in enumerate(((res.before, "nominal model"), (res.after, f"with {effect}"))):
+    for i, (values, label) in enumerate(((res.before, "calibrated model"), (res.after, f"with {effect}"))):
         ax = fig.add_subplot(1, 2, i + 1)
         left, right = pick[res.ay[pick] > 0.3], pick[res.ay[pick] < -0.3]
         other = pick[np.abs(res.ay[pick]) <= 0.3]
@@ -49,7 +49,7 @@ def _scatter_pair(fig: Figure, res: Residuals, x: np.ndarray, xlabel: str, effec
 def _time(fig: Figure, res: Residuals, effect: str) -> None:
     ax = fig.add_subplot(1, 1, 1)
     pick = np.flatnonzero(res.rows)[stride(int(res.rows.sum()), _MAX_POINTS)]
-    ax.scatter(res.t[pick], res.before[pick], s=1, c="tab:orange", label="nominal model", rasterized=True)
+    ax.scatter(res.t[pick], res.before[pick], s=1, c="tab:orange", label="calibrated model", rasterized=True)
     ax.scatter(res.t[pick], res.after[pick], s=1, c="tab:green", label=f"with {effect}", rasterized=True)
     ax.axhline(0.0, color="black", linewidth=0.8)
     ax.set_xlabel("time [s]")
@@ -94,9 +94,9 @@ def plots(diagnosis: Diagnosis) -> list[tuple[str, bytes]]:
             _png(
                 _bars,
                 [c.effect for c in candidates],
-                [100 * c.improvement for c in candidates],
-                "Held-out improvement of the fit per candidate effect",
-                "improvement [%]",
+                [100 * c.shrink_heldout for c in candidates],
+                "Held-out shrink of the sideslip gap per candidate effect",
+                "shrink [%]",
             ),
         ),
     ]
@@ -104,42 +104,59 @@ def plots(diagnosis: Diagnosis) -> list[tuple[str, bytes]]:
 
 def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
     result = diagnosis.result
-    c2n = result.c2n
+    c2n, yaw = result.c2n, result.heldout_yaw_rms_degps
     verdict = fields(
         (
             ("inputs", ", ".join(html.escape(i) for i in inputs)),
             ("diagnosis", f"<strong>{text(result.diagnosis)}</strong>"),
+            ("verdict", text(result.verdict)),
+            ("what it means", text(result.action)),
             ("confounded with", text(", ".join(result.confounded_with) or None)),
             ("held-out shrink", text(result.shrink_heldout)),
             (
-                "held-out sideslip RMS",
+                "held-out sideslip gap",
                 f"{text(result.heldout_rms_deg.before)}° → {text(result.heldout_rms_deg.after)}°",
             ),
             (
-                "C2n (nominal / model / measured / with effect)",
-                " / ".join(text(value) for value in (c2n.nominal, c2n.sim, c2n.measured, c2n.after)),
+                "held-out yaw-rate gap",
+                f"{text(yaw.before)} → {text(yaw.after)} °/s",
+            ),
+            (
+                "C2n (config / calibrated / measured / with the effect taken out)",
+                " / ".join(text(v) for v in (c2n.nominal, c2n.calibrated, c2n.measured, c2n.corrected)),
             ),
         )
     )
+    calibration_rows = [
+        (
+            text(name),
+            text(value.nominal),
+            text(value.fitted),
+            f"[{text(value.ci95[0])}, {text(value.ci95[1])}]",
+            "at its bound: not to be trusted" if value.at_bound else "",
+        )
+        for name, value in result.calibration.items()
+    ]
+    secondary_rows = [
+        (text(s.effect), html.escape(_sizes(s.params)), f"{100 * s.shrink_heldout:.0f} %", text(s.action))
+        for s in result.secondary
+    ]
     separate = [(html.escape(other), html.escape(how)) for other, how in result.separate_by.items()]
     candidate_rows = [
         (
             text(c.effect),
-            html.escape(", ".join(f"{k} = {v:g}" for k, v in c.params.items())),
+            html.escape(_sizes(c.params)),
+            text(", ".join(c.at_bound) or None),
             text(c.heldout_rms_before),
             text(c.heldout_rms_after),
-            f"{100 * c.improvement:.1f} %",
+            f"{100 * c.shrink_heldout:.1f} %",
+            f"{text(c.heldout_yaw_rms_before)} → {text(c.heldout_yaw_rms_after)}",
+            "named" if c.named else text(c.why_not),
         )
         for c in result.candidates
     ]
     located_rows = [
-        (
-            text(row.where),
-            text(row.share),
-            text(row.samples_share),
-            text(row.concentration),
-            text(row.mean_deg),
-        )
+        tuple(text(v) for v in (row.where, row.share, row.samples_share, row.concentration, row.mean_deg))
         for row in result.located
     ]
     return page(
@@ -148,15 +165,42 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
             f"<h1>{html.escape(title)}</h1>",
             section("Diagnosis", verdict),
             section(
+                "Calibrated nuisances (the config's value → this drive's)",
+                table(
+                    ("nuisance", "config", "fitted", "95 %", ""),
+                    calibration_rows,
+                    (False, True, True, False, False),
+                ),
+            ),
+            section(
+                "Secondary effects (each added to the dominant one)",
+                table(
+                    ("effect", "fitted", "shrink of what is left", "what it means"),
+                    secondary_rows,
+                    (False,) * 4,
+                )
+                if secondary_rows
+                else "<p>—</p>",
+            ),
+            section(
                 "Which manoeuvre would separate the confounded effects",
                 table(("effect", "manoeuvre"), separate, (False, False)) if separate else "<p>—</p>",
             ),
             section(
-                "Candidates (fitted on some manoeuvres, scored on the others)",
+                "Candidates (fitted with the nuisances on some manoeuvres, scored on the others)",
                 table(
-                    ("effect", "fitted", "held-out RMS before [deg]", "after [deg]", "improvement"),
+                    (
+                        "effect",
+                        "fitted",
+                        "at bound",
+                        "held-out gap before [deg]",
+                        "after [deg]",
+                        "shrink",
+                        "yaw-rate gap [deg/s]",
+                        "verdict",
+                    ),
                     candidate_rows,
-                    (False, False, True, True, True),
+                    (False, False, False, True, True, True, False, False),
                 ),
             ),
             section(
@@ -170,3 +214,7 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
             section("Residual maps", *(figure(name, png) for name, png in plots(diagnosis))),
         ),
     )
+
+
+def _sizes(params: Mapping[str, float]) -> str:
+    return ", ".join(f"{k} = {v:g}" for k, v in params.items())

@@ -10,9 +10,20 @@ from app.sinks.files import json_ready
 
 
 @dataclass(frozen=True)
+class Calibrated:
+    """A nuisance: the config's value, the drive's, its 95 % interval, and whether the fit ended
+    on the nuisance's physical bound (then the number is not to be trusted)."""
+
+    nominal: float
+    fitted: float
+    ci95: tuple[float, float]
+    at_bound: bool = False
+
+
+@dataclass(frozen=True)
 class Located:
-    """One slice of the drive: its share of the squared sideslip residual against its share of
-    the samples."""
+    """One slice of the drive: its share of the squared sideslip residual (of the calibrated
+    model) against its share of the samples."""
 
     where: str
     share: float
@@ -24,26 +35,43 @@ class Located:
 
 @dataclass(frozen=True)
 class CandidateScore:
-    """One effect fitted on some manoeuvres and scored on the others."""
+    """One effect fitted (with the nuisances) on some manoeuvres and scored on the others: the
+    held-out sideslip and yaw-rate gaps of the calibrated model before and after."""
 
     effect: str
     params: Mapping[str, float]
-    heldout_rms_before: float
+    at_bound: tuple[str, ...]  # parameters whose fit ended on a physical bound
+    heldout_rms_before: float  # sideslip gap, deg
     heldout_rms_after: float
-    heldout_cost_before: float
-    heldout_cost_after: float
-    improvement: float
+    heldout_yaw_rms_before: float  # yaw-rate gap, deg/s
+    heldout_yaw_rms_after: float
+    shrink_heldout: float  # 1 − after/before of the sideslip gap
+    named: bool  # it passes every test a diagnosis must
+    why_not: str | None  # the test it failed, when it is not named
+
+
+@dataclass(frozen=True)
+class Secondary:
+    """An effect that shrinks the held-out gap further once added to the dominant one."""
+
+    effect: str
+    params: Mapping[str, float]
+    shrink_heldout: float  # of what the dominant effect left
+    action: str
 
 
 @dataclass(frozen=True)
 class GapC2n:
-    """C2n as the method reads it from the nominal model, the measurement and the model with the
-    effect; the config's nominal value and the pipeline's headline beside them."""
+    """C2n: the config's nominal value, the calibrated model's, the method's reading of the
+    nominal model, of the measurement, of the model with the effect, of the measurement with the
+    effect taken out, and the pipeline's headline."""
 
     nominal: float | None
+    calibrated: float | None
     sim: float | None
     measured: float | None
     after: float | None
+    corrected: float | None
     pipeline: float | None
 
 
@@ -55,20 +83,26 @@ class BeforeAfter:
 
 @dataclass(frozen=True)
 class GapNoise:
-    sideslip_deg: float
+    sideslip_deg: float  # white sensor noise per grid step
     yaw_rate_degps: float
+    sideslip_gap_deg: float  # what the held-out gap estimate can tell apart ("beyond noise")
 
 
 @dataclass(frozen=True)
 class GapResult:
-    diagnosis: str
+    diagnosis: str  # an effect, "none", or "unexplained"
     confounded_with: tuple[str, ...]
-    separate_by: Mapping[str, str]
+    secondary: tuple[Secondary, ...]
+    calibration: Mapping[str, Calibrated]
     located: tuple[Located, ...]
     candidates: tuple[CandidateScore, ...]
     c2n: GapC2n
     shrink_heldout: float
-    heldout_rms_deg: BeforeAfter
+    heldout_rms_deg: BeforeAfter  # the calibrated model's held-out sideslip gap, and with the effect
+    heldout_yaw_rms_degps: BeforeAfter
+    verdict: str  # the diagnosis in a sentence: what was found and why
+    action: str | None  # what the named effect's size means and what to do
+    separate_by: Mapping[str, str]
     noise: GapNoise
     manoeuvres: int
     speed_input: str

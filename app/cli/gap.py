@@ -2,6 +2,7 @@
 unmodelled effect explains it, and how far the gap shrinks once it is added."""
 
 import argparse
+import os
 from pathlib import Path
 
 from rich.console import Console
@@ -32,7 +33,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     with console.status("reading the drive…"):
         measured = measure(args.logs, config)
     with console.status("fitting the candidate effects…"):
-        diagnosis = diagnose(measured, config)
+        diagnosis = diagnose(measured, config, workers=os.cpu_count() or 1)
     result = diagnosis.result
     if args.json:
         write_json(args.json, result.to_json(), "the diagnosis")

@@ -144,7 +144,9 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
     r_meas = _shift(w.r, t, late) if w.r_late else w.r
     r_meas = (r_meas - mods.yaw_bias_radps) / (1.0 + mods.yaw_scale)
     ay = np.nan_to_num(w.u_optical * r_meas)  # steady lateral acceleration u·r
-    speed_reading = (1.0 + mods.speed_scale) * _shift(w.u_optical, t, -late)  # the vehicle's signal
+    # the vehicle's speed signal; a head yawed by ψ reads the speed cos ψ low, so the true speed
+    # the vehicle's signal measures is the optical one over cos ψ
+    speed_reading = (1.0 + mods.speed_scale) * _shift(w.u_optical, t, -late) / math.cos(mods.misalignment_rad)
     c1, c2 = w.c1_nominal * mods.c1n_factor, w.c2_nominal * mods.c2n_factor
     if mods.softening1_per_mps4 or mods.softening2_per_mps4:
         ay2 = ay * ay

@@ -21,8 +21,8 @@ class Param:
     high: float
     starts: tuple[float, ...] = (0.0,)  # where the fit may start (the best start wins)
     nominal: float = 0.0  # the value that adds nothing (a nuisance: the config's own)
-    prior: float | None = None  # a nuisance's typical spread about its nominal: it holds the fit
-    # where the data cannot tell it from another (a gyro's scale from the steering ratio)
+    prior: float | None = None  # a nuisance's typical spread about its nominal on a test day:
+    # it holds the fit where the data cannot tell one nuisance from another
 
     def at_bound(self, value: float) -> bool:
         """The fit ended on a physical bound (not the one that means "no effect")."""
@@ -63,14 +63,14 @@ def nuisances(config: Config) -> tuple[Param, ...]:
     ratio = config.vehicle.steering_ratio or 15.0
     c1n, c2n = config.tyres.c1n_per_rad or 13.0, config.tyres.c2n_per_rad or 15.0
     return (
-        Param("yaw_rate_bias_degps", 0.05, lambda x: {"yaw_bias_radps": x * _DEG}, -0.5, 0.5, prior=0.2),
+        Param("yaw_rate_bias_degps", 0.05, lambda x: {"yaw_bias_radps": x * _DEG}, -0.5, 0.5, prior=0.1),
         Param(
             "steering_offset_deg",  # at the steering wheel
             1.0,
             lambda x: {"steer_offset_rad": x * _DEG / ratio},
             -10.0,
             10.0,
-            prior=5.0,
+            prior=2.0,
         ),
         Param(
             "steering_ratio",
@@ -80,7 +80,7 @@ def nuisances(config: Config) -> tuple[Param, ...]:
             1.15 * ratio,
             starts=(ratio,),
             nominal=ratio,
-            prior=0.1 * ratio,
+            prior=0.04 * ratio,
         ),
         Param(
             "c1n_per_rad",
@@ -90,7 +90,7 @@ def nuisances(config: Config) -> tuple[Param, ...]:
             2.0 * c1n,
             starts=(c1n,),
             nominal=c1n,
-            prior=0.3 * c1n,
+            prior=0.2 * c1n,
         ),
         Param(
             "c2n_per_rad",
@@ -100,7 +100,7 @@ def nuisances(config: Config) -> tuple[Param, ...]:
             2.0 * c2n,
             starts=(c2n,),
             nominal=c2n,
-            prior=0.3 * c2n,
+            prior=0.2 * c2n,
         ),
     )
 

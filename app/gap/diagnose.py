@@ -72,6 +72,7 @@ SPEED_MIN_DROP_MPS = 0.02  # ... and by this much
 CONFOUNDED_SHARE = 0.8  # candidates reaching this share of the best shrink are confounded
 SECONDARY_SHRINK = 0.2  # a secondary effect shrinks what the dominant one left by this share
 DEFAULT_ROLL_AXIS_HEIGHT_M = 0.10  # at the sensor, where the config does not say: a saloon's roll centres
+LINEAR_AY_MPS2 = 4.5  # the bicycle model's tyres are linear: beyond this it is not compared
 MAX_EVALUATIONS = 200  # model runs per fit (the Jacobian's are extra)
 _STRAIGHT_RADPS, _TURNING_RADPS = 0.015, 0.03
 _T = TypeVar("_T")
@@ -112,8 +113,11 @@ def folds(m: Measured, ids: np.ndarray) -> np.ndarray:
 
 
 def _usable(m: Measured) -> np.ndarray:
+    """Grid steps the linear model is compared on: every signal there, moving, and the tyres in
+    their linear range (|a_y| up to LINEAR_AY_MPS2, as the method itself assumes)."""
     usable = np.isfinite(m.beta) & np.isfinite(m.r) & np.isfinite(m.delta)
-    return np.asarray(usable & (np.nan_to_num(m.u_optical) > 5.0))
+    linear = np.abs(np.nan_to_num(m.u_optical * m.r)) <= LINEAR_AY_MPS2
+    return np.asarray(usable & linear & (np.nan_to_num(m.u_optical) > 5.0))
 
 
 def _noise(x: np.ndarray) -> float:

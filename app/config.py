@@ -17,6 +17,7 @@ from app.errors import ConfigError
 from app.units import ROLE_UNITS, known_units, si_factor
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "mondeo.toml"
+COMMONROAD_CONFIG = DEFAULT_CONFIG.with_name("commonroad_vehicle2.toml")  # c2n simulate --model commonroad
 
 OPTICAL_ROLES = ("vx", "vy", "beta")
 

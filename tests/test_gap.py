@@ -172,6 +172,28 @@ def test_a_drive_the_model_explains_is_none(tmp_path: Path) -> None:
     assert result["c2n"]["sim"] == pytest.approx(load_config().tyres.c2n_per_rad, rel=0.01)
 
 
+def answered(effect: str, shrink: float, confounded: list[str] | None = None) -> GapResult:
+    """A diagnosis as gap-check scores it: the verdict, its confounded group, its shrink."""
+    return GapResult(
+        diagnosis=effect,
+        confounded_with=tuple(confounded or ()),
+        secondary=(),
+        calibration={},
+        located=(),
+        candidates=(),
+        c2n=GapC2n(None, None, None, None, None, None, None),
+        shrink_heldout=shrink,
+        heldout_rms_deg=BeforeAfter(0.0, 0.0),
+        heldout_yaw_rms_degps=BeforeAfter(0.0, 0.0),
+        verdict=effect,
+        action=None,
+        separate_by={},
+        noise=GapNoise(0.0, 0.0, 0.0),
+        manoeuvres=0,
+        speed_input="vehicle speed",
+    )
+
+
 def test_gap_check_scoring() -> None:
     truth = {
         "cases": {
@@ -187,24 +209,7 @@ def test_gap_check_scoring() -> None:
     }
 
     def said(effect: str, confounded: list[str] | None = None, shrink: float = 0.8) -> GapResult:
-        return GapResult(
-            diagnosis=effect,
-            confounded_with=tuple(confounded or ()),
-            secondary=(),
-            calibration={},
-            located=(),
-            candidates=(),
-            c2n=GapC2n(None, None, None, None, None, None, None),
-            shrink_heldout=shrink,
-            heldout_rms_deg=BeforeAfter(0.0, 0.0),
-            heldout_yaw_rms_degps=BeforeAfter(0.0, 0.0),
-            verdict=effect,
-            action=None,
-            separate_by={},
-            noise=GapNoise(0.0, 0.0, 0.0),
-            manoeuvres=0,
-            speed_input="vehicle speed",
-        )
+        return answered(effect, shrink, confounded)
 
     answers = [
         CaseAnswer("case_001", said("none", shrink=0.0)),
@@ -385,24 +390,7 @@ def test_gap_check_scores_each_generator_and_counts_a_missing_case_as_failed() -
     }
 
     def said(effect: str, shrink: float) -> GapResult:
-        return GapResult(
-            diagnosis=effect,
-            confounded_with=(),
-            secondary=(),
-            calibration={},
-            located=(),
-            candidates=(),
-            c2n=GapC2n(None, None, None, None, None, None, None),
-            shrink_heldout=shrink,
-            heldout_rms_deg=BeforeAfter(0.0, 0.0),
-            heldout_yaw_rms_degps=BeforeAfter(0.0, 0.0),
-            verdict=effect,
-            action=None,
-            separate_by={},
-            noise=GapNoise(0.0, 0.0, 0.0),
-            manoeuvres=0,
-            speed_input="vehicle speed",
-        )
+        return answered(effect, shrink)
 
     answers = [  # case_004's log was deleted: it has no answer
         CaseAnswer("case_001", said("none", 0.0)),

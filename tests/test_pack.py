@@ -13,15 +13,16 @@ import pytest
 from rich.console import Console
 
 from app.cli import main
-from app.config import Config
+from app.config import Config, load_config
 from app.dbc import load_dbc
 from app.errors import C2nError
 from app.sim.effects import EFFECT_NAMES, EFFECTS, NO_EFFECT, Effect, apply_to_sensor, draw_effect
+from app.sim.imperfections import NO_IMPERFECTIONS, of_session
 from app.sim.pack import LOG_NAME, case_seed, plan_pack, write_pack
 from app.sim.scenarios import Scenario, Segment, Steer
 from app.sim.sensors import SensorSetup, frames
 from app.sim.session import DBC_DIR
-from app.sim.standard import StandardPlan, standard_session
+from app.sim.standard import StandardOptions, StandardPlan, simulate_standard, standard_session
 from app.sim.two_track import TwoTrackParams, TwoTrackTrace, simulate_two_track
 from app.sources.logs import open_log
 
@@ -246,7 +247,7 @@ def read_frames(log: Path) -> list[tuple[float, int, bytes]]:
 @pytest.fixture(scope="module")
 def pack(tmp_path_factory: pytest.TempPathFactory, config: Config) -> Path:
     out = tmp_path_factory.mktemp("packs") / "pack"
-    result = write_pack(out, 3, 11, config.path, TINY_PLAN, workers=2)
+    result = write_pack(out, 3, 11, config.path, TINY_PLAN, workers=2, realistic=False)
     assert [case.name for case in result.cases] == ["case_001", "case_002", "case_003"]
     return out
 
@@ -272,9 +273,9 @@ def test_pack_layout_and_sealed_truth(pack: Path) -> None:
 
 
 def test_pack_is_reproducible_case_by_case(pack: Path, tmp_path: Path, config: Config) -> None:
-    again = write_pack(tmp_path / "again", 1, 11, config.path, TINY_PLAN, workers=1)
+    again = write_pack(tmp_path / "again", 1, 11, config.path, TINY_PLAN, workers=1, realistic=False)
     assert (again.out / "case_001" / LOG_NAME).read_bytes() == (pack / "case_001" / LOG_NAME).read_bytes()
-    other = write_pack(tmp_path / "other", 1, 12, config.path, TINY_PLAN, workers=1)
+    other = write_pack(tmp_path / "other", 1, 12, config.path, TINY_PLAN, workers=1, realistic=False)
     assert read_frames(other.out / "case_001" / LOG_NAME) != read_frames(pack / "case_001" / LOG_NAME)
 
 
@@ -290,7 +291,7 @@ def test_pack_with_another_config_carries_it(tmp_path: Path, config: Config) -> 
     (tmp_path / "dbc").symlink_to(DBC_DIR, target_is_directory=True)
     other = tmp_path / "cars" / "car.toml"
     other.write_text(text)
-    result = write_pack(tmp_path / "pack", 1, 5, other, TINY_PLAN, workers=1)
+    result = write_pack(tmp_path / "pack", 1, 5, other, TINY_PLAN, workers=1, realistic=False)
     copied = result.out / "case_001" / "config.toml"
     assert "c2n_per_rad = 13.5" in copied.read_text()
     assert str(DBC_DIR / "kistler_smotion.dbc") in copied.read_text()
@@ -345,3 +346,58 @@ def test_cli_refuses_options_that_do_not_fit(
 def test_none_is_the_default_effect() -> None:
     assert NO_EFFECT == Effect() == Effect.of("none")
     assert NO_EFFECT.describe() == "none"
+
+
+# ---- a real test day ----
+
+
+def test_a_test_days_imperfections_are_reproducible_and_in_their_ranges() -> None:
+    days = [of_session(seed) for seed in range(200)]
+    assert of_session(7) == of_session(7) and of_session(7) != of_session(8)
+    assert all(0.02 <= abs(d.gyro_bias_degps) <= 0.08 for d in days)
+    assert all(abs(d.gyro_scale - 1.0) <= 0.005 for d in days)
+    assert all(0.5 <= abs(d.steer_offset_deg) <= 2.0 for d in days)
+    assert all(abs(d.steering_ratio_error) <= 0.03 for d in days)
+    assert all(0.02 <= abs(d.c1n_error) <= 0.05 and 0.02 <= abs(d.c2n_error) <= 0.05 for d in days)
+    assert {d.optical_hz for d in days} == {50.0, 100.0, 200.0, 250.0}
+    assert {np.sign(d.steer_offset_deg) for d in days} == {-1.0, 1.0}
+    overrides = days[0].sensor(15.0)
+    assert overrides["steering_ratio"] == pytest.approx(15.0 * (1.0 + days[0].steering_ratio_error))
+    assert NO_IMPERFECTIONS.sensor(15.0)["gyro_bias_degps"] == 0.0
+
+
+def test_a_realistic_pack_gives_each_case_a_handbook_config_and_seals_the_car(
+    tmp_path: Path, config: Config
+) -> None:
+    """Each case's config has C1n and C2n each within ±20 % of the car's nominal values (what a
+    handbook gives); the seal keeps the car's own, the config's and the test day's imperfections,
+    and the effects are those of the same pack made ideal."""
+    result = write_pack(tmp_path / "pack", 3, 21, config.path, TINY_PLAN, workers=2)
+    ideal = plan_pack(3, 21, realistic=False)
+    truth = json.loads(result.truth_path.read_text())
+    assert truth["realistic"] is True and truth["model"] == "two_track"
+    for index, case in enumerate(result.cases):
+        sealed = truth["cases"][case.name]
+        own = load_config(result.out / case.name / "config.toml")
+        factors = own.tyres.c1n_per_rad / 13.0, own.tyres.c2n_per_rad / 14.87  # type: ignore[operator]
+        assert all(0.8 <= f <= 1.2 for f in factors) and factors != (1.0, 1.0)
+        assert sealed["config_tyres"]["c2n_per_rad"] == pytest.approx(own.tyres.c2n_per_rad, abs=1e-4)
+        day = sealed["imperfections"]
+        assert sealed["c2n"] == pytest.approx(14.87 * (1.0 + day["c2n_error"]))
+        assert sealed["sensor"]["gyro_bias_degps"] == day["gyro_bias_degps"] != 0.0
+        assert sealed["sensor"]["steer_offset_deg"] == day["steer_offset_deg"]
+        assert sealed["effect"]["name"] == ideal[index].effect.name
+
+
+def test_a_steering_offset_reads_on_the_straight(config: Config) -> None:
+    """The session's opening straight: the car goes straight, the steering wheel reads the offset."""
+    day = replace(NO_IMPERFECTIONS, steer_offset_deg=1.5, vehicle_hz=50.0)
+    drive = simulate_standard(config, StandardOptions(seed=3, plan=TINY_PLAN, imperfections=day))
+    steer = load_dbc(DBC_DIR / "vehicle_ford.dbc").database.get_message_by_name("SteeringPinion_Data")
+    start = drive.messages[0].timestamp
+    readings = [
+        steer.decode(m.data)["StePinComp_An_Est"]
+        for m in drive.messages
+        if m.arbitration_id == steer.frame_id and m.timestamp - start < 4.0
+    ]
+    assert len(readings) > 100 and np.median(readings) == pytest.approx(1.5, abs=0.2)

@@ -12,9 +12,10 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from app.cli.common import add_config
-from app.config import load_config
+from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
 from app.errors import C2nError
 from app.sim.effects import EFFECT_NAMES, EFFECTS, Effect
+from app.sim.imperfections import NO_IMPERFECTIONS, of_session
 from app.sim.pack import CaseResult, write_pack
 from app.sim.scenarios import SCENARIOS
 from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
@@ -41,6 +42,9 @@ _DRIVE_ONLY = {
     "effect": None,
     "effect_size": None,
 }
+
+
+_OPTICAL_HZ = 100.0
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -75,6 +79,30 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     parser.add_argument("--workers", type=int, metavar="N", help="pack: processes (default: CPU count)")
     parser.add_argument(
+        "--model",
+        choices=("two_track", "commonroad"),
+        default="two_track",
+        help="session/pack generator: our two-track model, or CommonRoad's multi-body model (a model "
+        "nobody here wrote; pip install -e '.[crosscheck]'; its default config is "
+        "config/commonroad_vehicle2.toml) (default: two_track)",
+    )
+    day = parser.add_mutually_exclusive_group()
+    day.add_argument(
+        "--realistic",
+        dest="realistic",
+        action="store_true",
+        default=None,
+        help="a real test day: gyro bias, steering offset, a steering ratio and tyres a few %% off, "
+        "mixed sensor rates; a pack's cases also get a handbook config (C1n, C2n ±20 %%) "
+        "(default for --pack)",
+    )
+    day.add_argument(
+        "--ideal",
+        dest="realistic",
+        action="store_false",
+        help="no imperfections and the config's exact tyres (default for --session)",
+    )
+    parser.add_argument(
         "--out",
         type=Path,
         metavar="LOG",
@@ -93,7 +121,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument(
         "--ay-max", type=float, default=3.5, metavar="MPS2", help="lateral acceleration at the top speed"
     )
-    parser.add_argument("--optical-hz", type=float, default=100.0, help="optical sensor rate (50–250)")
+    parser.add_argument("--optical-hz", type=float, default=_OPTICAL_HZ, help="optical sensor rate (50–250)")
     parser.add_argument("--noise", type=float, default=0.02, metavar="MPS", help="optical velocity noise (σ)")
     parser.add_argument(
         "--sensor-lateral", type=float, metavar="M", help="true sensor offset left of the centre line"
@@ -111,11 +139,17 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    if args.model == "commonroad" and args.config == DEFAULT_CONFIG:
+        args.config = COMMONROAD_CONFIG  # the CommonRoad car's own
     if args.pack is not None or args.session is not None:
         _check_session_options(args)
         return _run_pack(args, console) if args.pack is not None else _run_session(args, console)
-    if args.effect is not None or args.effect_size is not None or args.quick:
-        raise C2nError("--effect, --effect-size and --quick need --session standard or --pack N")
+    if args.model != "two_track":
+        raise C2nError("--model is for --session standard or --pack N (scenarios drive the bicycle model)")
+    if args.effect is not None or args.effect_size is not None or args.quick or args.realistic is not None:
+        raise C2nError(
+            "--effect, --effect-size, --quick, --realistic and --ideal need --session standard or --pack N"
+        )
     args.scenario = args.scenario or "constant_radius"
     config = load_config(args.config)
     sensor: dict[str, object] = {
@@ -169,12 +203,23 @@ def _plan(args: argparse.Namespace) -> StandardPlan:
 def _run_session(args: argparse.Namespace, console: Console) -> int:
     config = load_config(args.config)
     effect = Effect.of(args.effect or "none", 0.0 if args.effect in (None, "none") else args.effect_size)
-    sensor: dict[str, object] = {"optical_hz": args.optical_hz, "sigma_velocity_mps": args.noise}
+    sensor: dict[str, object] = {"sigma_velocity_mps": args.noise}
+    if not args.realistic or args.optical_hz != _OPTICAL_HZ:  # a test day's rate, unless one is given
+        sensor["optical_hz"] = args.optical_hz
     if args.sensor_lateral is not None:
         sensor["lateral_m"] = args.sensor_lateral
     if args.single_channel:
         sensor["sensor_channel"] = 0
-    options = StandardOptions(seed=args.seed, effect=effect, c2n=args.c2n, plan=_plan(args), sensor=sensor)
+    imperfections = of_session(args.seed) if args.realistic else NO_IMPERFECTIONS
+    options = StandardOptions(
+        seed=args.seed,
+        effect=effect,
+        c2n=args.c2n,
+        plan=_plan(args),
+        sensor=sensor,
+        imperfections=imperfections,
+        model=args.model,
+    )
     out = args.out or Path(f"sim-{args.session}-seed{args.seed}.blf")
     drive = simulate_standard(config, options)
     truth = write_drive(drive, out)
@@ -205,7 +250,18 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
         progress.advance(task)
 
     with progress:
-        result = write_pack(out, args.pack, args.seed, args.config, _plan(args), args.workers, done)
+        realistic = True if args.realistic is None else args.realistic
+        result = write_pack(
+            out,
+            args.pack,
+            args.seed,
+            args.config,
+            _plan(args),
+            args.workers,
+            done,
+            realistic=realistic,
+            model=args.model,
+        )
     console.print(
         f"wrote {len(result.cases)} cases to {out} in {result.elapsed_s:.1f} s; "
         f"truth sealed in {result.truth_path}"

@@ -38,12 +38,6 @@ class Candidate:
     params: tuple[Param, ...]
     action: Callable[[tuple[float, ...]], str]  # what the fitted size means, and what to do
 
-    def mods(self, values: tuple[float, ...]) -> dict[str, float]:
-        fields: dict[str, float] = {}
-        for param, value in zip(self.params, values, strict=True):
-            fields.update(param.to_mods(value))
-        return fields
-
 
 def combine(fields: dict[str, float], *more: dict[str, float]) -> Mods:
     merged = dict(fields)
@@ -214,8 +208,6 @@ CANDIDATES: tuple[Candidate, ...] = (
     ),
 )
 
-EFFECTS = ("none", *(c.effect for c in CANDIDATES))
-BY_EFFECT = {c.effect: c for c in CANDIDATES}
 
 # Which manoeuvre separates two effects the data could not tell apart.
 SEPARATE: dict[frozenset[str], str] = {

@@ -512,10 +512,11 @@ def why_not(s: Scored, ho: Heldout) -> str | None:
 
 
 def rank(s: Scored, ho: Heldout) -> tuple[bool, float]:
-    """Effects that shrink the sideslip gap come first, by how much; then those seen only in the
-    vehicle speed signal."""
+    """Effects that shrink the sideslip gap come first, by how much (to a hundredth: closer than
+    that they are confounded, and the vocabulary's order decides which is named); then those seen
+    only in the vehicle speed signal."""
     sideslip = shrinks_sideslip(s, ho)
-    return (sideslip, s.shrink if sideslip else s.speed_shrink)
+    return (sideslip, round(s.shrink if sideslip else s.speed_shrink, 2))
 
 
 @dataclass(frozen=True)
@@ -763,8 +764,11 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     ho = heldout(pb, calibration, fold)
     scored = sorted(_scores(pb, calibration, ho, workers), key=lambda s: -s.shrink)
     reasons = {s.candidate.effect: why_not(s, ho) for s in scored}
+    order = {c.effect: k for k, c in enumerate(CANDIDATES)}
     eligible = sorted(
-        (s for s in scored if reasons[s.candidate.effect] is None), key=lambda s: rank(s, ho), reverse=True
+        (s for s in scored if reasons[s.candidate.effect] is None),
+        key=lambda s: (*rank(s, ho), -order[s.candidate.effect]),
+        reverse=True,
     )
     best = eligible[0] if eligible else None
     confounded: list[str] = []

@@ -182,9 +182,10 @@ class Effect:
 NO_EFFECT = Effect()
 
 
-def draw_effect(rng: np.random.Generator) -> Effect:
-    """One effect, each name (none too) equally likely; magnitude uniform in its range, sign random."""
-    spec = EFFECTS[EFFECT_NAMES[int(rng.integers(len(EFFECT_NAMES)))]]
+def draw_effect(rng: np.random.Generator, names: tuple[str, ...] = EFFECT_NAMES) -> Effect:
+    """One effect of ``names``, each (none too) equally likely; magnitude uniform in its range, sign
+    random."""
+    spec = EFFECTS[names[int(rng.integers(len(names)))]]
     magnitude = float(rng.uniform(spec.low, spec.high))
     sign = -1.0 if rng.random() < 0.5 else 1.0
     return Effect(spec.name, (sign if spec.signed else 1.0) * magnitude, spec.unit)

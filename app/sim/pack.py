@@ -11,11 +11,12 @@ writes the same drive as the pack's case.
 
 import json
 import os
+import re
 import time
 import tomllib
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,12 +25,15 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, ConfigError, OutputError
-from app.sim.effects import Effect, draw_effect
+from app.sim import commonroad
+from app.sim.effects import EFFECT_NAMES, Effect, draw_effect
+from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections, handbook, of_session
 from app.sim.standard import STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
 from app.sinks.files import write_json, write_text
 
 LOG_NAME = "drive.blf"
 _EFFECT_STREAM = 0xEFFEC7  # the effect's draw has a random stream of its own, apart from the noise
+_HANDBOOK_STREAM = 0x4A4DB0  # and the case config's nominal tyres
 
 
 @dataclass(frozen=True)
@@ -37,6 +41,8 @@ class CaseSpec:
     name: str
     seed: int
     effect: Effect
+    imperfections: Imperfections = NO_IMPERFECTIONS
+    handbook: tuple[float, float] | None = None  # the case config's (C1n, C2n) factors: ±20 %
 
 
 @dataclass(frozen=True)
@@ -62,12 +68,21 @@ def case_seed(pack_seed: int, index: int) -> int:
     return int(np.random.SeedSequence([pack_seed, index]).generate_state(1)[0])
 
 
-def plan_pack(n: int, pack_seed: int) -> list[CaseSpec]:
+def plan_pack(n: int, pack_seed: int, realistic: bool = True, model: str = "two_track") -> list[CaseSpec]:
+    """The cases: each one's effect, and with ``realistic`` a test day's imperfections and a
+    handbook config (its C1n and C2n each ±20 % off the car's), every draw from a random stream
+    of its own, so the effects do not depend on whether the pack is realistic."""
     cases = []
     for index in range(1, n + 1):
         seed = case_seed(pack_seed, index)
-        effect = draw_effect(np.random.default_rng([seed, _EFFECT_STREAM]))
-        cases.append(CaseSpec(f"case_{index:03d}", seed, effect))
+        names = commonroad.EFFECTS if model == "commonroad" else EFFECT_NAMES
+        effect = draw_effect(np.random.default_rng([seed, _EFFECT_STREAM]), names)
+        if realistic:
+            imperfections = of_session(seed)
+            factors = handbook(np.random.default_rng([seed, _HANDBOOK_STREAM]), 1.0, 1.0)
+            cases.append(CaseSpec(f"case_{index:03d}", seed, effect, imperfections, factors))
+        else:
+            cases.append(CaseSpec(f"case_{index:03d}", seed, effect))
     return cases
 
 
@@ -80,17 +95,20 @@ def write_pack(
     workers: int | None = None,
     on_case: Callable[[CaseResult], None] | None = None,
     clock: Callable[[], float] = time.perf_counter,
+    realistic: bool = True,
+    model: str = "two_track",
 ) -> PackResult:
-    """Write the pack into ``out`` (new or empty); ``on_case`` hears of each case as it is done."""
+    """Write the pack into ``out`` (new or empty); ``on_case`` hears of each case as it is done.
+    ``realistic``: every case carries a test day's imperfections and a handbook config."""
     if n < 1:
         raise C2nError(f"a pack needs at least one case, not {n}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise OutputError(f"{out}: exists and is not an empty folder — choose a new one")
     config_text = _portable_config(Path(config_path))
     load_config(config_path)  # a bad config fails here, once, not in every worker
-    specs = plan_pack(n, pack_seed)
+    specs = plan_pack(n, pack_seed, realistic, model)
     start = clock()
-    jobs = [(Path(config_path), out / spec.name, spec, plan, config_text) for spec in specs]
+    jobs = [(Path(config_path), out / spec.name, spec, plan, config_text, model) for spec in specs]
     workers = max(1, min(workers or os.cpu_count() or 1, n))
     results: list[CaseResult] = []
     if workers == 1:
@@ -116,6 +134,8 @@ def write_pack(
         "pack_seed": pack_seed,
         "n": n,
         "config": str(Path(config_path).resolve()),
+        "realistic": realistic,
+        "model": model,
         "cases": {result.name: result.truth for result in results},
     }
     write_json(truth_path, truth, "the sealed truth")
@@ -123,20 +143,46 @@ def write_pack(
 
 
 def _write_case(
-    config_path: Path, folder: Path, spec: CaseSpec, plan: StandardPlan, config_text: str | None
+    config_path: Path, folder: Path, spec: CaseSpec, plan: StandardPlan, config_text: str | None, model: str
 ) -> CaseResult:
     start = time.perf_counter()
     config = load_config(config_path)
-    drive = simulate_standard(config, StandardOptions(seed=spec.seed, effect=spec.effect, plan=plan))
+    options = StandardOptions(
+        seed=spec.seed,
+        effect=spec.effect,
+        plan=plan,
+        imperfections=spec.imperfections,
+        model="commonroad" if model == "commonroad" else "two_track",
+    )
+    nominal: dict[str, float] = {}
+    if spec.handbook is not None:  # the case's config: the car's tyres as a handbook gives them
+        c1n, c2n = config.tyres.c1n_per_rad, config.tyres.c2n_per_rad
+        if c1n is None or c2n is None:
+            raise ConfigError(f"{config_path}: a realistic pack needs [tyres] c1n_per_rad and c2n_per_rad")
+        nominal = {"c1n_per_rad": c1n * spec.handbook[0], "c2n_per_rad": c2n * spec.handbook[1]}
+        options = replace(options, plan_c2n=nominal["c2n_per_rad"])
+        config_text = _with_tyres(config_text or _portable_config(config_path, force=True) or "", nominal)
+    drive = simulate_standard(config, options)
     folder.mkdir(parents=True, exist_ok=True)
     log = folder / LOG_NAME
     write_log(drive.messages, log)
     if config_text is not None:
         write_text(folder / "config.toml", config_text, "the case's config")
     truth = {"case": spec.name, "log": f"{spec.name}/{LOG_NAME}"} | drive.truth
+    if nominal:
+        truth["config_tyres"] = nominal  # what the case's config says; "c1n", "c2n": the car's
     return CaseResult(
         spec.name, log, float(truth["duration_s"]), len(drive.messages), time.perf_counter() - start, truth
     )
+
+
+def _with_tyres(text: str, tyres: dict[str, float]) -> str:
+    """The config text with its [tyres] values replaced."""
+    for key, value in tyres.items():
+        text, found = re.subn(rf"(?m)^(\s*{key}\s*=\s*)[-+0-9.eE]+", rf"\g<1>{value:.4f}", text)
+        if not found:
+            raise ConfigError(f"the config has no [tyres] {key} to perturb")
+    return text
 
 
 def write_log(messages: list[can.Message], log: Path) -> None:
@@ -149,10 +195,10 @@ def write_log(messages: list[can.Message], log: Path) -> None:
         raise OutputError(f"{log}: cannot write ({error.strerror})") from error
 
 
-def _portable_config(path: Path) -> str | None:
-    """None for the default config (cases need no config of their own); otherwise its text with
-    the DBC paths made absolute, so it works from the case's folder."""
-    if path.resolve() == DEFAULT_CONFIG.resolve():
+def _portable_config(path: Path, force: bool = False) -> str | None:
+    """None for the default config (cases need no config of their own) unless ``force``;
+    otherwise its text with the DBC paths made absolute, so it works from the case's folder."""
+    if path.resolve() == DEFAULT_CONFIG.resolve() and not force:
         return None
     try:
         text = path.read_text()

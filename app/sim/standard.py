@@ -14,21 +14,25 @@ to the config's nominal crossing speed u0 = √(C2n·g·d), radii from the top s
 With the Mondeo config: u0 12.7 m/s, speeds 7.6–16.5 m/s, radii 68/96/137 m, 9.4 minutes of driving.
 """
 
+import copy
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from app import paper
 from app.config import Config
 from app.dbc import load_dbc
+from app.errors import C2nError
+from app.sim import commonroad
 from app.sim.effects import NO_EFFECT, Effect, apply_to_sensor, apply_to_vehicle
+from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections
 from app.sim.scenarios import Scenario, Segment, Steer
 from app.sim.sensors import SensorSetup, frames
 from app.sim.session import DBC_DIR, SimulatedDrive
-from app.sim.two_track import TwoTrackParams, simulate_two_track
+from app.sim.two_track import TwoTrackParams, TwoTrackTrace, simulate_two_track
 from app.sim.vehicle_model import BicycleParams
 
 
@@ -144,42 +148,113 @@ class StandardOptions:
     plan: StandardPlan = STANDARD_PLAN
     dt_s: float = 0.002
     sensor: Mapping[str, Any] = field(default_factory=dict)  # SensorSetup overrides (the effect wins)
+    imperfections: Imperfections = NO_IMPERFECTIONS  # a real test day's (``sensor`` wins over them)
+    plan_c2n: float | None = None  # the C2n the driver plans speeds from (None: the config's)
+    model: Literal["two_track", "commonroad"] = "two_track"  # the generator
+    commonroad_set: str = commonroad.DEFAULT_SET  # its parameter set
 
 
 def simulate_standard(config: Config, options: StandardOptions = StandardOptions()) -> SimulatedDrive:
-    """The standard session on the two-track model with the options' effect, as CAN frames + truth."""
-    nominal = TwoTrackParams.from_config(config, options.c2n, options.c1n)
+    """The standard session on the options' generator (our two-track, or CommonRoad's multi-body
+    model) with the options' effect, as CAN frames + truth."""
+    if options.model == "commonroad":
+        return _on_commonroad(config, options)
+    imperfect = options.imperfections
+    c2n = options.c2n if options.c2n is not None else config.tyres.c2n_per_rad
+    c1n = options.c1n if options.c1n is not None else config.tyres.c1n_per_rad
+    nominal = TwoTrackParams.from_config(
+        config,
+        c2n * (1.0 + imperfect.c2n_error) if c2n is not None else None,
+        c1n * (1.0 + imperfect.c1n_error) if c1n is not None else None,
+    )
     params = apply_to_vehicle(options.effect, nominal)
     ratio = config.vehicle.steering_ratio or 15.0
-    g = config.vehicle.gravity_mps2
-    planning_c2n = config.tyres.c2n_per_rad or nominal.c2n  # the test plan knows only the config
-    u0_plan = paper.crossing_speed(planning_c2n, config.d_m, g)
-    session = standard_session(u0_plan, nominal.bicycle(), ratio, options.plan)
+    session = _session(config, options, nominal.bicycle(), nominal.c2n)
     trace = simulate_two_track(params, session.scenario, ratio, options.dt_s)
-    setup = apply_to_sensor(options.effect, SensorSetup.from_config(config, **options.sensor))
+    extra = {
+        "understeer_rad_per_mps2": params.understeer_rad_per_mps2,
+        "c2n_load_transfer_ratio_at_3mps2": params.rear_stiffness_ratio(3.0),
+        "vehicle": asdict(params),
+    }
+    return _drive(config, options, session, trace, params.c1n, params.c2n, "two_track", extra)
+
+
+def _on_commonroad(config: Config, options: StandardOptions) -> SimulatedDrive:
+    """The session on CommonRoad's model: its parameter set, its tyres a few per cent off when
+    the day is imperfect (both axles share one tyre there), the road's slope as gravity."""
+    name = options.effect.name
+    if name not in commonroad.EFFECTS:
+        raise C2nError(
+            f"effect {name} is not in CommonRoad's model — use one of {', '.join(commonroad.EFFECTS)}"
+        )
+    p = copy.deepcopy(commonroad.parameters(options.commonroad_set))
+    tyre = 1.0 + options.imperfections.c2n_error
+    if options.c2n is not None:
+        tyre = options.c2n / abs(float(p.tire.p_ky1))
+    p.tire.p_ky1 = float(p.tire.p_ky1) * tyre
+    car = commonroad.CommonRoadCar(options.commonroad_set, p)
+    if abs((config.vehicle.wheelbase_m or 0.0) - car.wheelbase_m) > 0.01 * car.wheelbase_m:
+        raise C2nError(
+            f"{config.path}: a wheelbase of {config.vehicle.wheelbase_m} m is not CommonRoad's "
+            f"{options.commonroad_set} ({car.wheelbase_m:.3f} m) — "
+            f"use config/commonroad_{options.commonroad_set}.toml"
+        )
+    road = commonroad.Road()
+    if name == "road_cross_slope":
+        size = options.effect.size
+        road = commonroad.Road(abs(size) / 100.0, -math.copysign(math.pi / 2, size))
+    ratio = config.vehicle.steering_ratio or 15.0
+    session = _session(config, options, car.bicycle(), car.cn_per_rad)
+    trace = commonroad.simulate_commonroad(car, session.scenario, ratio, road)
+    extra = {"parameter_set": options.commonroad_set, "road": asdict(road)}
+    return _drive(config, options, session, trace, car.cn_per_rad, car.cn_per_rad, "commonroad", extra)
+
+
+def _session(config: Config, options: StandardOptions, bicycle: BicycleParams, c2n: float) -> StandardSession:
+    """The session as the driver plans it: from the config's C2n (or ``plan_c2n``), not the car's."""
+    planning_c2n = options.plan_c2n or config.tyres.c2n_per_rad or c2n
+    u0_plan = paper.crossing_speed(planning_c2n, config.d_m, config.vehicle.gravity_mps2)
+    return standard_session(u0_plan, bicycle, config.vehicle.steering_ratio or 15.0, options.plan)
+
+
+def _drive(
+    config: Config,
+    options: StandardOptions,
+    session: StandardSession,
+    trace: TwoTrackTrace,
+    c1n: float,
+    c2n: float,
+    model: str,
+    extra: dict[str, Any],
+) -> SimulatedDrive:
+    """The trace through the sensors (the test day's imperfections, the sensor effects) into
+    CAN frames, and the truth."""
+    imperfect = options.imperfections
+    ratio = config.vehicle.steering_ratio or 15.0
+    g = config.vehicle.gravity_mps2
+    sensor = imperfect.sensor(ratio) | dict(options.sensor)
+    setup = apply_to_sensor(options.effect, SensorSetup.from_config(config, **sensor))
     kistler = load_dbc(DBC_DIR / "kistler_smotion.dbc").database
     ford = load_dbc(DBC_DIR / "vehicle_ford.dbc").database
     messages = frames(trace, setup, kistler, ford, np.random.default_rng(options.seed))
     truth: dict[str, Any] = {
         "session": "standard",
-        "model": "two_track",
+        "model": model,
         "effect": {"name": options.effect.name, "size": options.effect.size, "unit": options.effect.unit},
-        "c2n": params.c2n,
-        "c1n": params.c1n,
+        "c2n": c2n,
+        "c1n": c1n,
         "d_m": setup.d_m,
         "config_d_m": config.d_m,
-        "u0_mps": paper.crossing_speed(params.c2n, setup.d_m, g),
+        "u0_mps": paper.crossing_speed(c2n, setup.d_m, g),
         "g_mps2": g,
-        "understeer_rad_per_mps2": params.understeer_rad_per_mps2,
-        "c2n_load_transfer_ratio_at_3mps2": params.rear_stiffness_ratio(3.0),
         "seed": options.seed,
+        "imperfections": asdict(imperfect),
         "duration_s": float(trace.t[-1]),
         "frames": len(messages),
         "max_ay_mps2": float(np.max(np.abs(trace.ay))),
         "max_roll_deg": math.degrees(float(np.max(np.abs(trace.roll)))),
         "sensor": asdict(setup),
-        "vehicle": asdict(params),
         "plan": asdict(options.plan),
         "parts": [asdict(part) for part in session.parts],
-    }
+    } | extra
     return SimulatedDrive(messages, truth, trace)

@@ -404,3 +404,21 @@ def test_gap_check_scores_each_generator_and_counts_a_missing_case_as_failed() -
     assert commonroad["n"] == 2 and commonroad["accuracy"] == 0.5 and commonroad["none_cases"] == 1
     [missing] = [row for row in scores["cases"] if row["case"] == "case_004"]
     assert missing["diagnosis"] == "error" and "no drive log" in missing["error"]
+
+
+def test_a_car_without_stiffness_or_a_drive_too_short_is_one_error_line(tmp_path: Path) -> None:
+    text = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', f'"{REPO}/dbc/')
+    zero = tmp_path / "zero.toml"
+    zero.write_text(text.replace("c2n_per_rad = 14.87", "c2n_per_rad = 0.0"))
+    drive = simulate_drive(load_config(), DriveOptions(scenario="radii", seed=11, sensor=FAST_SENSORS))
+    log = tmp_path / "drive.blf"
+    write_drive(drive, log)
+    code, _, err = run_cli(["gap", str(log), "--config", str(zero)])
+    assert (
+        code == 1
+        and err.strip() == f"c2n: error: {zero}: the vehicle model needs [tyres] c2n_per_rad > 0, got 0.0"
+    )
+    short = tmp_path / "short.blf"
+    write_drive(dataclasses.replace(drive, messages=drive.messages[: len(drive.messages) // 20]), short)
+    code, _, err = run_cli(["gap", str(short)])
+    assert code == 1 and "too short to diagnose" in err and "\n" not in err.strip()

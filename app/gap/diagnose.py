@@ -34,6 +34,7 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from app.config import Config
+from app.errors import NoResultError
 from app.gap.candidates import (
     CANDIDATES,
     NUISANCE_TWINS,
@@ -274,10 +275,19 @@ def fit(
     return Fit(params, tuple(float(v) for v in result.x * scales), float(result.cost), result.jac, result.fun)
 
 
+MIN_USABLE_S = 60.0  # of driving the model is compared on: less cannot be split into folds
+
+
 def problem(m: Measured, config: Config) -> Problem:
     """The drive, the nominal car, and the white noise of each channel on the nominal model."""
     params = BicycleParams.from_config(config)
     rows = _usable(m)
+    if rows.sum() * m.dt < MIN_USABLE_S:
+        raise NoResultError(
+            f"too short to diagnose: {rows.sum() * m.dt:.0f} s of usable driving (moving above 5 m/s, "
+            f"|a_y| ≤ {LINEAR_AY_MPS2:g} m/s², every signal there), needs {MIN_USABLE_S:.0f} s — "
+            "drive the standard session"
+        )
     cg_height, lever = config.vehicle.cg_height_m, roll_lever_m(config)
     base = simulate(params, m, config.d_m, cg_height_m=cg_height, roll_lever_m=lever)
     sigma_beta = _noise(m.beta - base.beta)

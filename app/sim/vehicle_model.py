@@ -95,6 +95,9 @@ class BicycleParams(Axles):
         missing = [k for k, value in needed.items() if value is None]
         if missing:
             raise ConfigError(f"{config.path}: the vehicle model needs {', '.join(missing)} — add them")
+        for key, value in needed.items():
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{config.path}: the vehicle model needs {key} > 0, got {value}")
         return cls.from_axle_loads(
             float(v.wheelbase_m),  # type: ignore[arg-type]
             float(v.front_axle_load_N),  # type: ignore[arg-type]

@@ -113,3 +113,57 @@ def test_the_command_line_offers_the_model_only_for_sessions(
     out = str(tmp_path / "x.blf")
     assert main(["simulate", "--model", "commonroad", "--out", out], Console(record=True)) == 1
     assert "--model is for --session standard or --pack N" in capsys.readouterr().err
+
+
+def test_the_commonroad_tyres_push_towards_the_turn_alike_at_every_radius(car: CommonRoadCar) -> None:
+    """Why the gap calibrates a force that follows the turn: on steady circles of 30 and 120 m
+    the car's rear slip angle is linear in a_y plus an offset that follows the turn (its Pacejka
+    tyres' camber thrust as the body rolls), the same at both radii — a sensor position error
+    would move the sideslip by Δd/R instead, four times as much on the small circle."""
+    offset, slope = {}, {}
+    for radius in (30.0, 120.0):
+        slips = []
+        for ay in (1.0, 3.0):
+            speed = math.sqrt(ay * radius)
+            circle = Scenario("steady", speed, (Segment(9.0, speed, Steer("radius", radius)),))
+            trace = simulate_commonroad(car, circle, 15.0)
+            k = trace.t > 6.0
+            ay_steady = float(np.mean(trace.u[k] * trace.r[k]))
+            slips.append((ay_steady, float(np.mean((trace.v[k] - car.p.b * trace.r[k]) / trace.u[k]))))
+        (a1, s1), (a2, s2) = slips
+        slope[radius] = (s2 - s1) / (a2 - a1)
+        offset[radius] = math.degrees(s1 - slope[radius] * a1)
+    # linear tyres would give no offset and 1/(g·C2n) per m/s² (C2n = |p_ky1|)
+    assert offset[30.0] == pytest.approx(offset[120.0], abs=0.01)
+    assert 0.03 < offset[30.0] < 0.1  # degrees, towards the turn
+    assert -slope[30.0] == pytest.approx(1.0 / (9.81 * car.cn_per_rad), rel=0.15)
+
+
+@pytest.mark.parametrize(("effect", "size"), [("none", None), ("sensor_position_error", -0.2)])
+def test_the_gap_on_the_commonroad_car_calibrates_its_turn_force(
+    effect: str, size: float | None, tmp_path: Path
+) -> None:
+    """The standard session on CommonRoad's car, a test day's imperfections on: the force that
+    follows the turn is calibrated (about 2 % of the weight), not taken for a sensor 0.1 m off;
+    a real position error beside it is still named and sized."""
+    from app.gap.diagnose import diagnose
+    from app.gap.measured import measure
+    from app.sim.imperfections import of_session
+    from app.sim.pack import write_log
+
+    config = load_config(COMMONROAD_CONFIG)
+    options = StandardOptions(
+        seed=23, effect=Effect.of(effect, size), model="commonroad", imperfections=of_session(23)
+    )
+    log = tmp_path / "drive.blf"
+    write_log(simulate_standard(config, options).messages, log)
+    result = diagnose(measure([log], config), config, workers=2).result
+    turn = result.calibration["turn_force_pct"]  # the car's own, with or without the effect
+    assert 1.0 < turn.fitted < 4.0 and turn.ci95[0] > 0.0
+    if effect == "none":
+        assert result.diagnosis == "none"
+    else:
+        assert result.diagnosis == "sensor_position_error"
+        named = next(c for c in result.candidates if c.named)
+        assert named.params["d_error_m"] == pytest.approx(-0.2, abs=0.05)
+        assert named.shrink_heldout > 0.4 and named.at_bound == ()

@@ -167,7 +167,14 @@ def test_a_yawed_sensor_head_is_named_and_sized(tmp_path: Path) -> None:
 
 def test_a_drive_the_model_explains_is_none(tmp_path: Path) -> None:
     result = diagnose(measured_drive(tmp_path), load_config()).result.to_json()
-    assert result["diagnosis"] == "none" and result["confounded_with"] == []
+    assert result["diagnosis"] == "none"
+    # what the calibration absorbs whole is said, with what would tell it apart
+    assert result["confounded_with"] == ["roll_steer"]
+    assert "tyre rig" in result["separate_by"]["roll_steer"]
+    assert "roll steer would be inside the calibrated c2n_per_rad" in result["verdict"]
+    # a force that follows the turn, which this drive does not have, is held at nothing
+    turn = result["calibration"]["turn_force_pct"]
+    assert turn["fitted"] == 0.0 and turn["ci95"][0] < 0.0 < turn["ci95"][1]
     assert result["shrink_heldout"] == 0.0
     assert result["c2n"]["sim"] == pytest.approx(load_config().tyres.c2n_per_rad, rel=0.01)
 

@@ -4,7 +4,7 @@ physical bounds on both sides and what tells it apart from the others."""
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from app.config import Config
 from app.gap.model import Mods
@@ -23,6 +23,16 @@ class Param:
     nominal: float = 0.0  # the value that adds nothing (a nuisance: the config's own)
     prior: float | None = None  # a nuisance's typical spread about its nominal on a test day:
     # it holds the fit where the data cannot tell one nuisance from another
+    optional: bool = False  # a nuisance most drives do not have: held at its nominal value unless
+    # the drive shows it (its 95 % interval excludes the nominal)
+
+    @property
+    def free(self) -> bool:
+        return self.low < self.high
+
+    def fixed(self) -> "Param":
+        """This parameter held at its nominal value (a fit leaves it there)."""
+        return replace(self, low=self.nominal, high=self.nominal, starts=(self.nominal,), prior=None)
 
     def at_bound(self, value: float) -> bool:
         """The fit ended on a physical bound (not the one that means "no effect")."""
@@ -47,9 +57,13 @@ def combine(fields: dict[str, float], *more: dict[str, float]) -> Mods:
 
 
 def nuisances(config: Config) -> tuple[Param, ...]:
-    """The calibration: yaw-rate sensor bias, steering-wheel centre offset and effective ratio, and
-    the nominal C1n and C2n (a handbook or rig value may be 20 % off the car's axle), each in the
-    units a test engineer reads them, starting from the config's values.
+    """The calibration: yaw-rate sensor bias, steering-wheel centre offset and effective ratio, the
+    nominal C1n and C2n (a handbook or rig value may be 20 % off the car's axle), and a lateral
+    force that follows the turn (a pad banked towards the circle's centre, or tyres whose camber
+    thrust grows quickly as the body rolls: both axles' slip angles move by a constant that
+    changes sign with the turn; several radii tell it from a sensor position error, whose offset
+    grows with the curvature), each in the units a test engineer reads them, starting from the
+    config's values.
 
     The gyro's scale is not among them: no signal of a drive tells it from the steering ratio
     (both scale the yaw rate the model is compared with), so a scale error shows as a ratio off
@@ -95,6 +109,15 @@ def nuisances(config: Config) -> tuple[Param, ...]:
             starts=(c2n,),
             nominal=c2n,
             prior=0.2 * c2n,
+        ),
+        Param(
+            "turn_force_pct",  # of the car's weight, towards the turn's centre
+            0.5,
+            lambda x: {"turn_force_g": x / 100.0},
+            -6.0,
+            6.0,
+            prior=2.0,
+            optional=True,
         ),
     )
 
@@ -235,6 +258,24 @@ SEPARATE: dict[frozenset[str], str] = {
 NUISANCE_TWINS: dict[str, str] = {
     "roll_steer": "c2n_per_rad",  # in steady state a rear steer ∝ a_y is a change of the axle's C2n
     "tyre_ply_steer": "steering_offset_deg",  # the car crabs and the driver steers it out
+}
+# Effects the calibration absorbs whole: a drive the calibrated model explains may still carry
+# them, so a verdict of "none" names them as confounded, with what would tell them apart.
+HIDDEN_BY_CALIBRATION: dict[str, str] = {
+    "roll_steer": (
+        "a C2n from a tyre rig or the axle's kinematics-and-compliance data (in steady state a rear "
+        "steer ∝ a_y is a change of the axle's C2n, which the drive calibrates)"
+    ),
+}
+
+
+# A nuisance that imitates an effect on a drive without the manoeuvre that tells them apart: the
+# effect is fitted with the nuisance held at its nominal value and named only where it explains
+# the drive better than the calibrated nuisance does.
+RIVAL_NUISANCE: dict[str, str] = {
+    # a force that follows the turn moves the sideslip by a constant per turn direction, a sensor
+    # position error by d·κ: on one radius they are the same; radii apart tell them apart
+    "sensor_position_error": "turn_force_pct",
 }
 
 

@@ -79,7 +79,8 @@ def default_workers() -> int:
 
 def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
     """Per generator and over all: the confusion matrix, the accuracy (the effect, or the truth
-    within a named effect's confounded group), false alarms on 'none', named effects that made the
+    within the diagnosis's confounded group: a named effect's, or the effects a verdict of "none"
+    says the calibration absorbs), false alarms on 'none', named effects that made the
     held-out gap worse, and the held-out shrink. A sealed case without an answer (its log gone)
     counts as a failure."""
     by_case = {answer.case: answer for answer in answers}
@@ -90,8 +91,7 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
         result = answer.result
         said = result.diagnosis if result else "error"
         group = list(result.confounded_with) if result else []
-        named = result is not None and said not in ("none", "unexplained")
-        ok = said == true_effect or (true_effect != "none" and named and true_effect in group)
+        ok = said == true_effect or (true_effect != "none" and said != "unexplained" and true_effect in group)
         rows.append(
             {
                 "case": case,

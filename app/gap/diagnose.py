@@ -37,7 +37,9 @@ from app.config import Config
 from app.errors import NoResultError
 from app.gap.candidates import (
     CANDIDATES,
+    HIDDEN_BY_CALIBRATION,
     NUISANCE_TWINS,
+    RIVAL_NUISANCE,
     Candidate,
     Param,
     combine,
@@ -71,6 +73,7 @@ YAW_TOLERANCE = 0.25  # a named effect may not make the held-out yaw-rate gap wo
 SPEED_MIN_SHRINK = 0.5  # an effect seen in the vehicle speed signal shrinks its gap by this ...
 SPEED_MIN_DROP_MPS = 0.02  # ... and by this much
 CONFOUNDED_SHARE = 0.8  # candidates reaching this share of the best shrink are confounded
+RIVAL_SHARE = 0.85  # an effect a nuisance imitates leaves at most this share of the nuisance's gap
 SECONDARY_SHRINK = 0.2  # a secondary effect shrinks what the dominant one left by this share
 DEFAULT_ROLL_AXIS_HEIGHT_M = 0.10  # at the sensor, where the config does not say: a saloon's roll centres
 LINEAR_AY_MPS2 = 4.5  # the bicycle model's tyres are linear: beyond this it is not compared
@@ -233,20 +236,32 @@ def fit(
     """Least squares of both channels over ``rows`` (soft L1), every parameter inside its bounds.
     ``start``: where to begin (else each parameter's best start)."""
     params = tuple(params)
+    free = np.array([p.free for p in params])
+    held = np.array([p.nominal for p in params])  # a fixed parameter stays at its nominal value
     scales = np.array([p.scale for p in params])
     low = np.array([p.low for p in params]) / scales
     high = np.array([p.high for p in params]) / scales
 
+    def full(x: np.ndarray) -> np.ndarray:
+        out: np.ndarray = held / scales
+        out[free] = x
+        return out
+
     def mods(x: np.ndarray) -> Mods:
         fields: dict[str, float] = {}
-        for param, value in zip(params, (x * scales).tolist(), strict=True):
+        for param, value in zip(params, (full(x) * scales).tolist(), strict=True):
             fields.update(param.to_mods(value))
         return Mods(**fields)
 
     # A prior weighs as much as the data's independent samples make it: residuals on the 20-ms
     # grid hang together over about a block, so the data count as many samples as blocks.
     weight = math.sqrt(max(rows.sum() / pb.blocks(rows), 1.0))
-    priors = [(k, p.nominal / p.scale, p.prior / p.scale / weight) for k, p in enumerate(params) if p.prior]
+    index = np.cumsum(free) - 1  # a free parameter's place in x
+    priors = [
+        (int(index[k]), p.nominal / p.scale, p.prior / p.scale / weight)
+        for k, p in enumerate(params)
+        if p.prior and p.free
+    ]
 
     def residual(x: np.ndarray) -> np.ndarray:
         fitted = pb.residual(pb.simulate(mods(x)), rows)
@@ -258,10 +273,11 @@ def fit(
         z = residual(x) / ROBUST_SCALE
         return float(np.sum(np.sqrt(1.0 + z * z)))
 
+    low, high, scales_free = low[free], high[free], scales[free]
     if start is not None:
-        x0 = np.asarray(start, dtype=float) / scales
+        x0 = np.asarray(start, dtype=float)[free] / scales_free
     else:
-        starts = [np.array(x) / scales for x in itertools.product(*(p.starts for p in params))]
+        starts = [np.array(x)[free] / scales_free for x in itertools.product(*(p.starts for p in params))]
         x0 = min(starts, key=cost) if len(starts) > 1 else starts[0]
     x0 = np.clip(x0, low + 1e-9 * (high - low), high - 1e-9 * (high - low))
     result = least_squares(
@@ -272,7 +288,8 @@ def fit(
         f_scale=ROBUST_SCALE,
         max_nfev=MAX_EVALUATIONS,
     )
-    return Fit(params, tuple(float(v) for v in result.x * scales), float(result.cost), result.jac, result.fun)
+    values = tuple(float(v) for v in full(result.x) * scales)
+    return Fit(params, values, float(result.cost), result.jac, result.fun)
 
 
 MIN_USABLE_S = 60.0  # of driving the model is compared on: less cannot be split into folds
@@ -326,9 +343,10 @@ def roll_lever_m(config: Config) -> float:
 
 @dataclass(frozen=True)
 class Calibration:
-    params: tuple[Param, ...]
+    params: tuple[Param, ...]  # as calibrated: an optional nuisance the drive does not show, held
     fit: Fit
     ci95: tuple[tuple[float, float], ...]
+    declared: tuple[Param, ...]  # as the candidates module declares them
 
     @property
     def values(self) -> tuple[float, ...]:
@@ -337,14 +355,40 @@ class Calibration:
     def mods(self, *effect: dict[str, float]) -> Mods:
         return combine(self.fit.fields(), *effect)
 
+    def params_for(self, effect: str, rival_free: bool = False) -> tuple[Param, ...]:
+        """The nuisances fitted beside ``effect``; its rival (a nuisance that imitates it) held at
+        its nominal value, or with ``rival_free`` fitted beside it even where the calibration
+        alone did not show it (the effect may have hidden it)."""
+        rival = RIVAL_NUISANCE.get(effect)
+        if rival_free:
+            return tuple(d if d.name == rival else p for p, d in zip(self.params, self.declared, strict=True))
+        return tuple(p.fixed() if p.name == rival else p for p in self.params)
+
+    def start_for(self, effect: str) -> tuple[float, ...]:
+        return tuple(
+            v if p.free else p.nominal for p, v in zip(self.params_for(effect), self.values, strict=True)
+        )
+
 
 def calibrate(pb: Problem, params: tuple[Param, ...]) -> tuple[Problem, Calibration]:
     """The nuisances fitted on every usable sample, twice: the channels' scales are set from the
     first fit's residuals, then the fit is repeated with them."""
+    declared = params
     first = fit(pb, params, pb.rows)
     pb = _scaled(pb, pb.simulate(combine(first.fields())))
     final = fit(pb, params, pb.rows, start=first.values)
-    return pb, Calibration(params, final, _intervals(pb, final))
+    ci95 = _intervals(pb, final)
+    unseen = [
+        k
+        for k, (p, (low, high)) in enumerate(zip(params, ci95, strict=True))
+        if p.optional and low <= p.nominal <= high
+    ]
+    if unseen:  # held at nominal; their intervals (which cover it) are what the drive says of them
+        params = tuple(p.fixed() if k in unseen else p for k, p in enumerate(params))
+        final = fit(pb, params, pb.rows, start=final.values)
+        held = dict(zip(unseen, (ci95[k] for k in unseen), strict=True))
+        ci95 = tuple(held.get(k, ci) for k, ci in enumerate(_intervals(pb, final)))
+    return pb, Calibration(params, final, ci95, declared)
 
 
 def _intervals(pb: Problem, result: Fit) -> tuple[tuple[float, float], ...]:
@@ -358,8 +402,10 @@ def _intervals(pb: Problem, result: Fit) -> tuple[tuple[float, float], ...]:
     dof = max(n - k, 1)
     variance = float(np.sum(res**2)) / dof * max(n / 2 / blocks, 1.0)  # two channels per sample
     cov = np.linalg.pinv(jac.T @ jac) * variance
+    free = np.array([p.free for p in result.params])
     scales = np.array([p.scale for p in result.params])
-    half = 1.96 * np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scales
+    half = np.zeros(len(free))  # a parameter held at its value has no interval of its own
+    half[free] = 1.96 * np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scales[free]
     return tuple((v - w, v + w) for v, w in zip(result.values, half.tolist(), strict=True))
 
 
@@ -370,12 +416,13 @@ class Scored:
     candidate: Candidate
     fit: Fit  # nuisances + effect, every usable sample
     folds: tuple[Fit, ...]  # nuisances + effect, per training fold
-    gap_before: float  # held-out sideslip gap of the calibrated model, deg
+    gap_before: float  # held-out sideslip gap of the calibrated model (its rival held), deg
     gap_after: float
     yaw_before: float  # deg/s
     yaw_after: float
     speed_before: float  # the vehicle speed signal's, m/s
     speed_after: float
+    rival_gap: float | None = None  # the held-out sideslip gap with the rival nuisance calibrated
 
     @property
     def effect_values(self) -> tuple[float, ...]:
@@ -390,6 +437,11 @@ class Scored:
     @property
     def shrink(self) -> float:
         return 1.0 - self.gap_after / self.gap_before if self.gap_before > 0 else 0.0
+
+    def without_effect(self) -> Mods:
+        """The fit's nuisances alone: the model beside the effect, with the effect taken out."""
+        n = len(self.fit.params) - len(self.candidate.params)
+        return combine(Fit(self.fit.params[:n], self.fit.values[:n], 0.0).fields())
 
     @property
     def speed_shrink(self) -> float:
@@ -410,11 +462,11 @@ class Heldout:
     yaw_spread: float  # the yaw-rate channel's unit, deg/s
 
 
-def heldout(pb: Problem, calibration: Calibration, fold: np.ndarray) -> Heldout:
+def heldout(pb: Problem, calibration: Calibration, fold: np.ndarray, effect: str = "none") -> Heldout:
+    """The calibrated model's held-out gaps (with the nuisances ``effect`` is fitted beside)."""
     held = tuple(pb.rows & (fold == k) for k in (0, 1))
-    baseline = tuple(
-        fit(pb, calibration.params, pb.rows & (fold != k), start=calibration.values) for k in (0, 1)
-    )
+    params, start = calibration.params_for(effect), calibration.start_for(effect)
+    baseline = tuple(fit(pb, params, pb.rows & (fold != k), start=start) for k in (0, 1))
     sims = [pb.simulate(combine(f.fields())) for f in baseline]
     parts = list(zip(sims, held, strict=True))
     noise = math.sqrt(sum(pb.gap_noise_deg(rows) ** 2 for rows in held) / 2)
@@ -430,17 +482,38 @@ def heldout(pb: Problem, calibration: Calibration, fold: np.ndarray) -> Heldout:
     )
 
 
-def score(pb: Problem, calibration: Calibration, ho: Heldout, candidate: Candidate) -> Scored:
+def score(
+    pb: Problem, calibration: Calibration, ho: Heldout, candidate: Candidate, rival: Heldout | None = None
+) -> Scored:
     """The candidate fitted with the nuisances on every sample and on each training fold, and
     its held-out gaps. The nuisances start both from the calibration and from the config's
     values (a large effect the calibration could not see may have bent it), the better fit wins;
-    the folds start from it."""
-    params = (*calibration.params, *candidate.params)
+    the folds start from it.
+
+    A candidate a nuisance imitates is fitted twice: beside every nuisance (a drive may carry
+    both), and with that nuisance held (``rival``: the calibrated model's gaps without it), where
+    it must explain the drive better than the nuisance does. The lower held-out gap counts."""
+    if rival is None:
+        return _score(pb, calibration.params, calibration.values, ho, candidate)
+    effect = candidate.effect
+    beside = _score(pb, calibration.params_for(effect, rival_free=True), calibration.values, ho, candidate)
+    held = _score(pb, calibration.params_for(effect), calibration.start_for(effect), rival, candidate)
+    return min((beside, replace(held, rival_gap=ho.gap)), key=lambda s: s.gap_after)
+
+
+def _score(
+    pb: Problem,
+    nuisance_params: tuple[Param, ...],
+    calibrated: tuple[float, ...],
+    ho: Heldout,
+    candidate: Candidate,
+) -> Scored:
+    params = (*nuisance_params, *candidate.params)
     effect_starts = list(itertools.product(*(p.starts for p in candidate.params)))
-    nominal = tuple(p.nominal for p in calibration.params)
+    nominal = tuple(p.nominal for p in nuisance_params)
     fits = [
         fit(pb, params, pb.rows, start=_best_start(pb, params, pb.rows, [(*base, *e) for e in effect_starts]))
-        for base in (calibration.values, nominal)
+        for base in (calibrated, nominal)
     ]
     everything = min(fits, key=lambda f: f.cost)
     folds = [fit(pb, params, pb.rows & (ho.fold != k), start=everything.values) for k in (0, 1)]
@@ -502,7 +575,7 @@ def shrinks_speed(s: Scored, ho: Heldout) -> bool:
         ho.gap <= none_gap(ho)
         and s.speed_shrink >= SPEED_MIN_SHRINK
         and s.speed_before - s.speed_after >= SPEED_MIN_DROP_MPS
-        and s.gap_after <= s.gap_before * (1.0 + 1e-6)  # equal fits differ in the last digits
+        and s.gap_after <= s.gap_before + 0.1 * ho.noise  # equal fits differ by less than noise
     )
 
 
@@ -510,6 +583,12 @@ def why_not(s: Scored, ho: Heldout) -> str | None:
     """The test a candidate fails to be named, or None when it passes every one."""
     if s.at_bound:
         return f"its fit ended on a physical bound ({', '.join(s.at_bound)})"
+    if s.rival_gap is not None and s.gap_after > RIVAL_SHARE * s.rival_gap:
+        rival = RIVAL_NUISANCE[s.candidate.effect]
+        return (
+            f"the calibrated {rival} explains the drive as well (held-out sideslip gap "
+            f"{s.rival_gap:.4f}° against {s.gap_after:.4f}°)"
+        )
     if not (shrinks_sideslip(s, ho) or shrinks_speed(s, ho)):
         drop = s.gap_before - s.gap_after
         return f"it shrinks the held-out sideslip gap by {s.shrink:.0%} ({drop:+.4f}°): within noise"
@@ -553,7 +632,7 @@ class Added:
 def add_to(pb: Problem, calibration: Calibration, ho: Heldout, best: Scored, other: Candidate) -> Added:
     """``other`` fitted beside the dominant effect (and the nuisances) on each training fold,
     scored on the held-out one, and on every sample."""
-    params = (*calibration.params, *best.candidate.params, *other.params)
+    params = (*best.fit.params, *other.params)
     starts = list(itertools.product(*(p.starts for p in other.params)))
     sims = []
     for k in (0, 1):
@@ -581,7 +660,7 @@ def secondary(ho: Heldout, best: Scored, added: list[Added]) -> list[Added]:
             best.gap_after <= none_gap(ho)
             and shrink >= SPEED_MIN_SHRINK
             and best.speed_after - a.speed >= SPEED_MIN_DROP_MPS
-            and a.gap <= best.gap_after * (1.0 + 1e-6)
+            and a.gap <= best.gap_after + 0.1 * ho.noise
         )
 
     keep = [a for a in added if (sideslip(a) or speed(a)) and not a.bounded]
@@ -700,41 +779,35 @@ def _map(work: Callable[[int], _T], n: int, workers: int) -> list[_T]:
         _WORK = None
 
 
-_Numbers = tuple[tuple[float, ...], float, tuple[tuple[float, ...], ...], tuple[float, float, float]]
+_Gaps = tuple[float, float, float, float, float, float]  # sideslip, yaw rate, speed: before, after
+_Numbers = tuple[tuple[float, ...], float, tuple[tuple[float, ...], ...], _Gaps, float | None]
 
 
-def _scores(pb: Problem, calibration: Calibration, ho: Heldout, workers: int) -> list[Scored]:
-    """Every candidate scored (in ``workers`` processes)."""
+def _scores(
+    pb: Problem, calibration: Calibration, ho: Heldout, rivals: dict[str, Heldout], workers: int
+) -> list[Scored]:
+    """Every candidate scored (in ``workers`` processes); one a nuisance imitates also against
+    the calibrated model with that nuisance held (``rivals``)."""
 
-    def numbers(
-        index: int,
-    ) -> tuple[tuple[float, ...], float, tuple[tuple[float, ...], ...], tuple[float, ...]]:
-        s = score(pb, calibration, ho, CANDIDATES[index])
+    def numbers(index: int) -> _Numbers:
+        """What crosses the process edge: plain numbers (the candidates hold functions)."""
+        s = score(pb, calibration, ho, CANDIDATES[index], rivals.get(CANDIDATES[index].effect))
         return (
             s.fit.values,
             s.fit.cost,
             tuple(f.values for f in s.folds),
-            (s.gap_after, s.yaw_after, s.speed_after),
+            (s.gap_before, s.gap_after, s.yaw_before, s.yaw_after, s.speed_before, s.speed_after),
+            s.rival_gap,
         )
 
     out = []
-    for candidate, (values, cost, fold_values, (gap, yaw, speed)) in zip(
+    for candidate, (values, cost, fold_values, gaps, rival_gap) in zip(
         CANDIDATES, _map(numbers, len(CANDIDATES), workers), strict=True
-    ):
-        params = (*calibration.params, *candidate.params)
-        out.append(
-            Scored(
-                candidate,
-                Fit(params, values, cost),
-                tuple(Fit(params, v, 0.0) for v in fold_values),
-                ho.gap,
-                gap,
-                ho.yaw,
-                yaw,
-                ho.speed,
-                speed,
-            )
-        )
+    ):  # the rival held where it was (rival_gap), else free beside the effect
+        nuisance_params = calibration.params_for(candidate.effect, rival_free=rival_gap is None)
+        params = (*nuisance_params, *candidate.params)
+        fits = tuple(Fit(params, v, 0.0) for v in fold_values)
+        out.append(Scored(candidate, Fit(params, values, cost), fits, *gaps, rival_gap))
     return out
 
 
@@ -749,7 +822,7 @@ def _added(
         a = add_to(pb, calibration, ho, best, tried[index])
         return a.gap, a.speed, a.fit.values, a.fit.cost
 
-    params = (*calibration.params, *best.candidate.params)
+    params = best.fit.params
     out = []
     for candidate, (gap, speed, values, cost) in zip(tried, _map(numbers, len(tried), workers), strict=True):
         shrink = 1.0 - gap / best.gap_after if best.gap_after > 0 else 0.0
@@ -772,7 +845,8 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     ids = manoeuvres(m)
     fold = folds(m, ids)
     ho = heldout(pb, calibration, fold)
-    scored = sorted(_scores(pb, calibration, ho, workers), key=lambda s: -s.shrink)
+    rivals = {effect: heldout(pb, calibration, fold, effect) for effect in RIVAL_NUISANCE}
+    scored = sorted(_scores(pb, calibration, ho, rivals, workers), key=lambda s: -s.shrink)
     reasons = {s.candidate.effect: why_not(s, ho) for s in scored}
     order = {c.effect: k for k, c in enumerate(CANDIDATES)}
     eligible = sorted(
@@ -784,7 +858,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     confounded: list[str] = []
     extra: list[Secondary] = []
     after_sim = calibrated
-    nuisance_values = calibration.values
+    beside = calibration.fit  # the nuisances as reported: calibrated beside the effects named
     if best is not None:
         route, size = rank(best, ho)
         confounded = [
@@ -793,10 +867,10 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
             if rank(s, ho)[0] == route and rank(s, ho)[1] >= CONFOUNDED_SHARE * size
         ]
         after_sim = pb.simulate(combine(best.fit.fields()))
-        nuisance_values = best.fit.values[: len(calibration.params)]  # calibrated beside the effect
         added = secondary(ho, best, _added(pb, calibration, ho, best, scored, workers))
-        if added:  # the nuisances beside the dominant effect and the first secondary one
-            nuisance_values = added[0].fit.values[: len(calibration.params)]
+        # beside the dominant effect (and the first secondary one), with its Jacobian
+        joint = added[0].fit if added else best.fit
+        beside = fit(pb, joint.params, pb.rows, start=joint.values)
         extra = [
             Secondary(
                 a.candidate.effect,
@@ -809,7 +883,11 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         diagnosis = best.candidate.effect
     else:
         diagnosis = "none" if ho.gap <= none_gap(ho) else "unexplained"
-    effect_delta = after_sim.beta - calibrated.beta
+        if diagnosis == "none":
+            confounded = list(HIDDEN_BY_CALIBRATION)
+    # the effect's own part of the sideslip: the fit beside it, with and without it
+    without = pb.simulate(best.without_effect()) if best is not None else calibrated
+    effect_delta = after_sim.beta - without.beta
     residuals = Residuals(
         t=m.t,
         ay=np.nan_to_num(m.u_optical * m.r),
@@ -823,22 +901,12 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         diagnosis=diagnosis,
         confounded_with=tuple(confounded),
         secondary=tuple(extra),
-        calibration={
-            p.name: Calibrated(
-                round(p.nominal, 5),
-                round(v, 5),
-                (round(v + low - c, 5), round(v + high - c, 5)),
-                p.at_bound(v),
-            )
-            for p, v, c, (low, high) in zip(
-                calibration.params, nuisance_values, calibration.values, calibration.ci95, strict=True
-            )
-        },
+        calibration=_calibrated(pb, calibration, beside),
         located=tuple(locate(pb, calibrated, fold)),
         candidates=tuple(_candidate_score(s, best, reasons) for s in scored),
         c2n=GapC2n(
             nominal=config.tyres.c2n_per_rad,
-            calibrated=round(nuisance_values[c2n_index], 4),
+            calibrated=round(beside.values[c2n_index], 4),
             sim=_r(method_c2n(pb, pb.simulate(Mods()).beta)),
             measured=_r(method_c2n(pb, m.beta)),
             after=_r(method_c2n(pb, after_sim.beta)),
@@ -846,11 +914,18 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
             pipeline=m.summary.c2n,
         ),
         shrink_heldout=round(max(best.shrink, 0.0), 4) if best is not None else 0.0,
-        heldout_rms_deg=BeforeAfter(round(ho.gap, 5), round(best.gap_after if best else ho.gap, 5)),
-        heldout_yaw_rms_degps=BeforeAfter(round(ho.yaw, 5), round(best.yaw_after if best else ho.yaw, 5)),
+        heldout_rms_deg=BeforeAfter(
+            round(best.gap_before if best else ho.gap, 5), round(best.gap_after if best else ho.gap, 5)
+        ),
+        heldout_yaw_rms_degps=BeforeAfter(
+            round(best.yaw_before if best else ho.yaw, 5), round(best.yaw_after if best else ho.yaw, 5)
+        ),
         verdict=_verdict(diagnosis, best, ho),
         action=best.candidate.action(best.effect_values) if best is not None else None,
-        separate_by={other: separating_manoeuvre(diagnosis, other) for other in confounded},
+        separate_by={
+            other: HIDDEN_BY_CALIBRATION[other] if best is None else separating_manoeuvre(diagnosis, other)
+            for other in confounded
+        },
         noise=GapNoise(
             sideslip_deg=round(math.degrees(pb.sigma_beta), 5),
             yaw_rate_degps=round(math.degrees(pb.sigma_r), 5),
@@ -860,6 +935,29 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         speed_input=m.speed_source,
     )
     return Diagnosis(result, residuals)
+
+
+def _calibrated(pb: Problem, calibration: Calibration, beside: Fit) -> dict[str, Calibrated]:
+    """Each nuisance as fitted beside the effects named, with its 95 % interval there; one the
+    drive did not show keeps the calibration's interval (which covers its nominal value), one held
+    beside the effect it imitates has none."""
+    intervals = _intervals(pb, beside) if beside is not calibration.fit else calibration.ci95
+    out = {}
+    for k, p in enumerate(calibration.params):
+        value = beside.values[k]
+        if beside.params[k].free:
+            low, high = intervals[k]
+        elif not p.free:
+            low, high = calibration.ci95[k]
+        else:
+            low = high = p.nominal
+        out[p.name] = Calibrated(
+            round(p.nominal, 5),
+            round(value, 5),
+            (round(low, 5), round(high, 5)),
+            beside.params[k].at_bound(value),
+        )
+    return out
 
 
 def _candidate_score(s: Scored, best: Scored | None, reasons: dict[str, str | None]) -> CandidateScore:
@@ -880,9 +978,11 @@ def _candidate_score(s: Scored, best: Scored | None, reasons: dict[str, str | No
 def _verdict(diagnosis: str, best: Scored | None, ho: Heldout) -> str:
     """The diagnosis in a sentence: what was found, and what the held-out test showed."""
     if best is None and diagnosis == "none":
+        hidden = ", ".join(f"a {effect.replace('_', ' ')}" for effect in HIDDEN_BY_CALIBRATION)
         return (
             f"none: the calibrated model is within {ho.gap:.4f}° of the drive's sideslip (held out); "
-            "no effect shrinks it beyond noise"
+            f"no effect shrinks it beyond noise ({hidden} would be inside the calibrated "
+            f"{', '.join(NUISANCE_TWINS[e] for e in HIDDEN_BY_CALIBRATION)})"
         )
     if best is None:
         return (

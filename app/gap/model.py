@@ -34,12 +34,14 @@ from app.gap.measured import Measured
 from app.sim.vehicle_model import BicycleParams
 
 U_MIN_MPS = 3.0  # below this the model is not driven (and not compared)
+G = 9.81
+TURN_AY_MPS2 = 0.2  # a force that follows the turn switches sides over this much lateral acceleration
 
 
 @dataclass(frozen=True)
 class Mods:
     """What the model adds to the config's nominal car. Zero (and factors of 1) is the nominal
-    model itself. The first six are the nuisances every real drive has, calibrated before any
+    model itself. The first seven are the nuisances every real drive has, calibrated before any
     effect is attributed; the rest are the unmodelled effects of the vocabulary."""
 
     # nuisances
@@ -49,6 +51,8 @@ class Mods:
     ratio_error: float = 0.0  # the effective steering ratio is the config's × (1 + this)
     c1n_factor: float = 1.0  # the car's front axle: the config's C1n × this
     c2n_factor: float = 1.0  # the car's rear axle: the config's C2n × this
+    turn_force_g: float = 0.0  # a lateral force towards the turn's centre, in g, that follows the
+    # turn: a pad banked towards the centre, or the tyres' camber thrust as the body rolls
     # effects
     misalignment_rad: float = 0.0  # sensor head yawed left: it reads the sideslip this much low
     d_error_m: float = 0.0  # the true sensor position is the config's d plus this
@@ -159,6 +163,8 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
         lateral = mods.slope_sin_mps2 * np.sin(heading) + mods.slope_cos_mps2 * np.cos(heading)
     else:
         lateral = np.zeros(n)
+    if mods.turn_force_g:
+        lateral = lateral + G * mods.turn_force_g * np.tanh(ay / TURN_AY_MPS2)
     v_cg, yaw = step_lateral(
         w.u,
         np.ascontiguousarray(c1, dtype=np.float64),

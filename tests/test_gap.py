@@ -382,7 +382,7 @@ def test_the_gap_command_says_what_it_found_and_what_to_do(tmp_path: Path) -> No
         "c2n",
         "shrink_heldout",
     }
-    assert set(result["calibration"]["c2n_per_rad"]) == {"nominal", "fitted", "ci95", "at_bound"}
+    assert set(result["calibration"]["c2n_per_rad"]) == {"nominal", "fitted", "ci95", "at_bound", "held"}
     assert all(c["at_bound"] == [] or not c["named"] for c in result["candidates"])
 
 

@@ -53,12 +53,14 @@ _CALIBRATION_LABELS = {
     "steering_ratio": ("effective steering ratio", ""),
     "c1n_per_rad": ("C1n (front axle)", "1/rad"),
     "c2n_per_rad": ("C2n (rear axle)", "1/rad"),
+    "turn_force_pct": ("force following the turn", "% of weight"),  # bank towards the centre, camber
 }
 
 
 def lines(result: GapResult) -> list[str]:
     """What ``c2n gap`` prints: the verdict, what it means, the calibration, C2n, where the gap lies."""
-    also = f" (or {', '.join(result.confounded_with)})" if result.confounded_with else ""
+    named = result.diagnosis not in ("none", "unexplained")
+    also = f" (or {', '.join(result.confounded_with)})" if result.confounded_with and named else ""
     out = [f"gap: {result.verdict.replace(result.diagnosis, result.diagnosis + also, 1)}"]
     if result.action:
         out.append(f"  what it means: {result.action}")
@@ -71,9 +73,10 @@ def lines(result: GapResult) -> list[str]:
         label, unit = _CALIBRATION_LABELS.get(name, (name, ""))
         low, high = value.ci95
         bound = "  — at its physical bound: not to be trusted" if value.at_bound else ""
+        held = f"  — held: {value.held}" if value.held else ""
         out.append(
             f"    {label:<30} {value.nominal:>8.4g} → {value.fitted:>8.4g} {unit:<5} "
-            f"[{low:.4g}, {high:.4g}]{bound}"
+            f"[{low:.4g}, {high:.4g}]{bound}{held}"
         )
     c2n = result.c2n
     corrected = f", with the effect taken out {c2n.corrected}" if c2n.corrected is not None else ""

@@ -276,6 +276,9 @@ RIVAL_NUISANCE: dict[str, str] = {
     # a force that follows the turn moves the sideslip by a constant per turn direction, a sensor
     # position error by d·κ: on one radius they are the same; radii apart tell them apart
     "sensor_position_error": "turn_force_pct",
+    # softening moves it by a term ∝ a_y³, which over a sweep a constant per direction and a
+    # calibrated C2n take much of; sweeps to 4 m/s² tell them apart
+    "load_transfer_nonlinearity": "turn_force_pct",
 }
 
 

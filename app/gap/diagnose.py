@@ -66,7 +66,8 @@ ROBUST_SCALE = 3.0  # residuals beyond this many channel scales count less (soft
 YAW_WEIGHT = 1.0  # the yaw rate carries the driver's corrections the model cannot follow
 SPEED_WEIGHT = 0.5  # the vehicle speed signal: it tells the speed scale and the bus's lag
 MIN_SHRINK = 0.3  # a named effect shrinks the held-out sideslip gap by at least this share ...
-MIN_DROP_DEG = 0.004  # ... and by at least this much (and more than the gap's own noise)
+MIN_DROP_DEG = 0.004  # ... and by at least this much ...
+DROP_NOISE = 2.0  # ... and by this many times the gap's own noise
 NONE_GAP_DEG = 0.02  # a calibrated model this close to the drive leaves nothing to explain
 YAW_TOLERANCE = 0.25  # a named effect may not make the held-out yaw-rate gap worse by more than
 # this share of the yaw rate's spread (its misfit no effect can remove varies between fits)
@@ -104,14 +105,17 @@ def manoeuvres(m: Measured) -> np.ndarray:
 
 
 def folds(m: Measured, ids: np.ndarray) -> np.ndarray:
-    """Fold 0 or 1 per grid step: manoeuvres of each kind (left, right, straight) alternate."""
+    """Fold 0 or 1 per grid step: manoeuvres of each kind (left, right, straight) alternate, the
+    right turns one step out of phase with the left ones, so that where a session turns left and
+    right on each radius in turn, each fold holds both directions on every radius (what tells an
+    effect per curvature from one per turn direction)."""
     fold = np.zeros(len(ids), dtype=np.int8)
     seen: dict[int, int] = {}
     r = np.nan_to_num(m.r)
     for run in np.unique(ids):
         rows = ids == run
         kind = int(np.sign(np.median(r[rows]))) if np.abs(np.median(r[rows])) > _STRAIGHT_RADPS else 0
-        fold[rows] = seen.get(kind, 0) % 2
+        fold[rows] = (seen.get(kind, 0) + (kind < 0)) % 2
         seen[kind] = seen.get(kind, 0) + 1
     return fold
 
@@ -392,16 +396,26 @@ def calibrate(pb: Problem, params: tuple[Param, ...]) -> tuple[Problem, Calibrat
 
 
 def _intervals(pb: Problem, result: Fit) -> tuple[tuple[float, float], ...]:
-    """95 % intervals from the fit's Jacobian, its variance inflated for residuals that hang
-    together over about a block (GAP_BLOCK_S): the effective sample size is the blocks'."""
+    """95 % intervals from the fit's Jacobian (a fit over every usable sample), each channel's
+    residual variance its own, inflated for residuals that hang together over about a block
+    (GAP_BLOCK_S): the effective sample size is the blocks'. Per channel, so that a misfit in a
+    channel a parameter does not act on (a vehicle speed signal off by its scale) does not widen
+    that parameter's interval: cov = A⁻¹·(Σ s_c²·J_cᵀJ_c)·A⁻¹, A = JᵀJ."""
     jac, res = result.jac, result.fun
     if jac is None or res is None:
         raise ValueError("a fit without its Jacobian has no intervals")
-    n, k = jac.shape
-    blocks = max(len(np.unique((pb.measured.t[pb.rows] // GAP_BLOCK_S).astype(np.int64))), 1)
-    dof = max(n - k, 1)
-    variance = float(np.sum(res**2)) / dof * max(n / 2 / blocks, 1.0)  # two channels per sample
-    cov = np.linalg.pinv(jac.T @ jac) * variance
+    n = int(pb.rows.sum())
+    k = jac.shape[1]
+    inflate = max(n / pb.blocks(pb.rows), 1.0)
+    channels = 3 if pb.has_speed else 2
+    middle = np.zeros((k, k))
+    for c in range(channels):
+        block, r = jac[c * n : (c + 1) * n], res[c * n : (c + 1) * n]
+        middle += float(np.sum(r**2)) / max(n - k, 1) * inflate * (block.T @ block)
+    priors = jac[channels * n :]  # already in units of their spread
+    middle += priors.T @ priors
+    outer = np.linalg.pinv(jac.T @ jac)
+    cov = outer @ middle @ outer
     free = np.array([p.free for p in result.params])
     scales = np.array([p.scale for p in result.params])
     half = np.zeros(len(free))  # a parameter held at its value has no interval of its own
@@ -563,7 +577,7 @@ def none_gap(ho: Heldout) -> float:
 
 def shrinks_sideslip(s: Scored, ho: Heldout) -> bool:
     """The held-out sideslip gap shrinks by MIN_SHRINK and beyond the gap's noise."""
-    return s.shrink >= MIN_SHRINK and s.gap_before - s.gap_after >= max(MIN_DROP_DEG, 3.0 * ho.noise)
+    return s.shrink >= MIN_SHRINK and s.gap_before - s.gap_after >= max(MIN_DROP_DEG, DROP_NOISE * ho.noise)
 
 
 def shrinks_speed(s: Scored, ho: Heldout) -> bool:
@@ -652,7 +666,8 @@ def secondary(ho: Heldout, best: Scored, added: list[Added]) -> list[Added]:
     bounds, ranked."""
 
     def sideslip(a: Added) -> bool:
-        return a.shrink >= SECONDARY_SHRINK and best.gap_after - a.gap >= max(MIN_DROP_DEG, 3.0 * ho.noise)
+        drop = best.gap_after - a.gap
+        return a.shrink >= SECONDARY_SHRINK and drop >= max(MIN_DROP_DEG, DROP_NOISE * ho.noise)
 
     def speed(a: Added) -> bool:  # as for the dominant effect: once the sideslip is explained
         shrink = 1.0 - a.speed / best.speed_after if best.speed_after > 0 else 0.0
@@ -845,7 +860,8 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     ids = manoeuvres(m)
     fold = folds(m, ids)
     ho = heldout(pb, calibration, fold)
-    rivals = {effect: heldout(pb, calibration, fold, effect) for effect in RIVAL_NUISANCE}
+    held = {rival: heldout(pb, calibration, fold, effect) for effect, rival in RIVAL_NUISANCE.items()}
+    rivals = {effect: held[rival] for effect, rival in RIVAL_NUISANCE.items()}
     scored = sorted(_scores(pb, calibration, ho, rivals, workers), key=lambda s: -s.shrink)
     reasons = {s.candidate.effect: why_not(s, ho) for s in scored}
     order = {c.effect: k for k, c in enumerate(CANDIDATES)}
@@ -944,18 +960,21 @@ def _calibrated(pb: Problem, calibration: Calibration, beside: Fit) -> dict[str,
     intervals = _intervals(pb, beside) if beside is not calibration.fit else calibration.ci95
     out = {}
     for k, p in enumerate(calibration.params):
-        value = beside.values[k]
+        value, held = beside.values[k], None
         if beside.params[k].free:
             low, high = intervals[k]
         elif not p.free:
             low, high = calibration.ci95[k]
+            held = "not seen in this drive (its interval covers the nominal value)"
         else:
             low = high = p.nominal
+            held = "the effect named explains the drive better"
         out[p.name] = Calibrated(
             round(p.nominal, 5),
             round(value, 5),
             (round(low, 5), round(high, 5)),
             beside.params[k].at_bound(value),
+            held,
         )
     return out
 

@@ -133,7 +133,11 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
             text(value.nominal),
             text(value.fitted),
             f"[{text(value.ci95[0])}, {text(value.ci95[1])}]",
-            "at its bound: not to be trusted" if value.at_bound else "",
+            "at its bound: not to be trusted"
+            if value.at_bound
+            else text(f"held: {value.held}")
+            if value.held
+            else "",
         )
         for name, value in result.calibration.items()
     ]

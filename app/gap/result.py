@@ -11,13 +11,15 @@ from app.sinks.files import json_ready
 
 @dataclass(frozen=True)
 class Calibrated:
-    """A nuisance: the config's value, the drive's, its 95 % interval, and whether the fit ended
-    on the nuisance's physical bound (then the number is not to be trusted)."""
+    """A nuisance: the config's value, the drive's, its 95 % interval, whether the fit ended on
+    the nuisance's physical bound (then the number is not to be trusted), and why it was held at
+    its nominal value if it was."""
 
     nominal: float
     fitted: float
     ci95: tuple[float, float]
     at_bound: bool = False
+    held: str | None = None
 
 
 @dataclass(frozen=True)

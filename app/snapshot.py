@@ -17,6 +17,10 @@ from app.results.pairing import Paired
 from app.results.regression import RegressionFit
 
 
+def _positive(c2n: float) -> bool:
+    return math.isfinite(c2n) and c2n > 0.0
+
+
 @dataclass(frozen=True)
 class Headline:
     """The C2n to report: the regression's (linear, at zero a_y) where there is one, else the
@@ -74,13 +78,33 @@ class Snapshot:
 
     @property
     def headline(self) -> Headline | None:
-        if self.regression is not None:
+        """The C2n to report; a stiffness that is not positive is not one (see ``sign_problem``)."""
+        if self.regression is not None and _positive(self.regression.c2n):
             return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
-        if self.paired is not None:
+        if self.paired is not None and _positive(self.paired.c2n):
             return Headline(self.paired.c2n, self.paired.ci95, "paired crossings")
-        if self.combined is not None:
+        if self.combined is not None and _positive(self.combined.c2n):
             return Headline(self.combined.c2n, self.combined.ci95, "crossings")
         return None
+
+    @property
+    def sign_problem(self) -> str | None:
+        """Why the regression's C2n is not a result, when it is not positive. A role the wrong way
+        round (the yaw rate, or the sideslip) turns both of β = ψ0 + d·κ − a_y/(g·C2n)'s terms
+        over: the fit then puts the sensor behind the rear axle and C2n below zero."""
+        fit = self.regression
+        if fit is None or _positive(fit.c2n):
+            return None
+        if fit.d_m < 0:
+            return (
+                f"the sideslip and the yaw rate disagree in sign (the regression puts the sensor "
+                f"{-fit.d_m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}): a role is the wrong "
+                "way round — check `scale` of the roles yaw_rate (+ turning left) and vy/beta (+ to the left)"
+            )
+        return (
+            f"the regression's C2n is {fit.c2n:.2f}, not positive: the steady samples do not show the "
+            "sideslip falling with speed on a circle — not a result"
+        )
 
     @property
     def u0_mps(self) -> float | None:

@@ -32,7 +32,8 @@ def result_line(snapshot: Snapshot) -> str:
     """The run's result: the headline C2n and how it was found, and the crossings beside it."""
     headline, u0 = snapshot.headline, snapshot.u0_mps
     if headline is None:
-        return "C2n: no result (no usable sideslip sign change or steady samples)"
+        why = snapshot.sign_problem or "no usable sideslip sign change or steady samples"
+        return f"C2n: no result ({why})"
     lo, hi = headline.ci95
     how = headline.method
     fit = snapshot.regression

@@ -234,6 +234,8 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     """What the user should know about the run, one line each."""
     counts = snapshot.frames
     out: list[str] = []
+    if snapshot.sign_problem:
+        out.append(snapshot.sign_problem)
     for report in reports:
         if report.stopped:
             out.append(f"{report.path}: {report.stopped}")
@@ -263,7 +265,7 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"{config.filter.gap_reset_s:g} s: the filter restarted"
         )
     fit = snapshot.regression
-    if fit is not None and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
+    if fit is not None and not snapshot.sign_problem and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
         low, high = fit.d_ci95
         out.append(
             f"the fitted sensor position d = {fit.d_m:.3f} m [{low:.3f}, {high:.3f}] disagrees with the "

@@ -4,6 +4,7 @@ Every mistake becomes a one-line ConfigError naming the file, the key and the fi
 """
 
 import difflib
+import math
 import tomllib
 import types
 import typing
@@ -89,6 +90,64 @@ class FilterSettings:
     innovation_gate: float = 30.0  # normalised innovation² beyond this rejects a sample
 
 
+# What each number may be: (lowest, highest, lowest allowed itself). Anything else — out of range,
+# NaN, ±inf — is one error line naming the file, the key and the range.
+_OPEN, _CLOSED = False, True
+_RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
+    ("vehicle", "sensor_ahead_of_rear_axle_m"): (0.0, 10.0, _OPEN),
+    ("vehicle", "sensor_lateral_m"): (-3.0, 3.0, _CLOSED),
+    ("vehicle", "sensor_height_m"): (0.0, 5.0, _CLOSED),
+    ("vehicle", "wheelbase_m"): (0.0, 20.0, _OPEN),
+    ("vehicle", "rear_axle_load_N"): (0.0, 1e6, _OPEN),
+    ("vehicle", "front_axle_load_N"): (0.0, 1e6, _OPEN),
+    ("vehicle", "cg_height_m"): (0.0, 5.0, _OPEN),
+    ("vehicle", "roll_axis_height_m"): (-1.0, 5.0, _CLOSED),
+    ("vehicle", "track_m"): (0.0, 5.0, _OPEN),
+    ("vehicle", "steering_ratio"): (0.0, 100.0, _OPEN),
+    ("vehicle", "tyre_radius_m"): (0.0, 3.0, _OPEN),
+    ("vehicle", "gravity_mps2"): (9.7, 9.9, _CLOSED),  # on Earth: 9.78 at the equator, 9.83 at a pole
+    ("tyres", "c1n_per_rad"): (0.0, 200.0, _OPEN),
+    ("tyres", "c2n_per_rad"): (0.0, 200.0, _OPEN),
+    ("detector", "ay_max_mps2"): (0.0, 20.0, _OPEN),
+    ("detector", "sweep_max_mps2"): (0.0, 10.0, _OPEN),
+    ("detector", "speed_min_mps"): (0.0, 100.0, _CLOSED),
+    ("detector", "radius_max_m"): (0.0, 1e5, _OPEN),
+    ("detector", "yaw_accel_max_radps2"): (0.0, 10.0, _OPEN),
+    ("detector", "lateral_accel_rate_max_mps2"): (0.0, 10.0, _OPEN),
+    ("detector", "settle_s"): (0.0, 60.0, _CLOSED),
+    ("detector", "debounce_s"): (0.0, 10.0, _CLOSED),
+    ("detector", "fit_half_width_mps"): (0.0, 20.0, _OPEN),
+    ("detector", "min_side_fraction"): (0.0, 1.0, _OPEN),
+    ("detector", "min_fit_samples"): (3.0, 1e6, _CLOSED),
+    ("detector", "hysteresis_sigmas"): (0.0, 100.0, _CLOSED),
+    ("detector", "reversal_mps"): (0.0, 10.0, _OPEN),
+    ("detector", "max_gap_s"): (0.0, 3600.0, _OPEN),
+    ("detector", "min_slope_t"): (0.0, 100.0, _CLOSED),
+    ("filter", "sigma_velocity_mps"): (0.0, 10.0, _OPEN),
+    ("filter", "sigma_beta_deg"): (0.0, 10.0, _OPEN),
+    ("filter", "sigma_speed_mps"): (0.0, 100.0, _OPEN),
+    ("filter", "sigma_yaw_rate_radps"): (0.0, 1.0, _OPEN),
+    ("filter", "sigma_ay_mps2"): (0.0, 100.0, _OPEN),
+    ("filter", "q_u"): (0.0, 1e6, _OPEN),
+    ("filter", "q_v"): (0.0, 1e6, _OPEN),
+    ("filter", "q_r"): (0.0, 1e6, _OPEN),
+    ("filter", "gap_reset_s"): (0.0, 3600.0, _OPEN),
+    ("filter", "status_timeout_s"): (0.0, 3600.0, _OPEN),
+    ("filter", "innovation_gate"): (0.0, 1e9, _OPEN),
+}
+
+
+def _check_range(path: Path, section: str, key: str, value: float) -> None:
+    limits = _RANGES.get((section, key))
+    if limits is None:
+        return
+    low, high, low_allowed = limits
+    inside = math.isfinite(value) and (low <= value if low_allowed else low < value) and value <= high
+    if not inside:
+        lowest = f"{low:g} to" if low_allowed else f"above {low:g} up to"
+        raise ConfigError(f"{path}: [{section}] {key} = {value!r} is out of range — use {lowest} {high:g}")
+
+
 @dataclass(frozen=True)
 class RoleSpec:
     """A role mapped to a DBC signal, with the factor that takes it to the role's SI unit."""
@@ -168,6 +227,8 @@ def load_config(path: Path | str = DEFAULT_CONFIG, dbc_dir: Path | None = None) 
         raise ConfigError(f"{path}: config file not found — pass --config with a TOML file") from error
     except tomllib.TOMLDecodeError as error:
         raise ConfigError(f"{path}: not valid TOML ({error}) — fix the syntax") from error
+    except UnicodeDecodeError as error:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {error.start}) — save it as UTF-8") from error
     except OSError as error:
         raise ConfigError(f"{path}: cannot read ({error.strerror})") from error
     return _build(path, table, dbc_dir)
@@ -176,17 +237,8 @@ def load_config(path: Path | str = DEFAULT_CONFIG, dbc_dir: Path | None = None) 
 def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Config:
     _check_keys(path, "", table, _SECTIONS)
     vehicle = _dataclass_from(path, "vehicle", Vehicle, _section(path, table, "vehicle", required=True))
-    if vehicle.sensor_ahead_of_rear_axle_m <= 0:
-        raise ConfigError(
-            f"{path}: [vehicle] sensor_ahead_of_rear_axle_m must be > 0 (the method needs the sensor "
-            "ahead of the rear axle)"
-        )
     tyres = _dataclass_from(path, "tyres", Tyres, _section(path, table, "tyres"))
     detector = _dataclass_from(path, "detector", DetectorSettings, _section(path, table, "detector"))
-    if not detector.radius_max_m > 0:
-        raise ConfigError(
-            f"{path}: [detector] radius_max_m must be > 0 (paths straighter than it are not cornering)"
-        )
     filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
@@ -232,6 +284,8 @@ def _dataclass_from(path: Path, section: str, cls: type[Any], table: dict[str, A
                 )
             continue
         values[f.name] = _typed(path, section, f.name, table[f.name], hints[f.name])
+        if isinstance(values[f.name], int | float):
+            _check_range(path, section, f.name, float(values[f.name]))
     return cls(**values)
 
 
@@ -376,7 +430,7 @@ def _status(
     conditions = []
     for key, value in _section(path, table, name).items():
         _dbc, message, signal = _find_signal(path, f"[{name}] key", key, dbcs)
-        if not isinstance(value, int | float) or isinstance(value, bool):
+        if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
             raise ConfigError(
                 f"{path}: [{name}] {key} must be the number the signal must equal, got {value!r}"
             )

@@ -79,8 +79,14 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
             ('speed = "BrakeSysFeatures.Veh_V_ActlBrk"', 'speed = "Correvit.Angle_cor"'),
             "not one for speed — set [units] speed to one of",
         ),
-        (("sensor_ahead_of_rear_axle_m = 1.11", "sensor_ahead_of_rear_axle_m = -0.5"), "must be > 0"),
-        (("[sensor_status]", "[detector]\nradius_max_m = 0\n[sensor_status]"), "radius_max_m must be > 0"),
+        (
+            ("sensor_ahead_of_rear_axle_m = 1.11", "sensor_ahead_of_rear_axle_m = -0.5"),
+            "sensor_ahead_of_rear_axle_m = -0.5 is out of range — use above 0 up to 10",
+        ),
+        (
+            ("[sensor_status]", "[detector]\nradius_max_m = 0\n[sensor_status]"),
+            "radius_max_m = 0.0 is out of range — use above 0",
+        ),
     ],
 )
 def test_mistakes_give_one_line_naming_file_key_and_fix(

@@ -105,3 +105,78 @@ def test_live_with_a_flipped_yaw_rate_records_every_frame_and_names_the_sign(tmp
     summary = json.loads((session / "summary.json").read_text())
     assert summary["frames"]["total"] == len(frames) and summary["c2n"] is None
     assert "disagree in sign" in out
+
+
+@pytest.mark.parametrize(
+    ("replacement", "where"),
+    [
+        (
+            ("[vehicle]\n", "[vehicle]\ngravity_mps2 = -9.81\n"),
+            "[vehicle] gravity_mps2 = -9.81 is out of range",
+        ),
+        (("[vehicle]\n", "[vehicle]\ngravity_mps2 = 0\n"), "[vehicle] gravity_mps2 = 0.0 is out of range"),
+        (
+            ("sensor_ahead_of_rear_axle_m = 1.11", "sensor_ahead_of_rear_axle_m = nan"),
+            "= nan is out of range",
+        ),
+        (
+            ("sensor_ahead_of_rear_axle_m = 1.11", "sensor_ahead_of_rear_axle_m = inf"),
+            "= inf is out of range",
+        ),
+        (
+            ("sensor_ahead_of_rear_axle_m = 1.11", "sensor_ahead_of_rear_axle_m = 1110"),
+            "use above 0 up to 10",
+        ),
+        (
+            ("[beta_status]", "[filter]\nsigma_velocity_mps = 0\n\n[beta_status]"),
+            "[filter] sigma_velocity_mps",
+        ),
+        (("[beta_status]", "[filter]\nsigma_yaw_rate_radps = -1\n\n[beta_status]"), "sigma_yaw_rate_radps"),
+        (("[beta_status]", "[filter]\ninnovation_gate = 0\n\n[beta_status]"), "[filter] innovation_gate"),
+        (("[beta_status]", "[filter]\ngap_reset_s = -1\n\n[beta_status]"), "[filter] gap_reset_s = -1.0"),
+        (("[beta_status]", "[detector]\nsettle_s = -1\n\n[beta_status]"), "[detector] settle_s = -1.0"),
+        (
+            ('"Status.HeadStatus" = 1', '"Status.HeadStatus" = nan'),
+            "must be the number the signal must equal",
+        ),
+    ],
+)
+def test_every_number_of_the_config_is_range_checked_at_load(
+    replacement: tuple[str, str], where: str, drive_log: Path, tmp_path: Path
+) -> None:
+    config = config_with(tmp_path, replacement)
+    code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
+    [line] = err.strip().splitlines()
+    assert code == 1 and "Traceback" not in err and out == ""
+    assert line.startswith(f"c2n: error: {config}: ") and where in line
+
+
+def test_a_config_that_is_not_utf8_is_one_line(drive_log: Path, tmp_path: Path) -> None:
+    config = tmp_path / "latin1.toml"
+    config.write_bytes(MONDEO.replace("# c2n", "# Kühler c2n").encode("latin-1", errors="replace"))
+    code, _, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
+    [line] = err.strip().splitlines()
+    assert code == 1 and line.startswith(f"c2n: error: {config}: not UTF-8 text (byte ")
+    assert line.endswith("— save it as UTF-8") and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--c2n", "0"],
+        ["simulate", "--c2n", "-5"],
+        ["simulate", "--c2n", "nan"],
+        ["simulate", "--noise", "-1"],
+        ["simulate", "--sweep-rate", "0"],
+        ["simulate", "--optical-hz", "0"],
+        ["simulate", "--optical-hz", "1000"],
+        ["simulate", "--pack", "0"],
+        ["live", "-i", "virtual", "-c", "nobody", "--no-record", "--duration", "-1"],
+    ],
+)
+def test_options_out_of_range_are_usage_errors(argv: list[str], tmp_path: Path) -> None:
+    out_file = tmp_path / "x.blf"
+    code, _, err = run_cli([*argv, "--out", str(out_file)] if argv[0] == "simulate" else argv)
+    assert code == 2 and "Traceback" not in err
+    assert f"argument {argv[-2]}: {argv[-1]} is out of range: use" in err
+    assert not out_file.exists()

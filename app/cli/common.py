@@ -1,7 +1,9 @@
 """Options and helpers several commands share."""
 
 import argparse
+import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from rich.console import Console
@@ -66,3 +68,25 @@ def bus_kwargs(args: argparse.Namespace) -> dict[str, object]:
 
 def error_console() -> Console:
     return Console(file=sys.stderr, highlight=False, soft_wrap=True)
+
+
+def number(
+    low: float, high: float, *, low_allowed: bool = True, integer: bool = False
+) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number from ``low`` (itself allowed or not) to ``high``;
+    anything else is a usage error (exit 2) naming the range."""
+
+    def parse(text: str) -> float:
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not {'an integer' if integer else 'a number'}"
+            ) from None
+        inside = math.isfinite(value) and (low <= value if low_allowed else low < value) and value <= high
+        if not inside:
+            lowest = f"{low:g} to" if low_allowed else f"above {low:g} up to"
+            raise argparse.ArgumentTypeError(f"{text} is out of range: use {lowest} {high:g}")
+        return value
+
+    return parse

@@ -78,7 +78,5 @@ def summary_line(summary: dict[str, object]) -> str:
     return (
         f"accuracy {summary['accuracy']:.0%} of {summary['n']} cases; false alarms on 'none' {alarms}; "
         f"named effects with a negative shrink {summary['negative_shrinks']}; median held-out shrink "
-        + (f"{shrink:.0%}" if isinstance(shrink, float) else "—")
-        + spread
-        + errors
+        "of the named effects " + (f"{shrink:.0%}" if isinstance(shrink, float) else "—") + spread + errors
     )

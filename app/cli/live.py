@@ -14,7 +14,7 @@ import can
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import add_bus, add_config, bus_kwargs, channels
+from app.cli.common import add_bus, add_config, bus_kwargs, channels, number
 from app.config import load_config
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
@@ -45,7 +45,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="raw frame log format (default .log, candump)",
     )
     parser.add_argument("--json", type=Path, metavar="OUT", help="also write the summary here")
-    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    parser.add_argument(
+        "--duration", type=number(0.0, 1e7, low_allowed=False), metavar="S", help="stop after S seconds"
+    )
     parser.set_defaults(run=run)
     return parser
 

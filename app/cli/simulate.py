@@ -11,7 +11,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from app.cli.common import add_config
+from app.cli.common import add_config, number
 from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
 from app.errors import C2nError
 from app.sim.effects import EFFECT_NAMES, EFFECTS, Effect
@@ -58,7 +58,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "--session", choices=SESSIONS, help="the standard test session on the two-track model"
     )
     parser.add_argument(
-        "--pack", type=int, metavar="N", help="write N standard sessions with random effects into --out DIR"
+        "--pack",
+        type=number(1, 10000, integer=True),
+        metavar="N",
+        help="write N standard sessions with random effects into --out DIR",
     )
     parser.add_argument(
         "--effect",
@@ -68,7 +71,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     parser.add_argument(
         "--effect-size",
-        type=float,
+        type=number(-1e3, 1e3),
         metavar="X",
         help="its size in its unit ("
         + ", ".join(f"{name} {spec.unit}".replace("%", "%%") for name, spec in EFFECTS.items() if spec.unit)
@@ -77,7 +80,12 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument(
         "--quick", action="store_true", help="a shortened session (smoke tests; too coarse for a diagnosis)"
     )
-    parser.add_argument("--workers", type=int, metavar="N", help="pack: processes (default: CPU count)")
+    parser.add_argument(
+        "--workers",
+        type=number(1, 64, integer=True),
+        metavar="N",
+        help="pack: processes (default: CPU count)",
+    )
     parser.add_argument(
         "--model",
         choices=("two_track", "commonroad"),
@@ -111,26 +119,50 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument("--seed", type=int, default=0, metavar="N")
     add_config(parser)
     parser.add_argument(
-        "--c2n", type=float, metavar="X", help="true C2n [1/rad] (default: the config's [tyres])"
+        "--c2n",
+        type=number(0.0, 200.0, low_allowed=False),
+        metavar="X",
+        help="true C2n [1/rad] (default: the config's [tyres])",
     )
     parser.add_argument(
         "--tyre", choices=("linear", "magic"), default="linear", help="linear or saturating tyres"
     )
-    parser.add_argument("--mu", type=float, default=1.0, help="peak friction of the saturating tyre")
-    parser.add_argument("--sweep-rate", type=float, default=0.3, metavar="MPS2", help="speed sweep rate")
     parser.add_argument(
-        "--ay-max", type=float, default=3.5, metavar="MPS2", help="lateral acceleration at the top speed"
-    )
-    parser.add_argument("--optical-hz", type=float, default=_OPTICAL_HZ, help="optical sensor rate (50–250)")
-    parser.add_argument("--noise", type=float, default=0.02, metavar="MPS", help="optical velocity noise (σ)")
-    parser.add_argument(
-        "--sensor-lateral", type=float, metavar="M", help="true sensor offset left of the centre line"
+        "--mu", type=number(0.1, 3.0), default=1.0, help="peak friction of the saturating tyre"
     )
     parser.add_argument(
-        "--misalignment", type=float, default=0.0, metavar="DEG", help="sensor head yawed left by DEG"
+        "--sweep-rate", type=number(0.01, 5.0), default=0.3, metavar="MPS2", help="speed sweep rate"
     )
-    parser.add_argument("--speed-scale", type=float, default=1.0, help="vehicle speed scale error")
-    parser.add_argument("--speed-latency", type=float, default=0.0, metavar="S", help="vehicle speed delay")
+    parser.add_argument(
+        "--ay-max",
+        type=number(0.1, 10.0),
+        default=3.5,
+        metavar="MPS2",
+        help="lateral acceleration at the top speed",
+    )
+    parser.add_argument(
+        "--optical-hz", type=number(50.0, 250.0), default=_OPTICAL_HZ, help="optical sensor rate (50–250)"
+    )
+    parser.add_argument(
+        "--noise", type=number(0.0, 1.0), default=0.02, metavar="MPS", help="optical velocity noise (σ)"
+    )
+    parser.add_argument(
+        "--sensor-lateral",
+        type=number(-3.0, 3.0),
+        metavar="M",
+        help="true sensor offset left of the centre line",
+    )
+    parser.add_argument(
+        "--misalignment",
+        type=number(-10.0, 10.0),
+        default=0.0,
+        metavar="DEG",
+        help="sensor head yawed left by DEG",
+    )
+    parser.add_argument("--speed-scale", type=number(0.5, 1.5), default=1.0, help="vehicle speed scale error")
+    parser.add_argument(
+        "--speed-latency", type=number(0.0, 2.0), default=0.0, metavar="S", help="vehicle speed delay"
+    )
     parser.add_argument(
         "--single-channel", action="store_true", help="sensor and vehicle frames on one channel"
     )

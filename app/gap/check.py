@@ -81,7 +81,8 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
     """Per generator and over all: the confusion matrix, the accuracy (the effect, or the truth
     within the diagnosis's confounded group: a named effect's, or the effects a verdict of "none"
     says the calibration absorbs), false alarms on 'none', named effects that made the
-    held-out gap worse, and the held-out shrink. A sealed case without an answer (its log gone)
+    held-out gap worse, and the named effects' held-out shrink (of the gap each was named by: the
+    sideslip's, or the vehicle speed signal's). A sealed case without an answer (its log gone)
     counts as a failure."""
     by_case = {answer.case: answer for answer in answers}
     rows = []
@@ -116,10 +117,8 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(rows)
     none_rows = [r for r in rows if r["truth"] == "none"]
     alarms = sum(r["diagnosis"] != "none" for r in none_rows)
-    shrinks = [
-        float(r["shrink_heldout"]) for r in rows if r["truth"] != "none" and r["shrink_heldout"] is not None
-    ]
     named = [r for r in rows if r["diagnosis"] not in ("none", "unexplained", "error")]
+    shrinks = [float(r["shrink_heldout"]) for r in named if r["shrink_heldout"] is not None]
     confusion = Counter((r["truth"], r["diagnosis"]) for r in rows)
     return {
         "n": n,

@@ -929,7 +929,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
             corrected=_r(method_c2n(pb, m.beta - effect_delta)) if best is not None else None,
             pipeline=m.summary.c2n,
         ),
-        shrink_heldout=round(max(best.shrink, 0.0), 4) if best is not None else 0.0,
+        shrink_heldout=round(max(_named_shrink(best, ho), 0.0), 4) if best is not None else 0.0,
         heldout_rms_deg=BeforeAfter(
             round(best.gap_before if best else ho.gap, 5), round(best.gap_after if best else ho.gap, 5)
         ),
@@ -977,6 +977,12 @@ def _calibrated(pb: Problem, calibration: Calibration, beside: Fit) -> dict[str,
             held,
         )
     return out
+
+
+def _named_shrink(best: Scored, ho: Heldout) -> float:
+    """The shrink of the gap the effect was named by: the sideslip's, or (an effect seen only in
+    the vehicle speed signal) that signal's."""
+    return best.shrink if shrinks_sideslip(best, ho) else best.speed_shrink
 
 
 def _candidate_score(s: Scored, best: Scored | None, reasons: dict[str, str | None]) -> CandidateScore:

@@ -43,3 +43,13 @@ def one_line(error: BaseException, limit: int = 200) -> str:
     C2nError's message that says what the library saw."""
     text = " ".join(str(error).split()) or type(error).__name__
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+_CONTROL = {c: f"\\x{c:02x}" for c in [*range(0x20), 0x7F, *range(0x80, 0xA0)]}
+
+
+def printable(text: str) -> str:
+    """``text`` with every control character written as its escape (``\\x1b``): what a file
+    (a DBC, a log, a config) holds must not move the cursor, clear the screen or ring the bell
+    of the terminal it is shown on."""
+    return text.translate(_CONTROL)

@@ -10,7 +10,7 @@ from rich.console import Console
 
 from app import __version__
 from app.cli import analyze, demo, export, gap, gap_check, live, replay, simulate
-from app.errors import C2nError, UsageError
+from app.errors import C2nError, UsageError, printable
 
 COMMANDS = (live, replay, analyze, export, simulate, gap, gap_check, demo)
 
@@ -61,7 +61,7 @@ def main(argv: Sequence[str] | None = None, console: Console | None = None) -> i
     except C2nError as error:
         if args.debug:
             traceback.print_exc()
-        print(f"c2n: error: {error}", file=sys.stderr)
+        print(f"c2n: error: {printable(str(error))}", file=sys.stderr)
         return 2 if isinstance(error, UsageError) else 1
     except KeyboardInterrupt:
         print("c2n: interrupted", file=sys.stderr)

@@ -8,7 +8,7 @@ from rich.text import Text
 
 from app.cli.common import add_config, error_console
 from app.config import load_config
-from app.errors import NoResultError
+from app.errors import NoResultError, printable
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import summary
@@ -47,13 +47,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
         blocks=True,
     )
     snapshot = pipeline.snapshot()
-    result = summary.build(snapshot, config, [str(p) for p in args.logs], source.reports)
+    result = summary.build(snapshot, config, [str(p) for p in args.logs], source.notes)
     if args.json:
         summary.write(args.json, result)
     console.print(Text(result_line(snapshot), style="bold"))
     errors = error_console()
     for warning in result.warnings:
-        errors.print(f"c2n: warning: {warning}", markup=False)
+        errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     missing = summary.missing_required(snapshot, config)
     if missing:
         raise NoResultError(f"{', '.join(str(p) for p in args.logs)}: {missing}")

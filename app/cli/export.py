@@ -9,7 +9,7 @@ from rich.text import Text
 
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
-from app.errors import OutputError
+from app.errors import OutputError, printable
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import events_csv as events
@@ -58,7 +58,7 @@ def _inputs(args: argparse.Namespace) -> tuple[Path, Config, Path]:
         config = load_config(args.config) if args.config else load_config(copy, dbc_dir=copy.parent)
         return log, config, args.out or path / "export"
     config = load_config(args.config or DEFAULT_CONFIG)
-    return path, config, args.out or path.with_name(f"{path.name.split('.')[0]}-export")
+    return path, config, args.out or path.with_name(f"{path.stem}-export")
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     console.print(Text(result_line(snapshot), style="bold"))
     errors = error_console()
     for warning in result.warnings:
-        errors.print(f"c2n: warning: {warning}", markup=False)
+        errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     console.print(f"{len(trace):,} rows × {len(trace.channels)} channels → {out}", style="dim")
     for path in written:
         console.print(f"  {path.name}", style="dim")

@@ -8,7 +8,7 @@ import can
 from rich.console import Console
 
 from app.cli.common import add_bus, bus_kwargs, channels
-from app.errors import BusError, C2nError
+from app.errors import BusError, C2nError, printable
 from app.sources.buses import open_buses
 from app.sources.logs import LogReport, open_log, read_log
 from app.sources.playback import looped, paced
@@ -96,5 +96,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             bus.shutdown()
     console.print(f"sent {sent} frames from {args.log}", style="dim")
     if report.stopped:
-        console.print(f"c2n: warning: {args.log}: {report.stopped}", style="yellow")
+        console.print(
+            f"c2n: warning: {printable(f'{args.log}: {report.stopped}')}", style="yellow", markup=False
+        )
     return 0

@@ -107,7 +107,7 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
     source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
     recorder = TraceRecorder(config.roles)
     run(source, pipeline, [recorder])
-    for report in source.reports:
+    for report in source.notes:
         if report.stopped:
             log.warning("%s: %s", report.path, report.stopped)
     snapshot = pipeline.snapshot()

@@ -277,18 +277,55 @@ def _check_mf4(path: Path) -> None:
         raise LogFileError(f"{path}: no CAN frames in the file")
 
 
+def _fingerprint(path: Path) -> tuple[int, bytes]:
+    """A file's size and a digest of its first and last MiB: two files that share them are the
+    same recording."""
+    import hashlib
+
+    size = _size(path)
+    digest = hashlib.sha256()
+    with path.open("rb") as file:
+        digest.update(file.read(1 << 20))
+        if size > 2 << 20:
+            file.seek(-(1 << 20), os.SEEK_END)
+            digest.update(file.read())
+    return size, digest.digest()
+
+
+def _distinct(paths: Sequence[Path]) -> tuple[list[Path], list[LogReport]]:
+    """The logs with each recording once (the same path, a link to it, or a copy), and a report
+    for each one given again."""
+    kept: list[Path] = []
+    seen: dict[object, Path] = {}
+    repeated = []
+    for path in paths:
+        key = _fingerprint(path)
+        first = seen.get(key)
+        if first is None:
+            seen[key] = path
+            kept.append(path)
+        else:
+            repeated.append(LogReport(path, stopped=f"the same recording as {first}: read once", done=True))
+    return kept, repeated
+
+
 class LogSource:
     """Frames of several log files: one after another, or merged by timestamp (``merge``), for
     per-channel recordings of one drive (e.g. two candump files). Given the decoder as
     ``triage``, BLF and MF4 files are read in bulk (``read_log``)."""
 
     def __init__(self, paths: Sequence[Path], merge: bool = False, triage: Triage | None = None) -> None:
-        self.paths = list(paths)
+        for path in paths:  # fail before any work on a missing, unknown or unreadable file
+            check_readable(path)
+        self.paths, self.repeated = _distinct(paths)
         self.merge = merge
         self.triage = triage
         self.reports = [LogReport(p) for p in self.paths]
-        for path in self.paths:  # fail before any work on a missing, unknown or unreadable file
-            check_readable(path)
+
+    @property
+    def notes(self) -> list[LogReport]:
+        """Every file's report, the ones given twice (and read once) among them."""
+        return [*self.reports, *self.repeated]
 
     @property
     def total_bytes(self) -> int:

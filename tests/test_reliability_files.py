@@ -1,0 +1,62 @@
+"""Issue 20, second round: what an adversarial user still broke with files — the same log twice,
+exports that overwrite each other, a DBC that talks to the terminal."""
+
+import json
+import shutil
+from pathlib import Path
+
+import can
+import pytest
+
+from tests.simulated import REPO, cached_drive
+from tests.test_reliability_inputs import MONDEO, run_cli
+
+
+@pytest.fixture(scope="module")
+def drive_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("drive") / "drive.blf"
+    with can.Logger(path) as writer:
+        for m in cached_drive("constant_radius", 41, 15.1).messages:
+            writer.on_message_received(m)
+    return path
+
+
+def test_the_same_log_twice_is_warned_about_and_read_once(drive_log: Path, tmp_path: Path) -> None:
+    copy = tmp_path / "copy.blf"
+    shutil.copy(drive_log, copy)
+    code, _, err = run_cli(["analyze", str(drive_log), "--json", str(tmp_path / "once.json")])
+    assert code == 0
+    code, _, err = run_cli(
+        ["analyze", str(drive_log), str(drive_log), str(copy), "--json", str(tmp_path / "thrice.json")]
+    )
+    assert code == 0 and "Traceback" not in err
+    once, thrice = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("once", "thrice"))
+    assert thrice["crossings"] == once["crossings"] and thrice["c2n_ci95"] == once["c2n_ci95"]
+    assert thrice["frames"]["total"] == once["frames"]["total"]
+    assert f"{drive_log}: the same recording as {drive_log}: read once" in thrice["warnings"]
+    assert f"{copy}: the same recording as {drive_log}: read once" in thrice["warnings"]
+    assert f"c2n: warning: {copy}: the same recording as {drive_log}: read once" in err
+
+
+def test_logs_with_dotted_names_export_to_folders_of_their_own(drive_log: Path, tmp_path: Path) -> None:
+    runs = [tmp_path / "day1.run1.blf", tmp_path / "day1.run2.blf"]
+    for run in runs:
+        shutil.copy(drive_log, run)
+        assert run_cli(["export", str(run), "--no-plots", "--format", "csv"])[0] == 0
+    for run in runs:
+        summary = json.loads((tmp_path / f"{run.stem}-export" / "summary.json").read_text())
+        assert summary["inputs"] == [str(run)]
+
+
+def test_text_from_a_dbc_never_reaches_the_terminal_raw(drive_log: Path, tmp_path: Path) -> None:
+    """A unit holding an escape sequence (clear the screen) is shown escaped in the one error line."""
+    text = (REPO / "dbc" / "kistler_smotion.dbc").read_text(encoding="latin-1")
+    start = text.index('"', text.index("VelX_cor"))
+    end = text.index('"', start + 1)
+    evil = tmp_path / "evil.dbc"
+    evil.write_text(text[: start + 1] + "m/s\x1b[2J\x07" + text[end:], encoding="latin-1")
+    config = tmp_path / "car.toml"
+    config.write_text(MONDEO.replace(f"{REPO}/dbc/kistler_smotion.dbc", str(evil)))
+    code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
+    assert code == 1 and "\x1b" not in err + out and "\x07" not in err
+    assert "unit 'm/s\\x1b[2J\\x07'" in err

@@ -15,7 +15,10 @@ import pytest
 from rich.console import Console
 
 from app.cli import main
+from app.config import Config
+from app.pipeline import Pipeline
 from tests.simulated import REPO, cached_drive
+from tests.test_reliability import render, shown_after
 
 MONDEO = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', f'"{REPO}/dbc/')
 
@@ -180,3 +183,19 @@ def test_options_out_of_range_are_usage_errors(argv: list[str], tmp_path: Path) 
     assert code == 2 and "Traceback" not in err
     assert f"argument {argv[-2]}: {argv[-1]} is out of range: use" in err
     assert not out_file.exists()
+
+
+def test_a_silent_bus_is_said_on_the_console_and_the_dashboard(config: Config) -> None:
+    channel = f"silent-{uuid.uuid4().hex}"
+    code, out, err = run_cli(["live", "-i", "virtual", "-c", channel, "--no-record", "--duration", "1"])
+    assert code == 0 and "Traceback" not in err
+    assert "C2n: no result" in out
+    assert "c2n: warning: no frames for role 'vx' (Correvit.VelX_cor, id 0x7E5)" in err
+    silent = Pipeline(config)
+    assert "no frames on the bus yet: check the interface" in render(shown_after(silent, "can0"))
+    vehicle_only = Pipeline(config)
+    for m in cached_drive("constant_radius", 41, 15.1).messages[:3000]:
+        if m.arbitration_id < 0x700:  # the vehicle bus's frames, not the sensor's
+            vehicle_only.process(m)
+    shown = render(shown_after(vehicle_only, "can0"))
+    assert "no optical sensor frames among the bus's" in shown and "is the sensor on this bus?" in shown

@@ -14,8 +14,9 @@ import can
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import add_bus, add_config, bus_kwargs, channels, number
+from app.cli.common import add_bus, add_config, bus_kwargs, channels, error_console, number
 from app.config import load_config
+from app.errors import printable
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import summary
@@ -124,6 +125,9 @@ def run(
         if args.json:
             summary.write(args.json, result)
     console.print(Text(result_line(snapshot), style="bold"))
+    errors = error_console()
+    for warning in result.warnings:
+        errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     if recorder is not None:
         console.print(f"session saved in {recorder.folder}", style="dim")
     return 0

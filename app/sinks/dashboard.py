@@ -14,6 +14,7 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
+from app.config import OPTICAL_ROLES
 from app.records import Reason, SteadyState
 from app.sinks.event_printer import result_line
 from app.sinks.sink import Display
@@ -81,6 +82,18 @@ def columns(rows: Sequence[Sequence[str]], left: frozenset[int] | set[int] = fro
     for line in lines[1:]:
         text.append("\n" + line)
     return text
+
+
+def _waiting(snapshot: Snapshot) -> Text:
+    """What the status says before the first optical sample: why there is none yet."""
+    frames = snapshot.frames
+    if not frames.total:
+        text = "no frames on the bus yet: check the interface, the channel and the bitrate"
+        return Text(text, style="bold red")
+    if not any(frames.role_frames[role] for role in OPTICAL_ROLES):
+        text = f"no optical sensor frames among the bus's {frames.total:,}: is the sensor on this bus?"
+        return Text(text, style="bold red")
+    return Text("waiting for optical sensor frames", style="yellow")
 
 
 def _pairs(rows: list[tuple[str, str]]) -> Text:
@@ -159,7 +172,7 @@ class Dashboard(Display):
             lines.append(Text(f"bus: {bus_problem}", style="bold red"))
         steady = snapshot.last.steady if snapshot.last else None
         if steady is None:
-            lines.append(Text("waiting for optical sensor frames", style="yellow"))
+            lines.append(_waiting(snapshot))
         elif steady.steady:
             turn = f"{steady.direction} turn" if steady.direction else "turning"
             lines.append(Text(f"● STEADY — {turn}", style="bold green"))

@@ -76,4 +76,4 @@ def test_empty_dashboard_before_any_frame(config: object) -> None:
 
     assert isinstance(config, Config)
     text = render(shown(Pipeline(config), "can0"))
-    assert "waiting for optical sensor frames" in text and "no result" in text
+    assert "no frames on the bus yet" in text and "no result" in text

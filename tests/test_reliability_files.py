@@ -60,3 +60,22 @@ def test_text_from_a_dbc_never_reaches_the_terminal_raw(drive_log: Path, tmp_pat
     code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
     assert code == 1 and "\x1b" not in err + out and "\x07" not in err
     assert "unit 'm/s\\x1b[2J\\x07'" in err
+
+
+def test_a_candump_line_cut_inside_its_data_is_counted_damaged_not_decoded(tmp_path: Path) -> None:
+    """python-can reads `7E5#3B03FFFF3B03FAF` (15 hex digits) as 8 bytes with a wrong last one
+    and a dlc of 7: such a frame is not decoded, it is counted and warned about."""
+    log = tmp_path / "drive.log"
+    with can.Logger(log) as writer:
+        for m in cached_drive("constant_radius", 41, 15.1).messages[:4000]:
+            writer.on_message_received(m)
+    lines = log.read_text().splitlines()
+    optical = [k for k, line in enumerate(lines) if " 7E5#" in line]
+    for k in optical[100:103]:
+        lines[k] = lines[k].split()[0] + " " + lines[k].split()[1] + " " + lines[k].split()[2][:-1]
+    log.write_text("\n".join(lines) + "\n")
+    code, _, err = run_cli(["analyze", str(log), "--json", str(tmp_path / "s.json")])
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["frames"]["bad_length"] == 3 and summary["frames"]["total"] == len(lines)
+    assert "3 frames not decoded: their length is not their DBC message's (3 with a data field cut" in err
+    assert "Traceback" not in err and code in (0, 1)

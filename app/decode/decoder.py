@@ -189,9 +189,9 @@ class Decoder:
         counts = self._counts
         data = msg.data
         length = binding.message.length
-        if len(data) != length:
+        if len(data) != length or msg.dlc != length:  # a text log's line cut in its data: dlc ≠ bytes
             counts.bad_length += 1
-            kind = "short" if len(data) < length else "long"
+            kind = "cut" if msg.dlc != len(data) else "short" if len(data) < length else "long"
             counts.bad_by_id[(msg.arbitration_id, kind)] += 1
             return None
         try:

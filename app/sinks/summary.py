@@ -254,6 +254,10 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"{counts.other_channel} frames of known ids arrived on a channel their DBC "
             "is not decoded on ([channels])"
         )
+    if counts.bad_length:
+        cut = sum(n for (_, kind), n in counts.bad_by_id.items() if kind == "cut")
+        how = f" ({cut} with a data field cut short in a text log's line)" if cut else ""
+        out.append(f"{counts.bad_length} frames not decoded: their length is not their DBC message's{how}")
     for reason, n in counts.rejected.most_common():
         out.append(f"{n} frames' values dropped: {reason}")
     f = snapshot.filter.counts

@@ -79,3 +79,30 @@ def test_a_candump_line_cut_inside_its_data_is_counted_damaged_not_decoded(tmp_p
     assert summary["frames"]["bad_length"] == 3 and summary["frames"]["total"] == len(lines)
     assert "3 frames not decoded: their length is not their DBC message's (3 with a data field cut" in err
     assert "Traceback" not in err and code in (0, 1)
+
+
+def test_nan_timestamps_in_a_csv_log_are_counted_and_warned_about(tmp_path: Path) -> None:
+    log = tmp_path / "drive.csv"
+    frames = cached_drive("constant_radius", 41, 15.1).messages
+    with can.Logger(log) as writer:
+        for m in frames:
+            writer.on_message_received(m)
+    lines = log.read_text().splitlines()
+    start = frames[0].timestamp
+    damaged = 0
+    for k in range(1, len(lines)):
+        if 40.0 <= frames[k - 1].timestamp - start < 48.0:  # 8 s of the drive
+            lines[k] = "nan" + lines[k][lines[k].index(",") :]
+            damaged += 1
+    log.write_text("\n".join(lines) + "\n")
+    code, _, err = run_cli(["analyze", str(log), "--json", str(tmp_path / "s.json")])
+    assert code == 0 and "Traceback" not in err
+    summary = json.loads((tmp_path / "s.json").read_text())
+    frames_out = summary["frames"]
+    assert frames_out["total"] == len(frames)
+    assert 0 < frames_out["bad_time"] <= damaged  # the needed messages' frames among them
+    assert frames_out["total"] == sum(
+        n for kind, n in frames_out.items() if kind not in ("total", "fd_frames")
+    )
+    assert f"{frames_out['bad_time']} frames without a usable timestamp (NaN or infinite): not used" in err
+    assert summary["c2n"] is not None

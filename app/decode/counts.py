@@ -16,6 +16,7 @@ class FrameCounts:
     other_channel: int = 0  # a known id on a channel its DBC is not decoded on
     bad_length: int = 0
     undecodable: int = 0
+    bad_time: int = 0  # a frame of a needed message without a usable timestamp (NaN, infinite)
     error_frames: int = 0
     remote_frames: int = 0
     fd_frames: int = 0  # not a kind: how many of the total were CAN FD (decoded like the rest)
@@ -45,6 +46,7 @@ class FrameCounts:
             "other_channel": self.other_channel,
             "bad_length": self.bad_length,
             "undecodable": self.undecodable,
+            "bad_time": self.bad_time,
             "error_frames": self.error_frames,
             "remote_frames": self.remote_frames,
             "fd_frames": self.fd_frames,

@@ -201,6 +201,9 @@ class Decoder:
             counts.bad_by_id[(msg.arbitration_id, "undecodable")] += 1
             return None
         t = msg.timestamp
+        if not -1e15 < t < 1e15:  # NaN or infinite (a text log's): no place in time
+            counts.bad_time += 1
+            return None
         if binding.status:
             self.status.update(t, {name: float(decoded[signal]) for name, signal in binding.status})
         roles = seen.roles

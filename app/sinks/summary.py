@@ -102,6 +102,7 @@ class Frames:
     other_channel: int = 0
     bad_length: int = 0
     undecodable: int = 0
+    bad_time: int = 0
     error_frames: int = 0
     remote_frames: int = 0
     fd_frames: int = 0
@@ -258,6 +259,8 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         cut = sum(n for (_, kind), n in counts.bad_by_id.items() if kind == "cut")
         how = f" ({cut} with a data field cut short in a text log's line)" if cut else ""
         out.append(f"{counts.bad_length} frames not decoded: their length is not their DBC message's{how}")
+    if counts.bad_time:
+        out.append(f"{counts.bad_time} frames without a usable timestamp (NaN or infinite): not used")
     for reason, n in counts.rejected.most_common():
         out.append(f"{n} frames' values dropped: {reason}")
     f = snapshot.filter.counts

@@ -72,18 +72,26 @@ def test_every_frame_is_counted_by_kind(config: Config) -> None:
             timestamp=T0, arbitration_id=0x7E5, is_extended_id=True, data=bytes(8)
         ),  # 29-bit: another frame
         frame(config, "Coordinates"),  # known, nothing needs it
+        can.Message(  # no place in time (a text log's "nan")
+            timestamp=float("nan"),
+            arbitration_id=good.arbitration_id,
+            is_extended_id=good.is_extended_id,
+            data=good.data,
+            channel=good.channel,
+        ),
     ]
     for m in messages:
         decoder.decode(m)
     counts = decoder.counts.as_dict()
     assert counts == {
-        "total": 9,
+        "total": 10,
         "used": 2,
         "unused": 1,
         "unknown_id": 2,
         "other_channel": 0,
         "bad_length": 2,
         "undecodable": 0,
+        "bad_time": 1,
         "error_frames": 1,
         "remote_frames": 1,
         "fd_frames": 0,
@@ -92,7 +100,7 @@ def test_every_frame_is_counted_by_kind(config: Config) -> None:
     assert decoder.counts.bad_by_id == {(0x7E5, "short"): 1, (0x7E4, "long"): 1}
     by_id = decoder.counts.by_id
     assert (
-        by_id[(0, 0x7E5, False)] == 1 and by_id[(None, 0x7E5, False)] == 3 and by_id[(None, 0x7E5, True)] == 1
+        by_id[(0, 0x7E5, False)] == 2 and by_id[(None, 0x7E5, False)] == 3 and by_id[(None, 0x7E5, True)] == 1
     )
 
 
@@ -135,6 +143,7 @@ def test_counts_are_exact_at_every_read_when_frames_of_a_key_repeat(
         "other_channel": 0,
         "bad_length": 1,
         "undecodable": 0,
+        "bad_time": 0,
         "error_frames": 1,
         "remote_frames": 1,
         "fd_frames": 1,

@@ -127,6 +127,7 @@ def test_malformed_frames_are_counted_by_kind_never_fatal_and_shown(config: Conf
         "other_channel": 0,
         "bad_length": 3,
         "undecodable": 0,
+        "bad_time": 0,
         "error_frames": 1,
         "remote_frames": 1,
         "fd_frames": 2,

@@ -7,6 +7,7 @@ A bulk reader may hand over frames as a FrameBlock instead (``c2n analyze`` on M
 (tests/test_blocks.py).
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
@@ -27,6 +28,7 @@ from app.sources.blocks import FrameBlock, RecordBlock
 
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)
+_LATERAL = {"beta": ("beta",), "vy": ("vy",), "auto": ("beta", "vy")}  # what sideslip_source allows
 _REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
 
 
@@ -90,6 +92,18 @@ class Pipeline:
         record = self.decoder.decode(msg)
         return None if record is None else self.take(record)
 
+    def _optical_problem(self, rejected: Mapping[str, str], usable: Mapping[str, float]) -> str | None:
+        """Why this frame's optical samples cannot be used: its vx was dropped, or every lateral
+        measurement the filter may take (``sideslip_source``: the angle, vy, or either) was. An
+        angle gated off (``[beta_status]``) beside a good vy is no problem where vy may be used."""
+        if "vx" in rejected:
+            return rejected["vx"]
+        lateral = _LATERAL[self.config.filter.sideslip_source]
+        dropped = [rejected[role] for role in lateral if role in rejected]
+        if dropped and not any(role in usable for role in lateral):
+            return dropped[0]
+        return None
+
     def take(self, record: Record) -> Record:
         """Take one decoded frame (``process`` after the decoder): the Record with what the
         filter, the gate and the detector made of it."""
@@ -98,10 +112,9 @@ class Pipeline:
             state.t_first = record.t
         state.t_last = record.t
         state.latest.update(record.signals)
-        rejected = record.rejected
-        optical_rejected = [rejected[r] for r in OPTICAL_ROLES if r in rejected] if rejected else None
-        if optical_rejected:
-            state.sensor_problem = optical_rejected[0]
+        problem = self._optical_problem(record.rejected, record.signals) if record.rejected else None
+        if problem:
+            state.sensor_problem = problem
         elif state.sensor_problem is not None and not _OPTICAL.isdisjoint(record.signals):
             state.sensor_problem = None
         if _FILTER_ROLES.isdisjoint(record.signals):
@@ -202,10 +215,12 @@ class Pipeline:
         change = np.full(n, -2)  # -2: no change, -1: cleared, else the new problem
         for role in _OPTICAL.intersection(block.values):
             change[~np.isnan(block.values[role])] = -1
+        present = _OPTICAL.intersection(block.values)
         for row, rejected in block.rejected.items():
-            optical = [rejected[r] for r in OPTICAL_ROLES if r in rejected]
-            if optical:
-                texts.append(optical[0])
+            usable = {r: 0.0 for r in present if not np.isnan(block.values[r][row])}
+            problem = self._optical_problem(rejected, usable)
+            if problem:
+                texts.append(problem)
                 change[row] = len(texts) - 1
         before = -1
         if self.state.sensor_problem is not None:

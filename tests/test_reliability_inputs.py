@@ -199,3 +199,44 @@ def test_a_silent_bus_is_said_on_the_console_and_the_dashboard(config: Config) -
             vehicle_only.process(m)
     shown = render(shown_after(vehicle_only, "can0"))
     assert "no optical sensor frames among the bus's" in shown and "is the sensor on this bus?" in shown
+
+
+def test_an_angle_switched_off_gates_the_angle_alone_where_vy_may_be_used(
+    config: Config, tmp_path: Path
+) -> None:
+    """AngleSwitchedOff = 1 the whole drive, VelY good: with sideslip_source "vy" (or "auto") the
+    drive gives its C2n from vy; with "beta" it has nothing to measure and says why."""
+    status = next(m for dbc in config.dbcs for m in dbc.database.messages if m.name == "Status")
+    frames = []
+    for m in cached_drive("constant_radius", 41, 15.1).messages:
+        if m.arbitration_id == status.frame_id:
+            values = status.decode(bytes(m.data), decode_choices=False)
+            data = status.encode({**values, "AngleSwitchedOff": 1})
+            m = can.Message(
+                timestamp=m.timestamp,
+                arbitration_id=m.arbitration_id,
+                is_extended_id=False,
+                data=data,
+                channel=m.channel,
+            )
+        frames.append(m)
+    log = tmp_path / "angle_off.blf"
+    with can.Logger(log) as writer:
+        for m in frames:
+            writer.on_message_received(m)
+    results = {}
+    for source in ("vy", "auto", "beta"):
+        car = config_with(
+            tmp_path,
+            ("[beta_status]", f'[filter]\nsideslip_source = "{source}"\n\n[beta_status]'),
+            name=f"{source}.toml",
+        )
+        _, _, err = run_cli(
+            ["analyze", str(log), "--config", str(car), "--json", str(tmp_path / f"{source}.json")]
+        )
+        assert "Traceback" not in err
+        results[source] = json.loads((tmp_path / f"{source}.json").read_text())
+    for source in ("vy", "auto"):
+        assert results[source]["c2n"] == pytest.approx(15.1, rel=0.02)
+        assert any("AngleSwitchedOff" in w and "(beta)" in w for w in results[source]["warnings"])
+    assert results["beta"]["c2n"] is None

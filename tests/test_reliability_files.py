@@ -106,3 +106,45 @@ def test_nan_timestamps_in_a_csv_log_are_counted_and_warned_about(tmp_path: Path
     )
     assert f"{frames_out['bad_time']} frames without a usable timestamp (NaN or infinite): not used" in err
     assert summary["c2n"] is not None
+
+
+def test_demo_ended_by_sigterm_leaves_no_temporary_folder_and_a_killed_ones_is_removed_next_time(
+    tmp_path: Path,
+) -> None:
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from app.cli.demo import TEMP_PREFIX, remove_stale
+
+    env = {**os.environ, "TMPDIR": str(tmp_path)}
+    child = subprocess.Popen(
+        [sys.executable, "-m", "app", "demo", "--speedup", "1"],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not list(tmp_path.glob(f"{TEMP_PREFIX}*")) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert list(tmp_path.glob(f"{TEMP_PREFIX}{child.pid}-*")), "the demo never made its folder"
+        time.sleep(1.0)
+        child.send_signal(signal.SIGTERM)
+        _, err = child.communicate(timeout=30)
+    finally:
+        child.kill()
+    assert child.returncode in (0, 130) and "Traceback" not in err  # ended as Ctrl-C ends it
+    assert not list(tmp_path.glob(f"{TEMP_PREFIX}*"))
+    # SIGKILL cannot be caught: the folder stays until the next demo finds its process gone
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale, mine = tmp_path / f"{TEMP_PREFIX}{dead.pid}-x", tmp_path / f"{TEMP_PREFIX}{os.getpid()}-y"
+    for folder in (stale, mine):
+        folder.mkdir()
+        (folder / "demo-drive.blf").write_bytes(b"x")
+    assert remove_stale(tmp_path) == [stale] and not stale.exists() and mine.exists()

@@ -2,22 +2,26 @@
 live dashboard; the crossings print as they happen, then C2n beside the simulated truth."""
 
 import argparse
+import os
+import shutil
+import signal
 import tempfile
 import threading
 import uuid
 from pathlib import Path
+from types import FrameType
 
 import can
 from rich.console import Console
 from rich.text import Text
 
 from app.cli.common import add_config
-from app.config import load_config
+from app.config import Config, load_config
 from app.errors import C2nError
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sim.scenarios import SCENARIOS
-from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
+from app.sim.session import DriveOptions, SimulatedDrive, describe, simulate_drive, write_drive
 from app.sinks.dashboard import Dashboard
 from app.sinks.event_printer import EventPrinter, result_line
 from app.sources.buses import BusSource
@@ -68,10 +72,50 @@ def run(args: argparse.Namespace, console: Console) -> int:
     config = load_config(args.config)
     console.print(f"c2n demo: simulating a {args.scenario} drive (seed {args.seed})…", style="dim")
     drive = simulate_drive(config, DriveOptions(scenario=args.scenario, seed=args.seed))
-    truth = drive.truth
-    console.print(f"the drive: {describe(truth)}", style="dim")
+    console.print(f"the drive: {describe(drive.truth)}", style="dim")
     channel = f"c2n-demo-{uuid.uuid4().hex[:8]}"
-    with tempfile.TemporaryDirectory(prefix="c2n-demo-") as tmp:
+    remove_stale()
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # unwinds: the temporary folder goes too
+    try:
+        return _replay(args, console, config, drive, channel)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
+TEMP_PREFIX = "c2n-demo-"
+
+
+def remove_stale(root: Path | None = None) -> list[Path]:
+    """Remove the temporary folders of demos that were killed (SIGKILL leaves them): each is
+    named after its process, and one whose process is gone is stale. Returns what it removed."""
+    removed = []
+    for folder in Path(root or tempfile.gettempdir()).glob(f"{TEMP_PREFIX}*-*"):
+        pid = folder.name[len(TEMP_PREFIX) :].split("-", 1)[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(folder, ignore_errors=True)
+            removed.append(folder)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _replay(
+    args: argparse.Namespace, console: Console, config: Config, drive: SimulatedDrive, channel: str
+) -> int:
+    truth = drive.truth
+    with tempfile.TemporaryDirectory(prefix=f"{TEMP_PREFIX}{os.getpid()}-") as tmp:
         log = Path(tmp) / "demo-drive.blf"
         write_drive(drive, log)
         stop = threading.Event()

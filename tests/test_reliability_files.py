@@ -148,3 +148,29 @@ def test_demo_ended_by_sigterm_leaves_no_temporary_folder_and_a_killed_ones_is_r
         folder.mkdir()
         (folder / "demo-drive.blf").write_bytes(b"x")
     assert remove_stale(tmp_path) == [stale] and not stale.exists() and mine.exists()
+
+
+def test_two_dbcs_of_one_name_are_both_kept_in_a_session_and_it_exports(tmp_path: Path) -> None:
+    from app.config import load_config
+    from app.sinks.recorder import SessionRecorder
+
+    for folder, source in (("sensor", "kistler_smotion.dbc"), ("vehicle", "vehicle_ford.dbc")):
+        (tmp_path / folder).mkdir()
+        shutil.copy(REPO / "dbc" / source, tmp_path / folder / "car.dbc")
+    text = MONDEO.replace(f"{REPO}/dbc/kistler_smotion.dbc", "sensor/car.dbc")
+    text = text.replace(f"{REPO}/dbc/vehicle_ford.dbc", "vehicle/car.dbc")
+    (tmp_path / "car.toml").write_text(text)
+    config = load_config(tmp_path / "car.toml")
+    session = tmp_path / "session"
+    recorder = SessionRecorder(session, config)
+    frames = cached_drive("constant_radius", 41, 15.1).messages
+    for m in frames:
+        recorder.on_frame(m)
+    recorder.close()
+    assert sorted(p.name for p in (session / "config").iterdir()) == ["car-2.dbc", "car.dbc", "car.toml"]
+    copy = load_config(session / "config" / "car.toml", dbc_dir=session / "config")
+    assert [d.path.read_bytes() for d in copy.dbcs] == [d.path.read_bytes() for d in config.dbcs]
+    code, _, err = run_cli(["export", str(session), "--no-plots", "--format", "csv"])
+    assert code == 0 and "Traceback" not in err
+    summary = json.loads((session / "export" / "summary.json").read_text())
+    assert summary["frames"]["total"] == len(frames) and summary["c2n"] == pytest.approx(15.1, rel=0.02)

@@ -6,7 +6,9 @@ bus is idle, so after a crash (even ``kill -9``) the log reads back up to the la
 """
 
 import copy
+import json
 import shutil
+import tomllib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -117,6 +119,27 @@ class _BLFWriter(can.BLFWriter):
 _TEXT_WRITERS: dict[str, Any] = {".log": _CandumpWriter, ".asc": can.ASCWriter}
 
 
+def copy_config(config: Config, copies: Path) -> None:
+    """The config and its DBCs side by side in ``copies`` (a new folder). Two DBCs of one name
+    (from different folders) are both kept, the second as ``name-2.dbc``, and the config copy
+    names them so."""
+    copies.mkdir()
+    names: dict[Path, str] = {}
+    for dbc in config.dbcs:
+        name, k = dbc.path.name, 2
+        while name in names.values():
+            name, k = f"{dbc.path.stem}-{k}{dbc.path.suffix}", k + 1
+        names[dbc.path] = name
+        shutil.copy2(dbc.path, copies / name)
+    text = config.path.read_text(encoding="utf-8")
+    files = tomllib.loads(text).get("dbc", {}).get("files", [])
+    for given in files:
+        renamed = names.get((config.path.parent / given).resolve())
+        if renamed is not None and renamed != Path(given).name:  # the copy's config says so
+            text = text.replace(f'"{given}"', json.dumps(renamed)).replace(f"'{given}'", json.dumps(renamed))
+    (copies / config.path.name).write_text(text, encoding="utf-8")
+
+
 class SessionRecorder(Sink):
     """The session folder as a sink: every raw frame as it arrives, every event as a row of
     events.csv; ``close`` finishes both (a BLF gets its header), ``write_summary`` adds the
@@ -128,11 +151,7 @@ class SessionRecorder(Sink):
         self.folder = folder
         try:
             folder.mkdir(parents=True, exist_ok=False)
-            copies = folder / CONFIG_FOLDER
-            copies.mkdir()
-            shutil.copy2(config.path, copies / config.path.name)
-            for dbc in config.dbcs:
-                shutil.copy2(dbc.path, copies / dbc.path.name)
+            copy_config(config, folder / CONFIG_FOLDER)
             self.raw_path = folder / f"frames{raw_format}"
             self._spool = _Spool(self.raw_path) if raw_format in _TEXT_WRITERS else None
             self._writer: Any = (

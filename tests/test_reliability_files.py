@@ -174,3 +174,87 @@ def test_two_dbcs_of_one_name_are_both_kept_in_a_session_and_it_exports(tmp_path
     assert code == 0 and "Traceback" not in err
     summary = json.loads((session / "export" / "summary.json").read_text())
     assert summary["frames"]["total"] == len(frames) and summary["c2n"] == pytest.approx(15.1, rel=0.02)
+
+
+def _export(log: Path, out: Path, *options: str) -> tuple[int, str]:
+    code, _, err = run_cli(["export", str(log), "--out", str(out), "--no-plots", *options])
+    return code, err
+
+
+def test_an_export_folder_is_one_run_whole(drive_log: Path, tmp_path: Path) -> None:
+    """A re-export with fewer formats leaves no file of the run before; a folder holding files
+    export did not write is refused and left as it was."""
+    out = tmp_path / "out"
+    assert _export(drive_log, out, "--format", "csv", "--format", "parquet")[0] == 0
+    assert {p.name for p in out.iterdir()} == {
+        "channels.csv",
+        "channels.parquet",
+        "events.csv",
+        "summary.json",
+    }
+    assert _export(drive_log, out, "--format", "csv")[0] == 0
+    assert {p.name for p in out.iterdir()} == {"channels.csv", "events.csv", "summary.json"}
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no partial or old folder beside it
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    code, err = _export(drive_log, mine, "--format", "csv")
+    assert code == 1 and err.strip() == (
+        f"c2n: error: {mine}: holds files c2n export did not write (notes.txt) — choose a new or empty --out"
+    )
+    assert [p.name for p in mine.iterdir()] == ["notes.txt"]
+
+
+def test_two_exports_into_one_folder_at_once_or_a_kill_leave_one_runs_folder(
+    drive_log: Path, tmp_path: Path
+) -> None:
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    short = tmp_path / "short.blf"
+    with can.Logger(short) as writer:
+        for m in cached_drive("constant_radius", 41, 15.1).messages[:20000]:
+            writer.on_message_received(m)
+    out = tmp_path / "out"
+
+    def export(log: Path) -> subprocess.Popen[str]:
+        argv = [sys.executable, "-m", "app", "export", str(log), "--out", str(out), "--format", "csv"]
+        return subprocess.Popen(argv, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+    alone = {}
+    for log in (drive_log, short):
+        assert (
+            run_cli(["export", str(log), "--out", str(tmp_path / f"alone-{log.stem}"), "--format", "csv"])[0]
+            == 0
+        )
+        alone[str(log)] = (tmp_path / f"alone-{log.stem}" / "channels.csv").read_bytes()
+    runs = [export(drive_log), export(short)]
+    for run in runs:
+        _, err = run.communicate(timeout=120)
+        assert run.returncode == 0 and "Traceback" not in err
+    summary = json.loads((out / "summary.json").read_text())
+    [log] = summary["inputs"]
+    assert (out / "channels.csv").read_bytes() == alone[log]  # the channels and the summary of one run
+    assert f"c2n — {Path(log).name}" in (out / "report.html").read_text()
+    assert not list(tmp_path.glob(".out.*"))  # no partial or old folder beside it
+    # kill -9 in the middle of a re-export: the folder is the run before, whole
+    before = (out / "summary.json").read_bytes()
+    run = export(drive_log)
+    deadline = time.monotonic() + 60
+    while not list(tmp_path.glob(".out.partial-*")) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    os.kill(run.pid, signal.SIGKILL)
+    run.wait()
+    assert (out / "summary.json").read_bytes() == before
+    assert _export(short, out, "--format", "csv")[0] == 0  # the next run clears what the kill left
+    assert not list(tmp_path.glob(".out.*"))
+
+
+def test_the_plot_names_export_recognises_are_the_plots_it_writes() -> None:
+    from app.cli.export import PLOT_NAMES
+    from app.sinks.plots import PLOTS
+
+    assert PLOT_NAMES == tuple(PLOTS)

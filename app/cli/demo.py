@@ -3,7 +3,6 @@ live dashboard; the crossings print as they happen, then C2n beside the simulate
 
 import argparse
 import os
-import shutil
 import signal
 import tempfile
 import threading
@@ -22,6 +21,7 @@ from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sim.scenarios import SCENARIOS
 from app.sim.session import DriveOptions, SimulatedDrive, describe, simulate_drive, write_drive
+from app.sinks import files
 from app.sinks.dashboard import Dashboard
 from app.sinks.event_printer import EventPrinter, result_line
 from app.sources.buses import BusSource
@@ -92,23 +92,7 @@ TEMP_PREFIX = "c2n-demo-"
 def remove_stale(root: Path | None = None) -> list[Path]:
     """Remove the temporary folders of demos that were killed (SIGKILL leaves them): each is
     named after its process, and one whose process is gone is stale. Returns what it removed."""
-    removed = []
-    for folder in Path(root or tempfile.gettempdir()).glob(f"{TEMP_PREFIX}*-*"):
-        pid = folder.name[len(TEMP_PREFIX) :].split("-", 1)[0]
-        if pid.isdigit() and not _alive(int(pid)):
-            shutil.rmtree(folder, ignore_errors=True)
-            removed.append(folder)
-    return removed
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+    return files.remove_stale(root or Path(tempfile.gettempdir()), TEMP_PREFIX)
 
 
 def _replay(

@@ -9,12 +9,13 @@ from rich.text import Text
 
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
-from app.errors import OutputError, printable
+from app.errors import printable
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import events_csv as events
 from app.sinks import summary
 from app.sinks.event_printer import EventPrinter, result_line
+from app.sinks.files import folder_atomically
 from app.sinks.progress import ReadProgress
 from app.sinks.recorder import read_session
 from app.sinks.trace import TraceRecorder
@@ -61,6 +62,15 @@ def _inputs(args: argparse.Namespace) -> tuple[Path, Config, Path]:
     return path, config, args.out or path.with_name(f"{path.stem}-export")
 
 
+# The plots' names (app.sinks.plots.PLOTS; named here so that --no-plots does not import matplotlib)
+PLOT_NAMES = ("sideslip_vs_speed.png", "vr_vs_u2.png", "c2n_per_crossing.png", "timeseries.png")
+
+
+def _ours(name: str) -> bool:
+    """A file c2n export writes (an older export in the folder may be replaced whole)."""
+    return name.startswith("channels.") or name in ("events.csv", "summary.json", "report.html", *PLOT_NAMES)
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.sinks import channels as export
 
@@ -81,25 +91,21 @@ def run(args: argparse.Namespace, console: Console) -> int:
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)
     result = summary.build(snapshot, config, [str(log)], source.reports)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise OutputError(f"{out}: cannot create the output folder ({error.strerror})") from error
     written: list[Path] = []
-    with console.status("writing the exports…"):
+    with console.status("writing the exports…"), folder_atomically(out, _ours, "c2n export") as staging:
         for fmt in args.format or FORMATS:
-            path = out / f"channels.{fmt}"
+            path = staging / f"channels.{fmt}"
             export.write(trace, fmt, path)
             written.append(path)
-        events.write(out / "events.csv", [*snapshot.crossings, *snapshot.rejections], t0)
-        summary.write(out / "summary.json", result)
-        written += [out / "events.csv", out / "summary.json"]
+        events.write(staging / "events.csv", [*snapshot.crossings, *snapshot.rejections], t0)
+        summary.write(staging / "summary.json", result)
+        written += [staging / "events.csv", staging / "summary.json"]
         if not args.no_plots:
             from app.sinks.plots import write_plots
             from app.sinks.report import write_report
 
-            plots = write_plots(trace, result, out)
-            report = out / "report.html"
+            plots = write_plots(trace, result, staging)
+            report = staging / "report.html"
             write_report(result, plots, report, title=f"c2n — {log.name}")
             written += [*plots, report]
     console.print(Text(result_line(snapshot), style="bold"))

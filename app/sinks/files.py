@@ -4,9 +4,13 @@ an OS error becomes one OutputError naming the file."""
 
 import contextlib
 import dataclasses
+import glob
 import json
 import os
-from collections.abc import Callable, Mapping
+import shutil
+import tempfile
+import uuid
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -51,3 +55,74 @@ def write_text(path: Path, text: str, what: str) -> None:
 
 def write_json(path: Path, data: Any, what: str) -> None:
     write_text(path, json.dumps(data, indent=2) + "\n", what)
+
+
+@contextlib.contextmanager
+def folder_atomically(out: Path, ours: Callable[[str], bool], what: str) -> Iterator[Path]:
+    """A folder written as one unit: the ``with`` body writes into a hidden sibling unique to
+    this run, which then takes ``out``'s place whole (an older ``out`` removed after), so a
+    kill, a crash or a second run at the same time leaves one run's folder, never a mix. An
+    ``out`` holding anything ``ours`` does not recognise is refused: it is not ours to replace."""
+    if out.exists():
+        foreign = sorted(p.name for p in out.iterdir()) if out.is_dir() else [out.name]
+        foreign = [name for name in foreign if not ours(name)]
+        if not out.is_dir() or foreign:
+            shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+            raise OutputError(
+                f"{out}: holds files {what} did not write ({shown}) — choose a new or empty --out"
+            )
+    remove_stale(out.parent, f".{out.name}.partial-")  # a killed run's
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-{os.getpid()}-", dir=out.parent))
+    except OSError as error:
+        raise OutputError(f"{out}: cannot create the output folder ({error.strerror or error})") from error
+    try:
+        yield staging
+        _swap_in(staging, out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)  # gone already when it was swapped in
+
+
+def remove_stale(folder: Path, prefix: str) -> list[Path]:
+    """Remove the folders ``prefix<pid>-…`` in ``folder`` whose process is gone: what a killed
+    run (SIGKILL cannot be caught) left. Returns what it removed."""
+    removed = []
+    for path in folder.glob(f"{glob.escape(prefix)}*-*"):
+        pid = path.name[len(prefix) :].split("-", 1)[0]
+        if path.is_dir() and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's
+        return True
+    return True
+
+
+def _swap_in(staging: Path, out: Path) -> None:
+    olds = []
+    try:
+        for _ in range(5):  # another run may swap its folder in between our two renames
+            old = out.with_name(f".{out.name}.old-{uuid.uuid4().hex[:8]}")
+            with contextlib.suppress(FileNotFoundError):
+                out.rename(old)
+                olds.append(old)
+            try:
+                staging.rename(out)
+                return
+            except OSError as error:
+                if not out.exists():
+                    raise OutputError(
+                        f"{out}: cannot put the output folder in place ({error.strerror})"
+                    ) from error
+        raise OutputError(f"{out}: other runs keep writing this folder — choose another --out")
+    finally:
+        for old in olds:
+            shutil.rmtree(old, ignore_errors=True)

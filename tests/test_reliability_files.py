@@ -257,4 +257,83 @@ def test_the_plot_names_export_recognises_are_the_plots_it_writes() -> None:
     from app.cli.export import PLOT_NAMES
     from app.sinks.plots import PLOTS
 
-    assert PLOT_NAMES == tuple(PLOTS)
+    assert tuple(PLOTS) == PLOT_NAMES
+
+
+class _FullDisk:
+    """A raw file on a disk that fills up after ``room`` bytes."""
+
+    def __init__(self, file: object, room: int) -> None:
+        self.file, self.room = file, room
+
+    def write(self, data: memoryview) -> int:
+        import errno
+
+        if len(data) > self.room:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        self.room -= len(data)
+        return self.file.write(data)  # type: ignore[attr-defined, no-any-return]
+
+    def __getattr__(self, name: str) -> object:  # closed, tell, seek, flush: the file's own
+        return getattr(self.file, name)
+
+
+@pytest.mark.parametrize("raw_format", [".log", ".blf"])
+def test_live_on_a_full_disk_says_what_was_kept_and_the_numbers_go_on(
+    raw_format: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import threading
+    import time
+    import uuid
+
+    from app.sinks import recorder as rec
+
+    room = 300_000
+    if raw_format == ".log":
+        opened = rec._Spool.__init__
+
+        def spool(self: rec._Spool, path: Path) -> None:
+            opened(self, path)
+            self._file = _FullDisk(self._file, room)  # type: ignore[assignment]
+
+        monkeypatch.setattr(rec._Spool, "__init__", spool)
+    else:
+        made = rec._BLFWriter.__init__
+
+        def blf(self: rec._BLFWriter, path: Path) -> None:
+            made(self, path)
+            self.file = _FullDisk(self.file, room)
+
+        monkeypatch.setattr(rec._BLFWriter, "__init__", blf)
+    channel = f"full-{uuid.uuid4().hex}"
+    frames = cached_drive("constant_radius", 41, 15.1).messages
+    started = threading.Event()
+
+    def send() -> None:
+        with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
+            started.wait(5)
+            time.sleep(0.3)
+            for m in frames:
+                bus.send(m)
+
+    sender = threading.Thread(target=send)
+    sender.start()
+    started.set()
+    record = tmp_path / "sessions"
+    argv = ["live", "-i", "virtual", "-c", channel, "--record", str(record), "--raw-format", raw_format]
+    code, out, err = run_cli([*argv, "--duration", "6"])
+    sender.join()
+    assert code == 1 and "Traceback" not in err
+    [session] = list(record.glob("20*"))
+    raw = session / f"frames{raw_format}"
+    assert f"c2n: {raw}: the recording stopped — No space left on device on the disk of" in out
+    assert "MB of frames up to then are kept, the live numbers go on" in out
+    assert "C2n = " in out  # measured from every frame received, recorded or not
+    summary = json.loads((session / "summary.json").read_text())
+    assert summary["frames"]["total"] == len(frames) and summary["c2n"] == pytest.approx(15.1, rel=0.02)
+    assert summary["warnings"][0].startswith(f"{raw}: the recording stopped")
+    kept = list(can.LogReader(raw)) if raw_format == ".log" else []
+    if raw_format == ".log":  # whole lines up to the failure, every one a frame received
+        assert 0 < len(kept) < len(frames)
+        assert [bytes(m.data) for m in kept] == [bytes(m.data) for m in frames[: len(kept)]]
+    assert 0 < raw.stat().st_size <= room

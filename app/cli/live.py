@@ -16,7 +16,7 @@ from rich.text import Text
 
 from app.cli.common import add_bus, add_config, bus_kwargs, channels, error_console, number
 from app.config import load_config
-from app.errors import printable
+from app.errors import OutputError, printable
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import summary
@@ -106,6 +106,9 @@ def run(
     dashboard = Dashboard(title, bus_problem=lambda: source.problem)
     sinks: list[Sink] = [EventPrinter(console)]
     if recorder is not None:
+        recorder.on_problem = lambda text: console.print(
+            Text(f"c2n: {text}", style="bold red"), soft_wrap=True
+        )
         sinks.append(recorder)
     try:
         if timer is not None:
@@ -119,15 +122,22 @@ def run(
         for bus in source.buses:  # the ones open now (a lost bus was closed already)
             bus.shutdown()
         snapshot = pipeline.snapshot()
-        result = summary.build(snapshot, config, [title]).warned(source.losses)
-        if recorder is not None:
-            recorder.write_summary(result)
-        if args.json:
-            summary.write(args.json, result)
+        stopped = [recorder.problem] if recorder is not None and recorder.problem else []
+        result = summary.build(snapshot, config, [title]).warned([*stopped, *source.losses])
+        unwritten = []  # a full disk: the numbers are still shown
+        for write, where in (
+            (recorder.write_summary if recorder is not None else None, "the session's summary"),
+            ((lambda r: summary.write(args.json, r)) if args.json else None, "--json"),
+        ):
+            if write is not None:
+                try:
+                    write(result)
+                except OutputError as error:
+                    unwritten.append(f"{where} was not written: {error}")
     console.print(Text(result_line(snapshot), style="bold"))
     errors = error_console()
-    for warning in result.warnings:
+    for warning in [*result.warnings, *unwritten]:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     if recorder is not None:
         console.print(f"session saved in {recorder.folder}", style="dim")
-    return 0
+    return 1 if stopped or unwritten else 0

@@ -5,11 +5,13 @@ recording is one more sink). The live loop calls ``flush`` at least every 50 ms 
 bus is idle, so after a crash (even ``kill -9``) the log reads back up to the last flush.
 """
 
+import contextlib
 import copy
 import json
+import os
 import shutil
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -38,24 +40,30 @@ class _Spool:
         self._pending: list[str] = []
         self.write = self._pending.append  # a frame's line: the hot path
         self.closed = False
+        self.error: OSError | None = None  # the write that failed (a full disk): nothing more is kept
 
     def flush(self) -> None:
         """Nothing: what is written reaches the file at ``drain``."""
 
     def drain(self) -> None:
-        if not self._pending:
+        if not self._pending or self.error is not None:
+            self._pending.clear()
             return
         data = memoryview("".join(self._pending).encode())
         self._pending.clear()
-        while data:
-            written = self._file.write(data)
-            data = data[written or 0 :]
+        try:
+            while data:
+                written = self._file.write(data)
+                data = data[written or 0 :]
+        except OSError as error:  # from now on each drain drops what came since the last one
+            self.error = error
 
     def close(self) -> None:  # the writer's stop(): keep what it wrote last
         if not self.closed:
             self.drain()
-            self._file.close()
             self.closed = True
+            with contextlib.suppress(OSError):
+                self._file.close()
 
 
 class _CandumpWriter(can.CanutilsLogWriter):
@@ -104,8 +112,11 @@ class _BLFWriter(can.BLFWriter):
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self._fits: dict[Any, bool] = {}
+        self.error: OSError | None = None  # the write that failed (a full disk): nothing more is kept
 
     def on_message_received(self, msg: can.Message) -> None:
+        if self.error is not None:
+            return
         fits = self._fits.get(msg.channel)
         if fits is None:
             number = channel2int(msg.channel)
@@ -113,7 +124,27 @@ class _BLFWriter(can.BLFWriter):
         if not fits:
             msg = copy.copy(msg)
             msg.channel = None
-        super().on_message_received(msg)
+        try:
+            super().on_message_received(msg)
+        except OSError as error:  # a container did not fit on the disk
+            self.error = error
+
+    def _flush(self) -> None:
+        if self.error is None:
+            try:
+                super()._flush()
+            except OSError as error:
+                self.error = error
+
+    def stop(self) -> None:
+        if self.error is not None:  # the header cannot be finished: keep the containers written
+            with contextlib.suppress(OSError):
+                self.file.close()
+            return
+        try:
+            super().stop()
+        except OSError as error:
+            self.error = error
 
 
 _TEXT_WRITERS: dict[str, Any] = {".log": _CandumpWriter, ".asc": can.ASCWriter}
@@ -163,6 +194,8 @@ class SessionRecorder(Sink):
             ) from error
         self._events = EventsTable(folder / "events.csv")
         self._closed = False
+        self.problem: str | None = None  # why the recording stopped before the session did
+        self.on_problem: Callable[[str], None] = lambda text: None
         # each frame as it arrives, straight to the writer: it runs for every frame on the bus
         self.on_frame = self._writer.on_message_received  # type: ignore[method-assign]
 
@@ -182,7 +215,25 @@ class SessionRecorder(Sink):
             # BLF buffers frames into compressed containers of 128 KiB; python-can has no public
             # call that writes a partial one, and its reader needs whole containers.
             self._writer._flush()  # nothing when nothing is new
-            self._writer.file.flush()
+            if self._writer.error is None:
+                try:
+                    self._writer.file.flush()
+                except OSError as error:
+                    self._writer.error = error
+        self._check()
+
+    def _check(self) -> None:
+        """Say once, when the disk refused a write, what was kept: the session goes on."""
+        error = (self._spool or self._writer).error
+        if error is None or self.problem is not None:
+            return
+        kept = self.raw_path.stat().st_size if self.raw_path.exists() else 0
+        self.problem = (
+            f"{self.raw_path}: the recording stopped — {error.strerror or error} on the disk of "
+            f"{_mount_of(self.folder)}; {kept / 1e6:.1f} MB of frames up to then are kept, the live "
+            "numbers go on — free space and start a new session"
+        )
+        self.on_problem(self.problem)
 
     def close(self) -> None:
         """Finish the raw log and the events table (once; again is nothing)."""
@@ -191,11 +242,20 @@ class SessionRecorder(Sink):
         self._closed = True
         try:
             self._writer.stop()
+            self._check()
         finally:
             self._events.close()
 
     def write_summary(self, summary: Summary) -> None:
         write_summary(self.folder / "summary.json", summary)
+
+
+def _mount_of(path: Path) -> Path:
+    """The mount point of the file system ``path`` is on."""
+    path = path.resolve()
+    while not os.path.ismount(path) and path != path.parent:
+        path = path.parent
+    return path
 
 
 def read_session(folder: Path) -> tuple[Path, Path]:

@@ -337,3 +337,48 @@ def test_live_on_a_full_disk_says_what_was_kept_and_the_numbers_go_on(
         assert 0 < len(kept) < len(frames)
         assert [bytes(m.data) for m in kept] == [bytes(m.data) for m in frames[: len(kept)]]
     assert 0 < raw.stat().st_size <= room
+
+
+_PEAK = """
+import resource, sys
+from app.cli import main
+code = main(sys.argv[1:])
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024, code)
+"""
+
+
+def _peak_mb(*argv: str) -> tuple[int, int, str]:
+    import subprocess
+    import sys
+
+    run = subprocess.run(
+        [sys.executable, "-c", _PEAK, *argv], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+    peak, code = run.stdout.split()[-2:]
+    return int(peak), int(code), run.stderr
+
+
+def test_a_huge_sparse_text_log_is_refused_in_bounded_memory(drive_log: Path, tmp_path: Path) -> None:
+    """256 MB of NUL bytes with a candump suffix (a sparse file: no disk used), then a frame."""
+    sparse = tmp_path / "sparse.log"
+    with sparse.open("wb") as file:
+        file.truncate(256 << 20)
+        file.seek(0, 2)
+        file.write(b"\n(1.0) can0 7E5#0102030405060708\n")
+    frames = tmp_path / "frames.log"
+    with can.Logger(frames) as writer:
+        for m in cached_drive("constant_radius", 41, 15.1).messages[:2000]:
+            writer.on_message_received(m)
+    baseline, code, _ = _peak_mb("analyze", str(frames))
+    assert code == 0
+    peak, code, err = _peak_mb("analyze", str(sparse))
+    assert code == 1 and "Traceback" not in err
+    assert (
+        f"{sparse}: not a readable log, damaged from the start (a line longer than 65,536 characters" in err
+    )
+    assert peak < baseline + 64, (peak, baseline)
+    # the same after good frames: every frame before it is used, and it says where it stopped
+    with frames.open("ab") as file:
+        file.write(b"\0" * (8 << 20) + b"\n")
+    code, _, err = run_cli(["analyze", str(frames)])
+    assert "stopped after frame 2,000" in err or "stopped after frame 2000" in err, err

@@ -7,6 +7,8 @@ stopped.
 
 import gc
 import heapq
+import io
+import locale
 import logging
 import os
 import re
@@ -88,11 +90,15 @@ def open_log(path: Path) -> Iterable[can.Message]:
                 f"use one of {', '.join(READABLE_SUFFIXES)}"
             )
         try:
-            return _TEXT_READERS[sniffed](path)
+            return _TEXT_READERS[sniffed](_bounded(path))  # type: ignore[arg-type]
         except Exception as error:
             raise LogFileError(f"{path}: not a readable {sniffed} log ({one_line(error)})") from error
     try:
-        reader: Iterable[can.Message] = can.LogReader(path, **_READER_OPTIONS.get(real, {}))
+        options = _READER_OPTIONS.get(real, {})
+        text = _TEXT_CLASSES.get(real) if path.suffix.lower() == real else None  # not .gz
+        reader: Iterable[can.Message] = (
+            text(_bounded(path), **options) if text is not None else can.LogReader(path, **options)
+        )
         return reader
     except ImportError as error:
         raise LogFileError(f"{path}: cannot read {real} files ({error}) — pip install asammdf") from error
@@ -100,6 +106,38 @@ def open_log(path: Path) -> Iterable[can.Message]:
         reason = one_line(error)
         _drop_quietly(error)
         raise LogFileError(f"{path}: not a readable {real} log ({reason})") from error
+
+
+# Text logs are read through a file whose lines are bounded: a "line" of a gigabyte (a sparse or
+# binary file given a text suffix) is an error after LINE_LIMIT characters, not a gigabyte in memory.
+LINE_LIMIT = 1 << 16
+_TEXT_CLASSES: dict[str, Callable[..., Iterable[can.Message]]] = {
+    ".log": can.CanutilsLogReader,
+    ".asc": can.ASCReader,
+    ".csv": can.CSVReader,
+    ".trc": can.TRCReader,
+}
+
+
+class _BoundedLines(io.TextIOWrapper):
+    """A text file whose lines (iterated or read) are at most LINE_LIMIT characters."""
+
+    def __next__(self) -> str:  # type: ignore[override]  # typeshed: IOBase yields bytes
+        line = self.readline()
+        if not line:
+            raise StopIteration
+        return line
+
+    def readline(self, size: int | None = -1, /) -> str:  # type: ignore[override]
+        limit = LINE_LIMIT if size is None or size < 0 else min(size, LINE_LIMIT)
+        line = super().readline(limit)
+        if len(line) >= LINE_LIMIT and not line.endswith("\n"):
+            raise ValueError(f"a line longer than {LINE_LIMIT:,} characters: not a text log")
+        return line
+
+
+def _bounded(path: Path) -> _BoundedLines:
+    return _BoundedLines(path.open("rb"), encoding=locale.getpreferredencoding(False))
 
 
 def _drop_quietly(error: BaseException) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from app.cli import common
 from app.sinks.files import write_json
 
 
@@ -16,7 +17,12 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "gap-check", help="score the gap diagnosis on a blind pack", description=__doc__
     )
     parser.add_argument("pack", type=Path, metavar="PACK", help="a folder written by c2n simulate --pack")
-    parser.add_argument("--workers", type=int, metavar="N", help="parallel cases (default: the CPU count)")
+    parser.add_argument(
+        "--workers",
+        type=common.number(1, 64, integer=True),
+        metavar="N",
+        help="parallel cases (default: the CPU count)",
+    )
     parser.add_argument("--json", type=Path, metavar="OUT", help="write the scores here")
     parser.set_defaults(run=run)
     return parser

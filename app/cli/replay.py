@@ -7,7 +7,7 @@ from pathlib import Path
 import can
 from rich.console import Console
 
-from app.cli.common import add_bus, bus_kwargs, channels
+from app.cli.common import add_bus, bus_kwargs, channels, number
 from app.errors import BusError, C2nError, printable
 from app.sources.buses import open_buses
 from app.sources.logs import LogReport, open_log, read_log
@@ -23,11 +23,15 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument("log", type=Path, metavar="LOG")
     add_bus(parser)
     parser.add_argument(
-        "--rate", type=float, default=1.0, metavar="X", help="play X times faster than recorded"
+        "--rate",
+        type=number(0.0, 1e6, low_allowed=False),
+        default=1.0,
+        metavar="X",
+        help="play X times faster than recorded",
     )
     parser.add_argument(
         "--loop",
-        type=int,
+        type=number(0, 1e9, integer=True),
         nargs="?",
         const=0,
         default=1,

@@ -65,7 +65,6 @@ def test_analyze_prints_each_crossing_then_the_result_and_writes_json(
         (["analyze", "{tmp}/empty.log"], "the file is empty"),
         (["analyze", "{log}", "--config", "{tmp}/none.toml"], "none.toml: config file not found"),
         (["simulate", "--out", "{tmp}/x.txt"], "unknown log format '.txt'"),
-        (["replay", "{log}", "--rate", "0", "-i", "virtual"], "--rate must be > 0"),
         (["live", "-i", "nosuchinterface", "-c", "x", "--no-record"], "cannot open"),
     ],
 )

@@ -175,6 +175,9 @@ def test_a_config_that_is_not_utf8_is_one_line(drive_log: Path, tmp_path: Path) 
         ["simulate", "--optical-hz", "1000"],
         ["simulate", "--pack", "0"],
         ["live", "-i", "virtual", "-c", "nobody", "--no-record", "--duration", "-1"],
+        ["replay", str(REPO / "README.md"), "-i", "virtual", "--rate", "0"],
+        ["demo", "--speedup", "nan"],
+        ["gap-check", str(REPO), "--workers", "0"],
     ],
 )
 def test_options_out_of_range_are_usage_errors(argv: list[str], tmp_path: Path) -> None:

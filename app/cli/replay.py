@@ -76,8 +76,6 @@ class Router:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    if args.rate <= 0:
-        raise C2nError(f"--rate must be > 0, got {args.rate}")
     reader = open_log(args.log)  # a missing or unknown file fails before the bus opens
     getattr(reader, "stop", lambda: None)()
     names = channels(args)

@@ -382,3 +382,16 @@ def test_a_huge_sparse_text_log_is_refused_in_bounded_memory(drive_log: Path, tm
         file.write(b"\0" * (8 << 20) + b"\n")
     code, _, err = run_cli(["analyze", str(frames)])
     assert "stopped after frame 2,000" in err or "stopped after frame 2000" in err, err
+
+
+def test_gap_check_on_a_pack_without_its_seal_is_refused_before_any_work(
+    drive_log: Path, tmp_path: Path
+) -> None:
+    pack = tmp_path / "pack"
+    (pack / "case_001").mkdir(parents=True)
+    shutil.copy(drive_log, pack / "case_001" / "drive.blf")
+    code, out, err = run_cli(["gap-check", str(pack), "--json", str(tmp_path / "scores.json")])
+    assert code == 1 and "Traceback" not in err and "case_001" not in out
+    [line] = err.strip().splitlines()
+    assert line.startswith("c2n: error: ") and "no sealed" in line and "c2n simulate --pack" in line
+    assert not (tmp_path / "scores.json").exists()

@@ -423,7 +423,8 @@ def test_a_car_without_stiffness_or_a_drive_too_short_is_one_error_line(tmp_path
     code, _, err = run_cli(["gap", str(log), "--config", str(zero)])
     assert (
         code == 1
-        and err.strip() == f"c2n: error: {zero}: the vehicle model needs [tyres] c2n_per_rad > 0, got 0.0"
+        and err.strip()
+        == f"c2n: error: {zero}: [tyres] c2n_per_rad = 0.0 is out of range — use above 0 up to 200"
     )
     short = tmp_path / "short.blf"
     write_drive(dataclasses.replace(drive, messages=drive.messages[: len(drive.messages) // 20]), short)

@@ -1,9 +1,14 @@
 """Seeded simulated drives for the tests, cached so each is made once per test session."""
 
-from collections.abc import Sequence
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from functools import cache
 from pathlib import Path
 from typing import Any
+
+import can
 
 from app.config import Config, load_config
 from app.pipeline import Pipeline
@@ -42,3 +47,22 @@ class EventLog(Sink):
 
     def on_events(self, events: Sequence[Event], t0: float) -> None:
         self.events.extend(events)
+
+
+@contextmanager
+def sent_on_virtual_bus(channel: str, frames: Sequence[can.Message]) -> Iterator[None]:
+    """``frames`` sent on python-can's virtual bus ``channel`` from a thread, starting 0.3 s after
+    the ``with`` body starts (time for the receiver to open the bus); joined at its end."""
+
+    def send() -> None:
+        with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
+            time.sleep(0.3)
+            for m in frames:
+                bus.send(m)
+
+    sender = threading.Thread(target=send)
+    sender.start()
+    try:
+        yield
+    finally:
+        sender.join()

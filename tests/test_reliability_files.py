@@ -8,7 +8,7 @@ from pathlib import Path
 import can
 import pytest
 
-from tests.simulated import REPO, cached_drive
+from tests.simulated import REPO, cached_drive, sent_on_virtual_bus
 from tests.test_reliability_inputs import MONDEO, run_cli
 
 
@@ -282,8 +282,6 @@ class _FullDisk:
 def test_live_on_a_full_disk_says_what_was_kept_and_the_numbers_go_on(
     raw_format: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import threading
-    import time
     import uuid
 
     from app.sinks import recorder as rec
@@ -307,22 +305,10 @@ def test_live_on_a_full_disk_says_what_was_kept_and_the_numbers_go_on(
         monkeypatch.setattr(rec._BLFWriter, "__init__", blf)
     channel = f"full-{uuid.uuid4().hex}"
     frames = cached_drive("constant_radius", 41, 15.1).messages
-    started = threading.Event()
-
-    def send() -> None:
-        with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
-            started.wait(5)
-            time.sleep(0.3)
-            for m in frames:
-                bus.send(m)
-
-    sender = threading.Thread(target=send)
-    sender.start()
-    started.set()
     record = tmp_path / "sessions"
     argv = ["live", "-i", "virtual", "-c", channel, "--record", str(record), "--raw-format", raw_format]
-    code, out, err = run_cli([*argv, "--duration", "6"])
-    sender.join()
+    with sent_on_virtual_bus(channel, frames):
+        code, out, err = run_cli([*argv, "--duration", "6"])
     assert code == 1 and "Traceback" not in err
     [session] = list(record.glob("20*"))
     raw = session / f"frames{raw_format}"

@@ -4,8 +4,6 @@ user makes it, through the command line: the exit code, the one line, what is on
 
 import io
 import json
-import threading
-import time
 import uuid
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
@@ -17,7 +15,7 @@ from rich.console import Console
 from app.cli import main
 from app.config import Config
 from app.pipeline import Pipeline
-from tests.simulated import REPO, cached_drive
+from tests.simulated import REPO, cached_drive, sent_on_virtual_bus
 from tests.test_reliability import render, shown_after
 
 MONDEO = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', f'"{REPO}/dbc/')
@@ -85,22 +83,10 @@ def test_live_with_a_flipped_yaw_rate_records_every_frame_and_names_the_sign(tmp
     config = config_with(tmp_path, FLIPPED_YAW)
     channel = f"flip-{uuid.uuid4().hex}"
     frames = cached_drive("constant_radius", 41, 15.1).messages
-    started = threading.Event()
-
-    def send() -> None:
-        with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as bus:
-            started.wait(5)
-            time.sleep(0.3)
-            for m in frames:
-                bus.send(m)
-
-    sender = threading.Thread(target=send)
-    sender.start()
-    started.set()
     record = tmp_path / "sessions"
     argv = ["live", "-i", "virtual", "-c", channel, "--config", str(config), "--record", str(record)]
-    code, out, err = run_cli([*argv, "--duration", "6"])
-    sender.join()
+    with sent_on_virtual_bus(channel, frames):
+        code, out, err = run_cli([*argv, "--duration", "6"])
     assert code == 0 and "Traceback" not in err
     [session] = list(record.glob("20*"))
     recorded = list(can.LogReader(session / "frames.log"))

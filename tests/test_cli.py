@@ -45,7 +45,8 @@ def test_analyze_prints_each_crossing_then_the_result_and_writes_json(
         line for line in lines if " s  " in line and "C2n " in line and not line.startswith("C2n =")
     ]
     assert len(crossing_lines) == 4
-    assert lines[-1].startswith("C2n = ")  # the result comes after the crossings
+    assert lines[-2].startswith("C2n = ")  # the result comes after the crossings ...
+    assert lines[-1].startswith("  d = ")  # ... and what the fits found besides C2n under it
     summary = json.loads(out.read_text())
     assert set(summary) >= {"c2n", "c2n_ci95", "u0_mps", "crossings", "regression", "frames", "warnings"}
     assert abs(summary["c2n"] / 15.1 - 1) <= 0.01

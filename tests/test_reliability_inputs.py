@@ -229,3 +229,16 @@ def test_an_angle_switched_off_gates_the_angle_alone_where_vy_may_be_used(
         assert results[source]["c2n"] == pytest.approx(15.1, rel=0.02)
         assert any("AngleSwitchedOff" in w and "(beta)" in w for w in results[source]["warnings"])
     assert results["beta"]["c2n"] is None
+
+
+def test_analyze_says_what_the_fits_found_besides_c2n(drive_log: Path, tmp_path: Path) -> None:
+    """Under the C2n line: the regression's d and ψ0 and the pairing's misalignment, each with its
+    interval, as in the JSON."""
+    code, out, _ = run_cli(["analyze", str(drive_log), "--json", str(tmp_path / "s.json")])
+    summary = json.loads((tmp_path / "s.json").read_text())
+    fit = summary["regression"]
+    d_low, d_high = fit["d_ci95"]
+    assert code == 0
+    assert f"d = {fit['d_m']:.3f} m [{d_low:.3f}, {d_high:.3f}] (config 1.11)" in out
+    assert f"ψ0 = {fit['psi0_deg']:+.3f}°" in out
+    assert "pairing: misalignment " in out and "(95 %)" in out

@@ -4,7 +4,6 @@ import argparse
 from pathlib import Path
 
 from rich.console import Console
-from rich.text import Text
 
 from app.cli.common import add_config, error_console
 from app.config import load_config
@@ -12,7 +11,7 @@ from app.errors import NoResultError, printable
 from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import summary
-from app.sinks.event_printer import EventPrinter, result_line
+from app.sinks.event_printer import EventPrinter, print_result
 from app.sinks.progress import ReadProgress
 from app.sources.logs import LogSource
 
@@ -50,7 +49,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     result = summary.build(snapshot, config, [str(p) for p in args.logs], source.notes)
     if args.json:
         summary.write(args.json, result)
-    console.print(Text(result_line(snapshot), style="bold"))
+    print_result(console, snapshot)
     errors = error_console()
     for warning in result.warnings:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)

@@ -23,7 +23,7 @@ from app.sim.scenarios import SCENARIOS
 from app.sim.session import DriveOptions, SimulatedDrive, describe, simulate_drive, write_drive
 from app.sinks import files
 from app.sinks.dashboard import Dashboard
-from app.sinks.event_printer import EventPrinter, result_line
+from app.sinks.event_printer import EventPrinter, print_result
 from app.sources.buses import BusSource
 from app.sources.logs import LogReport, read_log
 from app.sources.playback import paced
@@ -128,7 +128,7 @@ def _replay(
         raise C2nError(f"the replay failed: {player.error}")
     snapshot = pipeline.snapshot()
     headline = snapshot.headline
-    console.print(Text(result_line(snapshot), style="bold"))
+    print_result(console, snapshot)
     if headline is not None:
         error = 100.0 * (headline.c2n / truth["c2n"] - 1.0)
         console.print(

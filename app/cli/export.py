@@ -5,7 +5,6 @@ import argparse
 from pathlib import Path
 
 from rich.console import Console
-from rich.text import Text
 
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
@@ -14,7 +13,7 @@ from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import events_csv as events
 from app.sinks import summary
-from app.sinks.event_printer import EventPrinter, result_line
+from app.sinks.event_printer import EventPrinter, print_result
 from app.sinks.files import folder_atomically
 from app.sinks.progress import ReadProgress
 from app.sinks.recorder import read_session
@@ -108,7 +107,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             report = staging / "report.html"
             write_report(result, plots, report, title=f"c2n — {log.name}")
             written += [*plots, report]
-    console.print(Text(result_line(snapshot), style="bold"))
+    print_result(console, snapshot)
     errors = error_console()
     for warning in result.warnings:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)

@@ -21,7 +21,7 @@ from app.pipeline import Pipeline
 from app.run_loop import run as run_pipeline
 from app.sinks import summary
 from app.sinks.dashboard import Dashboard
-from app.sinks.event_printer import EventPrinter, result_line
+from app.sinks.event_printer import EventPrinter, print_result
 from app.sinks.recorder import RAW_FORMATS, SessionRecorder
 from app.sinks.sink import Sink
 from app.sources.buses import Backoff, BusSource, open_buses
@@ -134,7 +134,7 @@ def run(
                     write(result)
                 except OutputError as error:
                     unwritten.append(f"{where} was not written: {error}")
-    console.print(Text(result_line(snapshot), style="bold"))
+    print_result(console, snapshot)
     errors = error_console()
     for warning in [*result.warnings, *unwritten]:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)

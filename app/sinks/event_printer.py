@@ -1,6 +1,7 @@
 """The event printer: one line per event, the same on a terminal and in a pipe (plain text there),
 and the run's result line."""
 
+import math
 from collections.abc import Sequence
 
 from rich.console import Console
@@ -49,6 +50,34 @@ def result_line(snapshot: Snapshot) -> str:
         paired = " paired" if snapshot.paired is not None else ""
         text += f"; {crossings.n}{paired} crossings: {crossings.c2n:.3f} [{clo:.3f}, {chi:.3f}]"
     return text
+
+
+def fit_line(snapshot: Snapshot) -> str | None:
+    """What the fits found besides C2n, with their 95 % intervals: the regression's sensor
+    position d and the head's misalignment ψ0, and the pairing's misalignment and lag."""
+    parts = []
+    fit = snapshot.regression
+    if fit is not None and snapshot.sign_problem is None:
+        lo, hi = fit.d_ci95
+        parts.append(f"d = {fit.d_m:.3f} m [{lo:.3f}, {hi:.3f}] (config {snapshot.d_m:g})")
+        if fit.psi0_rad is not None and fit.psi0_ci95 is not None:
+            plo, phi = (math.degrees(x) for x in fit.psi0_ci95)
+            parts.append(f"ψ0 = {math.degrees(fit.psi0_rad):+.3f}° [{plo:+.3f}, {phi:+.3f}]")
+    paired = snapshot.paired
+    if paired is not None and paired.misalignment_rad is not None and paired.misalignment_se is not None:
+        half = 1.96 * math.degrees(paired.misalignment_se)
+        parts.append(f"pairing: misalignment {math.degrees(paired.misalignment_rad):+.3f}° ± {half:.3f}")
+    if paired is not None and paired.lag_s is not None and paired.lag_se is not None:
+        parts.append(f"lag {paired.lag_s:+.3f} s ± {1.96 * paired.lag_se:.3f}")
+    return "  " + "; ".join(parts) + " (95 %)" if parts else None
+
+
+def print_result(console: Console, snapshot: Snapshot) -> None:
+    """The result line, and under it what the fits found besides C2n."""
+    console.print(Text(result_line(snapshot), style="bold"))
+    fit = fit_line(snapshot)
+    if fit is not None:
+        console.print(Text(fit))
 
 
 class EventPrinter(Sink):

@@ -3,6 +3,7 @@
 from collections.abc import Callable
 from pathlib import Path
 
+import can
 import pytest
 
 from app.config import Config, load_config
@@ -36,3 +37,13 @@ def write_config(tmp_path: Path) -> Callable[..., Path]:
         return path
 
     return write
+
+
+@pytest.fixture(scope="session")
+def drive_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The seeded constant-radius drive (C2n 15.1) as a BLF log (a module may have its own)."""
+    path = tmp_path_factory.mktemp("drive") / "drive.blf"
+    with can.Logger(path) as writer:
+        for m in cached_drive("constant_radius", 41, 15.1).messages:
+            writer.on_message_received(m)
+    return path

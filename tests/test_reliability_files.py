@@ -12,15 +12,6 @@ from tests.simulated import REPO, cached_drive, sent_on_virtual_bus
 from tests.test_reliability_inputs import MONDEO, run_cli
 
 
-@pytest.fixture(scope="module")
-def drive_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("drive") / "drive.blf"
-    with can.Logger(path) as writer:
-        for m in cached_drive("constant_radius", 41, 15.1).messages:
-            writer.on_message_received(m)
-    return path
-
-
 def test_the_same_log_twice_is_warned_about_and_read_once(drive_log: Path, tmp_path: Path) -> None:
     copy = tmp_path / "copy.blf"
     shutil.copy(drive_log, copy)

@@ -39,15 +39,6 @@ def config_with(tmp_path: Path, *replacements: tuple[str, str], name: str = "car
     return path
 
 
-@pytest.fixture(scope="module")
-def drive_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("drive") / "drive.blf"
-    with can.Logger(path) as writer:
-        for m in cached_drive("constant_radius", 41, 15.1).messages:
-            writer.on_message_received(m)
-    return path
-
-
 YAW = 'yaw_rate = "AngVelHor.AngVelZ_hor"'
 FLIPPED_YAW = (YAW, 'yaw_rate = {signal = "AngVelHor.AngVelZ_hor", scale = -1.0}')
 FLIPPED_SIDESLIP = (

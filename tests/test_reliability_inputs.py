@@ -233,3 +233,31 @@ def test_analyze_says_what_the_fits_found_besides_c2n(drive_log: Path, tmp_path:
     assert f"d = {fit['d_m']:.3f} m [{d_low:.3f}, {d_high:.3f}] (config 1.11)" in out
     assert f"ψ0 = {fit['psi0_deg']:+.3f}°" in out
     assert "pairing: misalignment " in out and "(95 %)" in out
+
+
+@pytest.mark.parametrize(
+    ("channel", "code", "hint"),
+    [
+        ("vcan0", 97, "this kernel has no CAN support loaded: sudo modprobe can can_raw vcan"),
+        ("can0", 97, "this kernel has no CAN support loaded: sudo modprobe can can_raw"),
+        ("vcan0", 19, "no such device: sudo ip link add dev vcan0 type vcan && sudo ip link set up vcan0"),
+        ("can1", 19, "no such device: is the adapter plugged in and its driver loaded? (ip link show can1)"),
+        ("vcan0", 100, "it is down: sudo ip link set up vcan0"),
+        ("can0", 100, "it is down: sudo ip link set can0 up type can bitrate 500000 (the bus's bit rate)"),
+    ],
+)
+def test_a_socketcan_that_will_not_open_gets_the_hint_for_its_errno(
+    channel: str, code: int, hint: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """EAFNOSUPPORT (no CAN in the kernel), ENODEV (no such interface), ENETDOWN (down): each its
+    own fix, and no bit rate for a vcan, which has none."""
+    import os
+
+    def refuse(**_: object) -> can.BusABC:
+        raise OSError(code, os.strerror(code))
+
+    monkeypatch.setattr("app.sources.buses.can.Bus", refuse)
+    status, _, err = run_cli(["live", "-i", "socketcan", "-c", channel, "--no-record"])
+    [line] = err.strip().splitlines()
+    assert status == 1 and line.startswith(f"c2n: error: socketcan {channel}: cannot open ([Errno {code}]")
+    assert line.endswith(f"— {hint}")

@@ -5,6 +5,7 @@ A source is an iterable of ``can.Message``. Library errors become one-line BusEr
 edge.
 """
 
+import errno
 import logging
 import queue
 import threading
@@ -38,16 +39,44 @@ def open_buses(
                 bus.shutdown()
             named = channel if channel is not None else "(default channel)"
             where = f"{interface or 'default interface'} {named}"
-            raise BusError(f"{where}: cannot open ({one_line(error)}) — {_bus_hint(interface)}") from error
+            hint = _bus_hint(interface, channel, error)
+            raise BusError(f"{where}: cannot open ({one_line(error)}) — {hint}") from error
     return buses
 
 
-def _bus_hint(interface: str | None) -> str:
+def _bus_hint(interface: str | None, channel: object, error: BaseException) -> str:
+    """What to do, by what the operating system said (SocketCAN's errno)."""
     if interface is None:
         return "give -i/-c, or set CAN_INTERFACE and CAN_CHANNEL, or write ~/can.conf"
-    if interface == "socketcan":
-        return "is it up? (sudo ip link set can0 up type can bitrate 1000000)"
-    return "check the interface name, channel and driver"
+    if interface != "socketcan":
+        return "check the interface name, channel and driver"
+    name = str(channel) if channel is not None else "can0"
+    virtual = name.startswith("vcan")
+    code = _errno(error)
+    if code == errno.EAFNOSUPPORT:  # no CAN in the kernel
+        return f"this kernel has no CAN support loaded: sudo modprobe can can_raw{' vcan' if virtual else ''}"
+    if code == errno.ENODEV:  # no such interface
+        if virtual:
+            return f"no such device: sudo ip link add dev {name} type vcan && sudo ip link set up {name}"
+        return f"no such device: is the adapter plugged in and its driver loaded? (ip link show {name})"
+    if code == errno.ENETDOWN:
+        if virtual:
+            return f"it is down: sudo ip link set up {name}"
+        return f"it is down: sudo ip link set {name} up type can bitrate 500000 (the bus's bit rate)"
+    return f"check the interface (ip -details link show {name})"
+
+
+def _errno(error: BaseException) -> int | None:
+    """The OS error number behind a python-can error, if there is one."""
+    seen: BaseException | None = error
+    while seen is not None:
+        if isinstance(seen, OSError) and seen.errno is not None:
+            return seen.errno
+        code = getattr(seen, "error_code", None)
+        if isinstance(code, int):
+            return code
+        seen = seen.__cause__ or seen.__context__
+    return None
 
 
 @dataclass(frozen=True)

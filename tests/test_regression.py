@@ -109,3 +109,29 @@ def test_interval_covers_the_truth_with_autocorrelated_noise() -> None:
         assert fit is not None
         covered += fit.c2n_ci95[0] <= 13.0 <= fit.c2n_ci95[1]
     assert 0.88 <= covered / trials <= 1.0
+
+
+def test_a_narrow_ay_band_that_cannot_see_softening_widens_the_interval_to_both_models() -> None:
+    """Samples on one circle at 3–4 m/s² only, tyres softening 4 % at 4 m/s² (eq. 6 with
+    softening, closed form): the a_y³ term is not resolved, the straight line reads low, and the
+    interval must span both models; the same tyres swept from 1 m/s² resolve it."""
+    rng = np.random.default_rng(0)
+    c2n, d, softening = 14.0, 1.1, 0.0025
+
+    def circle(radius: float, ay_low: float, ay_high: float, hz: float = 100.0):
+        t = 0.0
+        for ay in np.concatenate(
+            [np.linspace(ay_low, ay_high, int(60 * hz)), np.linspace(ay_high, ay_low, int(60 * hz))]
+        ):
+            u = math.sqrt(ay * radius)
+            beta = d / radius - ay / (G * c2n) * (1 + softening * ay * ay)
+            yield t, u, u / radius, u * beta + rng.normal(0, 0.02)
+            t += 1.0 / hz
+
+    narrow = fitted(circle(30.0, 3.0, 4.0))
+    assert narrow is not None and narrow.model == "linear" and not narrow.softening_resolved
+    assert narrow.softening_hidden_pct > 3.0
+    assert narrow.c2n_linear_model < 0.97 * c2n  # a confident straight line would be wrong ...
+    assert narrow.c2n_ci95[0] <= c2n <= narrow.c2n_ci95[1]  # ... the widened interval holds the truth
+    wide = fitted(circle(30.0, 0.5, 4.0))
+    assert wide is not None and wide.softening_resolved and wide.softening_hidden_pct < 3.0

@@ -261,3 +261,36 @@ def test_a_socketcan_that_will_not_open_gets_the_hint_for_its_errno(
     [line] = err.strip().splitlines()
     assert status == 1 and line.startswith(f"c2n: error: socketcan {channel}: cannot open ([Errno {code}]")
     assert line.endswith(f"— {hint}")
+
+
+def test_circles_beyond_the_linear_range_are_flagged_not_a_confident_interval(
+    drive_log: Path, tmp_path: Path
+) -> None:
+    """Magic-Formula tyres at μ = 0.9 swept on a 30-m circle to a_y ≈ 8 m/s²: u0 lies beyond the
+    4 m/s² gate, and the steady samples (2.3–4 m/s²) cannot tell linear from softening tyres. A
+    straight-line fit reads about 6 % low with a ±1.5 % interval; the result must say why it
+    cannot be trusted and carry an interval that holds the truth."""
+    log = tmp_path / "mf.blf"
+    code, _, err = run_cli(
+        ["simulate", "--tyre", "magic", "--mu", "0.9", "--ay-max", "10", "--seed", "5", "--out", str(log)]
+    )
+    assert code == 0, err
+    truth = json.loads(log.with_name("mf.blf.truth.json").read_text())
+    code, out, _ = run_cli(["analyze", str(log), "--json", str(tmp_path / "mf.json")])
+    summary = json.loads((tmp_path / "mf.json").read_text())
+    fit = summary["regression"]
+    assert code == 0
+    assert fit["model"] == "linear" and not fit["softening_resolved"] and fit["softening_hidden_pct"] > 2
+    assert abs(fit["c2n_linear_model"] / truth["c2n"] - 1) > 0.03  # the straight line is wrong ...
+    low, high = summary["c2n_ci95"]
+    assert low <= truth["c2n"] <= high  # ... and the interval says how little the data tell
+    assert "interval widened: the a_y range cannot rule out softening tyres" in out
+    beyond = next(w for w in summary["warnings"] if "beyond the tyres' linear range" in w)
+    radius = float(beyond.split("radius ≥ ")[1].split(" m")[0])
+    assert truth["u0_mps"] ** 2 / radius < 4.0  # eq. 7's u0 on the circle advised is within the gate
+    assert not any("sweep the speed through u0" in w for w in summary["warnings"])
+    # a drive inside the linear range is neither widened nor flagged
+    run_cli(["analyze", str(drive_log), "--json", str(tmp_path / "ok.json")])
+    ok = json.loads((tmp_path / "ok.json").read_text())
+    assert ok["regression"]["softening_resolved"]
+    assert not any("linear range" in w or "could hide" in w for w in ok["warnings"])

@@ -219,6 +219,8 @@ class Dashboard(Display):
         if fit is not None:
             psi0 = f"ψ0 {math.degrees(fit.psi0_rad):+.3f}°" if fit.psi0_rad is not None else "ψ0 —"
             model = "softening tyre model" if fit.model == "softening" else "linear"
+            if not fit.softening_resolved:
+                model += " (softening not ruled out: interval widened)"
             lines.append(
                 Text(
                     f"regression: d {fit.d_m:.3f} m [{fit.d_ci95[0]:.3f}, {fit.d_ci95[1]:.3f}] "

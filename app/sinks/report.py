@@ -127,6 +127,10 @@ def _regression(fit: RegressionRow | None) -> str:
                 ("C2n, linear model", text(fit.c2n_linear_model)),
                 ("C2n, softening model", text(fit.c2n_softening_model)),
                 ("softening t statistic", text(fit.softening_t)),
+                (
+                    "softening resolved",
+                    "yes" if fit.softening_resolved else f"no: {text(fit.softening_hidden_pct)} % could hide",
+                ),
                 ("samples", text(fit.n_samples)),
                 ("|a_y| range", f"{interval(fit.ay_range_mps2)} m/s²"),
             )

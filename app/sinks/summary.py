@@ -68,6 +68,8 @@ class RegressionRow:
     c2n_softening_model: float | None
     n_samples: int
     ay_range_mps2: Interval
+    softening_resolved: bool  # False: the a_y range cannot tell linear from softening tyres
+    softening_hidden_pct: float | None  # softening that could hide in the data, % of C2n
 
 
 @dataclass(frozen=True)
@@ -284,6 +286,16 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"the tyres soften with slip (t = {fit.softening_t:.1f}): C2n is extrapolated to zero lateral "
             f"acceleration ({fit.c2n:.3f}; a straight-line fit would give {fit.c2n_linear_model:.3f})"
         )
+    if fit is not None and not fit.softening_resolved:
+        low, high = fit.ay_range
+        out.append(
+            f"the steady samples span a_y {low:.1f}–{high:.1f} m/s² only: too narrow to tell linear tyres "
+            f"from softening ones (a softening of {fit.softening_hidden_pct:.0f} % could hide in it), so the "
+            "interval covers both; steady laps at lower a_y (slower, or a larger circle) would narrow it"
+        )
+    beyond = _crossing_beyond_gate(snapshot, config)
+    if beyond is not None:
+        out.append(beyond)
     paired = snapshot.paired
     yaw, yaw_se = (paired.misalignment_rad, paired.misalignment_se) if paired is not None else (None, None)
     if yaw is not None and yaw_se is not None and abs(yaw) > max(1.96 * yaw_se, math.radians(0.1)):
@@ -294,11 +306,32 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     rejected = snapshot.rejections
     if rejected:
         out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
-    if snapshot.t_first is not None and not snapshot.crossings:
+    if snapshot.t_first is not None and not snapshot.crossings and beyond is None:
         out.append(
             "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
         )
     return out
+
+
+def _crossing_beyond_gate(snapshot: Snapshot, config: Config) -> str | None:
+    """Where no crossing was found on circles whose u0 lies beyond the a_y gate: the words saying
+    so (the sideslip changed sign where the tyres are no longer linear, so nothing was counted)."""
+    fit, limit = snapshot.regression, config.detector.ay_max_mps2
+    if snapshot.crossings or fit is None or snapshot.sign_problem or not fit.c2n > 0:
+        return None
+    curvature = fit.curvature_range[0]  # the largest circle driven
+    if not curvature > 0 or fit.d_m <= 0:
+        return None
+    u0_squared = config.vehicle.gravity_mps2 * fit.c2n * fit.d_m
+    ay_at_u0 = u0_squared * curvature
+    if ay_at_u0 <= limit:
+        return None
+    return (
+        f"on the largest circle driven (radius {1 / curvature:.0f} m) the sideslip changes sign at a_y ≈ "
+        f"{ay_at_u0:.1f} m/s², beyond the tyres' linear range ({limit:g} m/s², [detector] ay_max_mps2), "
+        f"so no crossing was counted: drive a circle of radius ≥ {1.2 * u0_squared / limit:.0f} m to meet "
+        f"u0 ≈ {math.sqrt(u0_squared):.1f} m/s within it"
+    )
 
 
 def format_id(frame_id: int, extended: bool) -> str:
@@ -359,6 +392,8 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         c2n_softening_model=_maybe(fit.c2n_softening_model),
         n_samples=fit.n_samples,
         ay_range_mps2=_pair(fit.ay_range, digits=3),
+        softening_resolved=fit.softening_resolved,
+        softening_hidden_pct=_round(fit.softening_hidden_pct, 2),
     )
 
 

@@ -15,6 +15,10 @@ from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.combine import Combined
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
+from app.results.sideslip_profile import ProfileView
+
+_SENSOR_MAX_HZ = 400.0  # an optical sensor sends at 50–250 Hz; far beyond that is not its own pace
+_HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
 
 
 def _positive(c2n: float) -> bool:
@@ -66,6 +70,7 @@ class Snapshot:
     message_names: Mapping[tuple[int, bool], str]  # (id, extended) -> the DBC's message name
     d_m: float
     g_mps2: float
+    profile: ProfileView | None = None  # the steady samples' sideslip against speed, per direction
 
     @property
     def t0(self) -> float:
@@ -104,6 +109,20 @@ class Snapshot:
         return (
             f"the regression's C2n is {fit.c2n:.2f}, not positive: the steady samples do not show the "
             "sideslip falling with speed on a circle — not a result"
+        )
+
+    @property
+    def replay_hint(self) -> str | None:
+        """Optical frames far faster than a sensor sends them: a drive replayed faster than it was
+        driven and taken at arrival time, so every sweep looks that much too fast to use."""
+        elapsed = self.elapsed_s
+        frames = max((self.frames.role_frames[role] for role in ("vx", "vy", "beta")), default=0)
+        if elapsed < _HINT_AFTER_S or frames / elapsed <= _SENSOR_MAX_HZ:
+            return None
+        return (
+            f"optical frames arrive at {frames / elapsed:.0f} Hz, faster than a sensor sends them "
+            f"(≤ {_SENSOR_MAX_HZ:g} Hz): a replay faster than it was driven? Its sweeps look that much "
+            "too fast to use: give c2n live the replay's rate (--rate)"
         )
 
     @property

@@ -146,3 +146,63 @@ def test_the_dashboard_is_drawn_on_a_terminal_and_the_interpreter_left_as_it_was
     text = out.getvalue()
     assert "c2n live — vcan9" in text and "Correvit" in text
     assert f"total {pipeline.decoder.counts.total}" in text  # the last picture is of the end
+
+
+def test_live_at_the_replays_rate_measures_what_analyze_gives(tmp_path: Path) -> None:
+    """``c2n replay --rate 10`` into a separate ``c2n live --rate 10`` (one process, a virtual bus
+    that stamps arrival time as SocketCAN does): the sweeps are taken as driven, and the result is
+    what ``c2n analyze`` gives the log; the recording holds the drive's own time."""
+    import json
+
+    drive = cached_drive("constant_radius", 31, 15.2)
+    log = tmp_path / "drive.blf"
+    write_drive(drive, log)
+    duration = drive.messages[-1].timestamp - drive.messages[0].timestamp
+    channel = f"test-{uuid.uuid4().hex}"
+
+    def replay() -> None:
+        threading.Event().wait(0.5)  # the live side opens its bus first
+        main(["replay", str(log), "-i", "virtual", "-c", channel, "--rate", "10"])
+
+    sender = threading.Thread(target=replay)
+    sender.start()
+    live_json, record = tmp_path / "live.json", tmp_path / "sessions"
+    argv = ["live", "-i", "virtual", "-c", channel, "--rate", "10", "--record", str(record)]
+    code = main([*argv, "--json", str(live_json), "--duration", f"{duration / 10 + 2.5:.1f}"])
+    sender.join()
+    assert code == 0
+    main(["analyze", str(log), "--json", str(tmp_path / "offline.json")])
+    live, offline = (json.loads(p.read_text()) for p in (live_json, tmp_path / "offline.json"))
+    assert live["frames"]["used"] == offline["frames"]["used"]
+    assert len(live["crossings"]) == len(offline["crossings"]) == 4
+    assert live["c2n"] == pytest.approx(offline["c2n"], rel=0.005)
+    assert not any("faster than a sensor" in w for w in live["warnings"])
+    [session] = record.iterdir()
+    recorded = [m.timestamp for m in can.LogReader(session / "frames.log")]
+    assert recorded[-1] - recorded[0] == pytest.approx(duration, rel=0.02)
+
+
+def test_a_drive_taken_ten_times_too_fast_is_said_to_be_a_replay(tmp_path: Path) -> None:
+    """Frame times squeezed ×10 (a replay taken at arrival time): the optical frames come at
+    500 Hz instead of 50, and the run says why no sweep is usable and what to give it."""
+    import json
+
+    drive = cached_drive("constant_radius", 31, 15.2)
+    log = tmp_path / "fast.blf"
+    with can.Logger(log) as writer:
+        start = drive.messages[0].timestamp
+        for m in drive.messages:
+            writer.on_message_received(
+                can.Message(
+                    timestamp=start + (m.timestamp - start) / 10,
+                    arbitration_id=m.arbitration_id,
+                    is_extended_id=m.is_extended_id,
+                    data=m.data,
+                    channel=m.channel,
+                )
+            )
+    main(["analyze", str(log), "--json", str(tmp_path / "fast.json")])
+    warnings = json.loads((tmp_path / "fast.json").read_text())["warnings"]
+    hint = next(w for w in warnings if "faster than a sensor sends them" in w)
+    assert 480 <= float(hint.split("arrive at ")[1].split(" Hz")[0]) <= 520  # 50 Hz × 10
+    assert "--rate" in hint

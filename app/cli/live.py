@@ -25,6 +25,7 @@ from app.sinks.event_printer import EventPrinter, print_result
 from app.sinks.recorder import RAW_FORMATS, SessionRecorder
 from app.sinks.sink import Sink
 from app.sources.buses import Backoff, BusSource, open_buses
+from app.sources.playback import drive_time
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -48,6 +49,14 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument("--json", type=Path, metavar="OUT", help="also write the summary here")
     parser.add_argument(
         "--duration", type=number(0.0, 1e7, low_allowed=False), metavar="S", help="stop after S seconds"
+    )
+    parser.add_argument(
+        "--rate",
+        type=number(0.01, 1000.0, low_allowed=False),
+        default=1.0,
+        metavar="X",
+        help="the bus carries a replay X times faster than the drive (c2n replay --rate X): frame "
+        "times are stretched X times, so sweeps are measured as driven and recorded so (default: 1)",
     )
     parser.set_defaults(run=run)
     return parser
@@ -93,6 +102,10 @@ def run(
     # (a shell starts background jobs so, and Python then leaves it ignored).
     previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
     console.print(f"c2n live on {title} — Ctrl-C ends the session", style="dim")
+    if args.rate != 1.0:
+        console.print(
+            f"frame times stretched ×{args.rate:g}: the bus carries a replay at that rate", style="dim"
+        )
 
     def reopen(index: int) -> can.BusABC:
         return open_bus(args.interface, [wanted[index]], args.bitrate, **options)[0]
@@ -113,7 +126,8 @@ def run(
     try:
         if timer is not None:
             timer.start()
-        run_pipeline(source, pipeline, sinks, display=dashboard, console=console)
+        frames = source if args.rate == 1.0 else drive_time(source, args.rate)
+        run_pipeline(frames, pipeline, sinks, display=dashboard, console=console)
     finally:  # the recording is finished (the run loop closed it); the summary goes beside it
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -59,3 +59,17 @@ def looped(read: Callable[[], Iterable[can.Message]], loops: int | None) -> Iter
             return
         offset += (last - first) + 0.01
         count += 1
+
+
+def drive_time(messages: Iterable[can.Message | None], rate: float) -> Iterator[can.Message | None]:
+    """A drive replayed ``rate`` times faster than it was driven, given its own time back: each
+    frame's time is stretched by ``rate`` from the first frame's (None, a quiet moment, passes)."""
+    if rate <= 0:
+        raise ValueError("rate must be > 0")
+    start: float | None = None
+    for message in messages:
+        if message is not None:
+            if start is None:
+                start = message.timestamp
+            message.timestamp = start + (message.timestamp - start) * rate
+        yield message

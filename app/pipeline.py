@@ -23,6 +23,7 @@ from app.records import Crossing, CrossingRejected, Event, Record, SteadyState
 from app.results.combine import Combined, combine
 from app.results.pairing import Paired, pair
 from app.results.regression import RegressionFit, SampleRegression
+from app.results.sideslip_profile import SideslipProfile
 from app.snapshot import FilterState, Pending, Snapshot
 from app.sources.blocks import FrameBlock, RecordBlock
 
@@ -61,6 +62,7 @@ class Pipeline:
         self.gate = SteadyStateGate(config.detector)
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
         self.regression = SampleRegression(config.vehicle.gravity_mps2)
+        self.profile = SideslipProfile()
         self.state = SessionState()
         self._last_fit = -float("inf")
 
@@ -85,6 +87,7 @@ class Pipeline:
             message_names=self.decoder.message_names,
             d_m=self.config.d_m,
             g_mps2=self.config.vehicle.gravity_mps2,
+            profile=self.profile.view(),
         )
 
     def process(self, msg: can.Message) -> Record | None:
@@ -125,8 +128,10 @@ class Pipeline:
         steady = self.gate.step(record.t, estimate, state.latest.get("steer"), state.sensor_problem)
         events = self.detector.step(record.t, estimate, steady)
         self._collect(events)
-        if steady.steady and estimate.r_radps is not None and estimate.v_meas_mps is not None:
-            self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
+        if steady.steady and estimate.v_meas_mps is not None:
+            self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
+            if estimate.r_radps is not None:
+                self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
         if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
             self._last_fit = record.t
             state.regression = self.regression.fit()
@@ -175,7 +180,7 @@ class Pipeline:
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
         times = t[rows].tolist()
         steady_fields = iter(out[np.equal(kinds, STEADY)].tolist())  # the rows the detector sees
-        detector, regression = self.detector, self.regression
+        detector, regression, profile = self.detector, self.regression, self.profile
         events: list[Event] = []
         own: tuple[Event, ...] = ()  # the last record's
         for k, now in enumerate(times):
@@ -187,8 +192,10 @@ class Pipeline:
                     self._collect(new)
                     events += new
                     own = tuple(new) if k == len(times) - 1 else ()
-                if steady and estimate.r_radps is not None and estimate.v_meas_mps is not None:
-                    regression.add(now, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
+                if steady and estimate.v_meas_mps is not None:
+                    profile.add(estimate.u_mps, estimate.v_meas_mps, DIRECTIONS[directions[k]])
+                    if estimate.r_radps is not None:
+                        regression.add(now, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
                 state.regression = regression.fit()

@@ -16,8 +16,9 @@ def shown(pipeline: Pipeline, title: str) -> Dashboard:
     return dashboard
 
 
-def render(dashboard: Dashboard, width: int = 200) -> str:
-    console = Console(record=True, width=width, force_terminal=False)
+def render(dashboard: Dashboard, width: int = 200, height: int = 70) -> str:
+    """The dashboard as text on a terminal of this size (by default one with room for every panel)."""
+    console = Console(record=True, width=width, height=height, force_terminal=False)
     console.print(dashboard)
     return console.export_text()
 
@@ -77,3 +78,87 @@ def test_empty_dashboard_before_any_frame(config: object) -> None:
     assert isinstance(config, Config)
     text = render(shown(Pipeline(config), "can0"))
     assert "no frames on the bus yet" in text and "no result" in text
+
+
+def test_a_laptop_terminal_of_80_by_24_shows_the_c2n_line_the_latest_crossing_and_the_sensor(
+    analysed: Pipeline,
+) -> None:
+    """At 80×24 nothing is cut that the driver needs: the whole C2n line (wrapped, not cut), the
+    latest crossing, the steady state and the sensor status; the sideslip plot takes what is left."""
+    from app.sinks.event_printer import result_line
+
+    snapshot = analysed.snapshot()
+    text = render(shown(analysed, "can0"), width=80, height=24)
+    lines = text.splitlines()
+    assert len(lines) <= 24 and max(len(line) for line in lines) <= 80
+    assert result_line(snapshot) in " ".join(line.strip() for line in lines)
+    last = snapshot.crossings[-1]
+    assert f"u0 {last.u0_mps:.3f} m/s" in text and f"C2n {last.c2n:.3f}" in text
+    assert ("STEADY" in text or "not steady" in text) and "HeadStatus 1" in text
+    assert "sideslip β" in text and "×" in text and "─" in text
+
+
+def test_the_dashboard_grows_into_panels_and_the_plot_on_a_larger_terminal(analysed: Pipeline) -> None:
+    for width, height in ((120, 50), (200, 70)):
+        text = render(shown(analysed, "can0"), width=width, height=height)
+        lines = text.splitlines()
+        assert len(lines) <= height and max(len(line) for line in lines) <= width
+        for title in ("Motion", "Steady state", "Crossings", "Sideslip against speed", "Frames"):
+            assert title in text, (width, height, title)
+
+
+def test_the_sideslip_plot_draws_eq_6_with_its_zero_crossing_at_u0() -> None:
+    """Sideslip at the sensor on a circle, β = d/R − u²/(R·g·C2n) (eq. 6), as a left turn and the
+    mirror image as a right one: both fall on one curve counted towards the turn's inside; it is
+    above the zero line below u0 and under it above; a crossing at u0 sits on the zero line in
+    the column u0 maps to."""
+    import math
+
+    import numpy as np
+
+    from app import paper
+    from app.records import Crossing
+    from app.results.sideslip_profile import SideslipProfile
+    from app.sinks.sideslip_plot import SideslipPlot
+
+    c2n, d, radius, g = 15.0, 1.11, 80.0, 9.81
+    u0 = paper.crossing_speed(c2n, d, g)
+    profile = SideslipProfile()
+    speeds = np.arange(0.65 * u0, 1.35 * u0, 0.01)
+    for u in speeds:
+        beta = d / radius - u * u / (radius * g * c2n)
+        profile.add(u, u * beta, "left")
+        profile.add(u, -u * beta, "right")
+    crossing = Crossing(
+        t=0.0,
+        direction="left",
+        sweep="up",
+        u0_mps=u0,
+        u0_ci95=(u0 - 0.05, u0 + 0.05),
+        c2n=c2n,
+        c2n_se=0.1,
+        ci95=(c2n - 0.2, c2n + 0.2),
+        ay_mps2=u0 * u0 / radius,
+        radius_m=radius,
+        sweep_rate_mps2=0.3,
+        n_samples=100,
+        method="v/r",
+    )
+    console = Console(record=True, width=108, height=30, force_terminal=False)
+    console.print(SideslipPlot(profile.view(), [crossing], height=22))
+    lines = console.export_text().splitlines()
+    grid = lines[1:-1]  # between the title and the speed axis
+    assert len(lines) == 22 and len(grid) == 20
+    zero = next(k for k, line in enumerate(grid) if "─" in line)
+    columns = 100
+    u_lo, u_hi = float(profile.view().left[0].min()), float(profile.view().left[0].max())
+    expected = round((u0 - u_lo) / (u_hi - u_lo) * (columns - 1))
+    assert grid[zero][8 + expected] == "×"
+    assert "∘" not in "".join(grid) and "•" not in "".join(grid)  # left and right on one curve: ◆
+    for k, line in enumerate(grid):
+        marks = [i - 8 for i, ch in enumerate(line) if ch == "◆"]
+        for i in marks:
+            u = u_lo + i / (columns - 1) * (u_hi - u_lo)
+            if abs(u - u0) > 0.3:
+                assert (k < zero) == (u < u0), (k, u)
+    assert math.isclose(float(lines[-1].split()[0]), u_lo, abs_tol=0.05)

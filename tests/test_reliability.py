@@ -55,7 +55,7 @@ def shown_after(pipeline: Pipeline, title: str) -> Dashboard:
 
 
 def render(dashboard: Dashboard) -> str:
-    console = Console(record=True, width=200, force_terminal=False)
+    console = Console(record=True, width=200, height=70, force_terminal=False)
     console.print(dashboard)
     return console.export_text()
 

@@ -9,7 +9,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from rich.console import Group, RenderableType
+from rich.console import Console, ConsoleOptions, Group, RenderableType, RenderResult
 from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
@@ -17,9 +17,13 @@ from rich.text import Text
 from app.config import OPTICAL_ROLES
 from app.records import Reason, SteadyState
 from app.sinks.event_printer import result_line
+from app.sinks.sideslip_plot import MIN_HEIGHT as PLOT_MIN_LINES
+from app.sinks.sideslip_plot import SideslipPlot
 from app.sinks.sink import Display
 from app.sinks.summary import format_id
 from app.snapshot import Snapshot
+
+WIDE, TALL = 100, 40  # below either, the compact layout (an 80×24 laptop terminal)
 
 _ADVICE: Mapping[Reason, str] = {
     Reason.AY_HIGH: "Too much lateral acceleration: slow down or widen the circle",
@@ -129,21 +133,70 @@ class Dashboard(Display):
         self._snapshot = snapshot
         self._rates.update(snapshot.t_last, snapshot.frames.by_id)
 
-    def __rich__(self) -> RenderableType:
-        heading = Text()
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        """The layout for the terminal's size: below ``WIDE`` columns or ``TALL`` lines, the compact
+        one (the C2n line, the latest crossing, the steady state and sensor, the motion in a line,
+        then the sideslip plot in what is left); above, the panels, the plot where it fits."""
+        width, height = options.max_width, options.height or options.size.height
+        heading = Text(no_wrap=True, overflow="ellipsis")
         heading.append(f" c2n live — {self.title}", style="bold")
         snapshot = self._snapshot
         if snapshot is None:
             heading.append("   waiting for the first frames")
-            return Group(heading)
+            yield heading
+            return
         heading.append(f"   t = {snapshot.elapsed_s:.1f} s")
+        if width < WIDE or height < TALL:
+            yield from self._compact(snapshot, heading, console, options, height)
+            return
         top = Table.grid(expand=True, padding=(0, 2))
         top.add_column(ratio=1)
         top.add_column(ratio=1)
         top.add_row(self._motion(snapshot), self._status(snapshot))
         # No panel around the whole: every panel inside would be cut into lines once more, which
         # doubled the cost of a refresh (tools/bench.py --only parts: dashboard refresh).
-        return Group(heading, top, self._crossings(snapshot), self._frames(snapshot))
+        parts: list[RenderableType] = [heading, top, self._crossings(snapshot)]
+        frames = self._frames(snapshot)
+        used = sum(len(console.render_lines(part, options, pad=False)) for part in [*parts, frames])
+        if height - used >= PLOT_MIN_LINES + 2:  # the plot's panel has two border lines
+            plot = SideslipPlot(snapshot.profile, snapshot.crossings, height - used - 2)
+            parts.append(Panel(plot, title="Sideslip against speed"))
+        yield Group(*parts, frames)
+
+    def _compact(
+        self, snapshot: Snapshot, heading: Text, console: Console, options: ConsoleOptions, height: int
+    ) -> RenderResult:
+        """Every line cut to the width but the C2n line, which wraps rather than lose a digit."""
+        lines: list[Text] = [heading, Text(result_line(snapshot), style="bold")]
+        if snapshot.crossings:
+            c = snapshot.crossings[-1]
+            lo, hi = c.ci95
+            lines.append(
+                Text(
+                    f"last: {c.t - snapshot.t0:.1f} s {c.direction} {c.sweep}  u0 {c.u0_mps:.3f} m/s  "
+                    f"a_y {c.ay_mps2:.2f}  C2n {c.c2n:.3f} [{lo:.3f}, {hi:.3f}]"
+                )
+            )
+        lines.extend(self._status_lines(snapshot))
+        record = snapshot.last
+        e = record.estimate if record else None
+        if e is not None:
+            beta = math.degrees(e.sideslip_rad)
+            motion = f"{e.u_mps * 3.6:.1f} km/h  sweep {e.u_dot_mps2:+.2f} m/s²  β {beta:+.3f}°"
+            if e.ay_mps2 is not None:
+                motion += f"  a_y {e.ay_mps2:+.2f} m/s²"
+            if e.r_radps is not None:
+                motion += f"  r {math.degrees(e.r_radps):+.1f} °/s"
+            lines.append(Text(motion))
+        counts = snapshot.frames
+        bad = counts.total - counts.used - counts.unused
+        lines.append(Text(f"frames {counts.total:,}  used {counts.used:,}  not decoded {bad:,}", style="dim"))
+        for line in lines[2:]:
+            line.no_wrap, line.overflow = True, "ellipsis"
+        used = sum(len(console.render_lines(line, options, pad=False)) for line in lines)
+        yield from lines
+        if height - used >= PLOT_MIN_LINES:
+            yield SideslipPlot(snapshot.profile, snapshot.crossings, height - used)
 
     def _motion(self, snapshot: Snapshot) -> RenderableType:
         record = snapshot.last
@@ -166,6 +219,9 @@ class Dashboard(Display):
         return Panel(_pairs(rows), title="Motion")
 
     def _status(self, snapshot: Snapshot) -> RenderableType:
+        return Panel(Group(*self._status_lines(snapshot)), title="Steady state")
+
+    def _status_lines(self, snapshot: Snapshot) -> list[Text]:
         lines: list[Text] = []
         bus_problem = self.bus_problem()
         if bus_problem:
@@ -181,6 +237,8 @@ class Dashboard(Display):
             lines.extend(Text(f"→ {advice}", style="yellow") for advice in guidance(steady))
         if snapshot.sensor_problem:
             lines.append(Text(f"sensor: {snapshot.sensor_problem}", style="bold red"))
+        if snapshot.replay_hint:
+            lines.append(Text(snapshot.replay_hint, style="bold red"))
         if snapshot.status:
             shown = ", ".join(
                 f"{name.partition('.')[2]} {value:g}" for name, value in sorted(snapshot.status.items())
@@ -193,7 +251,7 @@ class Dashboard(Display):
                     style="cyan",
                 )
             )
-        return Panel(Group(*lines), title="Steady state")
+        return lines
 
     def _crossings(self, snapshot: Snapshot) -> RenderableType:
         rows = [("t [s]", "dir", "sweep", "u0 [m/s]", "u0 [km/h]", "a_y [m/s²]", "C2n [1/rad]", "95 %")]

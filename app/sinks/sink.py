@@ -12,7 +12,7 @@ so a sink that records nothing costs the per-frame path nothing.
 from collections.abc import Sequence
 
 import can
-from rich.console import RenderableType
+from rich.console import Console, ConsoleOptions, RenderResult
 
 from app.records import Event, Record
 from app.snapshot import Snapshot
@@ -44,8 +44,8 @@ def overrides(sink: Sink, hook: str) -> bool:
 
 
 class Display(Sink):
-    """A sink that is also drawn (the dashboard, the progress bar): it renders (``__rich__``)
-    the last snapshot it was given."""
+    """A sink that is also drawn (the dashboard, the progress bar): it renders the last snapshot
+    it was given, as rich's ``__rich_console__`` (which knows the terminal's size) or ``__rich__``."""
 
-    def __rich__(self) -> RenderableType:
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
         raise NotImplementedError

@@ -293,6 +293,8 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"from softening ones (a softening of {fit.softening_hidden_pct:.0f} % could hide in it), so the "
             "interval covers both; steady laps at lower a_y (slower, or a larger circle) would narrow it"
         )
+    if snapshot.replay_hint:
+        out.append(snapshot.replay_hint)
     beyond = _crossing_beyond_gate(snapshot, config)
     if beyond is not None:
         out.append(beyond)

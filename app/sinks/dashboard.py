@@ -6,11 +6,12 @@ test feeds it a snapshot, renders it into ``Console(record=True)`` and reads the
 
 import heapq
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from rich.console import Console, ConsoleOptions, Group, RenderableType, RenderResult
 from rich.panel import Panel
+from rich.segment import Segment
 from rich.table import Table
 from rich.text import Text
 
@@ -111,6 +112,12 @@ def _pairs(rows: list[tuple[str, str]]) -> Text:
     return text
 
 
+def _segments(lines: list[list[Segment]]) -> Iterator[Segment]:
+    for line in lines:
+        yield from line
+        yield Segment.line()
+
+
 class Dashboard(Display):
     """``bus_problem`` says which buses are lost, bus-off or error-passive (None while all are
     well): it comes from the source, not the pipeline."""
@@ -155,13 +162,15 @@ class Dashboard(Display):
         top.add_row(self._motion(snapshot), self._status(snapshot))
         # No panel around the whole: every panel inside would be cut into lines once more, which
         # doubled the cost of a refresh (tools/bench.py --only parts: dashboard refresh).
-        parts: list[RenderableType] = [heading, top, self._crossings(snapshot)]
-        frames = self._frames(snapshot)
-        used = sum(len(console.render_lines(part, options, pad=False)) for part in [*parts, frames])
-        if height - used >= PLOT_MIN_LINES + 2:  # the plot's panel has two border lines
-            plot = SideslipPlot(snapshot.profile, snapshot.crossings, height - used - 2)
-            parts.append(Panel(plot, title="Sideslip against speed"))
-        yield Group(*parts, frames)
+        # laid out once: their height tells how much the plot may take
+        above = console.render_lines(Group(heading, top, self._crossings(snapshot)), options, pad=False)
+        below = console.render_lines(self._frames(snapshot), options, pad=False)
+        yield from _segments(above)
+        room = height - len(above) - len(below) - 2  # the plot's panel has two border lines
+        if room >= PLOT_MIN_LINES:
+            plot = SideslipPlot(snapshot.profile, snapshot.crossings, room)
+            yield Panel(plot, title="Sideslip against speed")
+        yield from _segments(below)
 
     def _compact(
         self, snapshot: Snapshot, heading: Text, console: Console, options: ConsoleOptions, height: int

@@ -7,6 +7,7 @@ is a ``×`` on the zero line at its u0. The engineer watches a sweep run down to
 and sees u0 coming.
 """
 
+import itertools
 from collections.abc import Iterator, Sequence
 
 import numpy as np
@@ -72,9 +73,14 @@ class SideslipPlot:
             cells[zero][column(crossing.u0_mps)] = CROSSING
         labels = {0: b_hi, zero: 0.0, rows - 1: b_lo}
         for r, chars in enumerate(cells):
-            line = Text(f"{labels[r]:+6.2f}°┤" if r in labels else " " * (_MARGIN - 1) + "│", style="dim")
-            for char in chars:
-                line.append(char, style=_STYLE.get(char))
+            line = Text(
+                f"{labels[r]:+6.2f}°┤" if r in labels else " " * (_MARGIN - 1) + "│",
+                style="dim",
+                no_wrap=True,
+                overflow="crop",
+            )
+            for char, run in itertools.groupby(chars):  # a run of one mark, appended at once
+                line.append(char * len(list(run)), style=_STYLE.get(char))
             yield line
         low, high = f"{u_lo:.1f}", f"{u_hi:.1f} m/s"
         axis = " " * _MARGIN + low + " " * max(1, columns - len(low) - len(high)) + high

@@ -99,12 +99,20 @@ def test_a_laptop_terminal_of_80_by_24_shows_the_c2n_line_the_latest_crossing_an
 
 
 def test_the_dashboard_grows_into_panels_and_the_plot_on_a_larger_terminal(analysed: Pipeline) -> None:
-    for width, height in ((120, 50), (200, 70)):
+    from app.sinks.event_printer import result_line
+
+    snapshot = analysed.snapshot()
+    last = snapshot.crossings[-1]
+    for width, height in ((120, 40), (120, 50), (200, 70)):
         text = render(shown(analysed, "can0"), width=width, height=height)
         lines = text.splitlines()
         assert len(lines) <= height and max(len(line) for line in lines) <= width
-        for title in ("Motion", "Steady state", "Crossings", "Sideslip against speed", "Frames"):
+        panels = ("Motion", "Steady state", "Crossings", "Frames")
+        for title in (*panels, "Sideslip against speed") if height >= 50 else panels:
             assert title in text, (width, height, title)
+        flat = " ".join(line.strip(" │") for line in lines)
+        assert result_line(snapshot) in flat, (width, height)
+        assert f"{last.c2n:.3f}" in text and f"{last.u0_kmh:.2f}" in text
 
 
 def test_the_sideslip_plot_draws_eq_6_with_its_zero_crossing_at_u0() -> None:

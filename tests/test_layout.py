@@ -25,6 +25,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("app.run_loop",),
     ("app.sim",),
     ("app.gap",),
+    ("app.campaign",),
     ("app.cli", "app.__main__"),
 )
 STAGES = ("sources", "decode", "estimate", "detect", "results", "sinks")

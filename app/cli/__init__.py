@@ -9,10 +9,10 @@ from collections.abc import Sequence
 from rich.console import Console
 
 from app import __version__
-from app.cli import analyze, demo, export, gap, gap_check, live, replay, simulate
+from app.cli import analyze, campaign, demo, export, gap, gap_check, live, replay, simulate
 from app.errors import C2nError, UsageError, printable
 
-COMMANDS = (live, replay, analyze, export, simulate, gap, gap_check, demo)
+COMMANDS = (live, replay, analyze, export, simulate, gap, gap_check, campaign, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -64,6 +64,13 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="write N standard sessions with random effects into --out DIR",
     )
     parser.add_argument(
+        "--campaign",
+        type=number(1, 10000, integer=True),
+        metavar="N",
+        help="write N drives of three tyre sets (known C2n, day-to-day scatter) with their manifest.csv "
+        "into --out DIR, for c2n campaign",
+    )
+    parser.add_argument(
         "--effect",
         choices=EFFECT_NAMES,
         metavar="NAME",
@@ -173,6 +180,8 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 def run(args: argparse.Namespace, console: Console) -> int:
     if args.model == "commonroad" and args.config == DEFAULT_CONFIG:
         args.config = COMMONROAD_CONFIG  # the CommonRoad car's own
+    if args.campaign is not None:
+        return _run_campaign(args, console)
     if args.pack is not None or args.session is not None:
         _check_session_options(args)
         return _run_pack(args, console) if args.pack is not None else _run_session(args, console)
@@ -297,5 +306,31 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
     console.print(
         f"wrote {len(result.cases)} cases to {out} in {result.elapsed_s:.1f} s; "
         f"truth sealed in {result.truth_path}"
+    )
+    return 0
+
+
+def _run_campaign(args: argparse.Namespace, console: Console) -> int:
+    from app.sim.campaign import write_campaign
+
+    if args.pack is not None or args.session is not None or args.scenario is not None:
+        raise C2nError("--campaign writes drives of its own: leave out --pack, --session and --scenario")
+    out = args.out or Path(f"campaign-seed{args.seed}")
+    progress = Progress(
+        TextColumn("simulating"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        disable=not console.is_terminal,
+    )
+    task = progress.add_task("", total=args.campaign)
+    with progress:
+        manifest = write_campaign(
+            out, args.campaign, args.seed, args.config, args.workers, lambda spec, s: progress.advance(task)
+        )
+    console.print(
+        f"wrote {args.campaign} drives and {manifest}; truth sealed in {out / 'sealed' / 'truth.json'} — "
+        f"next: c2n campaign {manifest} --by tyre_set"
     )
     return 0

@@ -1,0 +1,169 @@
+"""A campaign's drives sent to workers, resumably: local processes or a Dask cluster.
+
+Each task runs where the logs are (``session.analyse`` on a worker); it hashes its log and config
+there and, when the result of that pair is known already (``known``), returns only the key.
+Every finished row is written to ``cache/<key>.json`` at once, so a re-run analyses only what is
+new or changed and an interrupted run picks up where it stopped.
+"""
+
+import concurrent.futures as cf
+import contextlib
+import json
+import multiprocessing
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from app.campaign.manifest import Manifest
+from app.campaign.session import Job, analyse, config_hash, content_hash, where
+from app.errors import C2nError, printable
+from app.sinks.files import write_json
+
+CACHE = "cache"
+HASHES = "hashes.json"  # not a row: its stem is no key
+
+
+@dataclass(frozen=True)
+class Task:
+    job: Job
+    known: frozenset[str]  # keys whose rows the campaign has already
+
+
+def run_task(task: Task) -> dict[str, Any]:
+    """On a worker: the row of one drive, or only its key when that row is known."""
+    try:
+        raw, config_path, dbc_dir = where(task.job)
+        key = f"{content_hash([raw])}-{config_hash(config_path, dbc_dir, lambda path: content_hash([path]))}"
+    except (C2nError, OSError) as error:
+        message = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
+        return {"error": printable(f"{task.job.log}: {message}"), "frames": 0, "seconds": 0.0}
+    if key in task.known:
+        return {"key": key}
+    return {"key": key} | analyse(task.job)
+
+
+@contextmanager
+def local_workers(n: int) -> Iterator[cf.Executor]:
+    """Worker processes on this machine, started fresh (spawn: no state inherited)."""
+    with cf.ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield pool
+
+
+@contextmanager
+def dask_workers(address: str) -> Iterator[cf.Executor]:
+    """The workers of a Dask distributed cluster (``distributed.Client(address)``)."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise C2nError("--scheduler needs Dask: pip install 'c2n[dask]'") from None
+    try:
+        client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
+    except (OSError, TimeoutError) as error:
+        raise C2nError(f"--scheduler {address}: no Dask scheduler answers ({error})") from None
+    try:
+        with client.get_executor(pure=False) as executor:  # type: ignore[no-untyped-call]
+            yield executor
+    finally:
+        client.close()  # type: ignore[no-untyped-call]
+
+
+def run(
+    manifest: Manifest,
+    config: Path | None,
+    out: Path,
+    workers: Callable[[], AbstractContextManager[cf.Executor]],
+    on_row: Callable[[int, dict[str, Any]], None] = lambda i, row: None,
+) -> list[dict[str, Any]]:
+    """Every entry's row, in manifest order; ``on_row(index, row)`` as each arrives. A drive
+    whose log and config this machine sees and whose key has a row already is not sent at all;
+    the workers are started (``workers()``) only when something is left to analyse."""
+    cache = out / CACHE
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise C2nError(f"{cache}: cannot be made ({error.strerror}) — choose another --out") from None
+    stored = _stored(cache)
+    memo = HashMemo(cache / HASHES)
+    rows: list[dict[str, Any]] = [{} for _ in manifest.entries]
+    pending = []
+    for i, entry in enumerate(manifest.entries):
+        key = memo.key(Job(entry.log, config))
+        if key is not None and key in stored:
+            rows[i] = stored[key] | {"cached": True}
+            on_row(i, rows[i])
+        else:
+            pending.append(i)
+    memo.save()
+    if not pending:
+        return rows
+    known = frozenset(stored)
+    with workers() as executor:
+        futures = {
+            executor.submit(run_task, Task(Job(manifest.entries[i].log, config), known)): i for i in pending
+        }
+        for future in cf.as_completed(futures):
+            i = futures[future]
+            row = future.result()
+            key = row.get("key")
+            if key is not None and set(row) == {"key"}:
+                row = stored[key] | {"cached": True}
+            elif key is not None:
+                write_json(cache / f"{key}.json", row, "the campaign's cache")
+                row = row | {"cached": False}
+            rows[i] = row
+            on_row(i, row)
+    return rows
+
+
+class HashMemo:
+    """Content hashes of the files this machine sees, kept by (path, size, mtime): a re-run reads
+    no log whose file is unchanged. A file it cannot see or read gets no key here (its worker
+    hashes it, or says what is wrong)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        try:
+            self._known: dict[str, list[Any]] = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            self._known = {}
+        self._configs: dict[tuple[Path, Path | None], str] = {}
+
+    def key(self, job: Job) -> str | None:
+        try:
+            raw, config_path, dbc_dir = where(job)
+            log_hash = self._hash(raw)
+            config_key = (config_path, dbc_dir)
+            if config_key not in self._configs:
+                self._configs[config_key] = config_hash(config_path, dbc_dir, self._hash)
+        except (C2nError, OSError):
+            return None
+        return f"{log_hash}-{self._configs[config_key]}"
+
+    def _hash(self, path: Path) -> str:
+        stat = path.stat()
+        name = str(path.resolve())
+        known = self._known.get(name)
+        if known is not None and known[:2] == [stat.st_size, stat.st_mtime_ns]:
+            return str(known[2])
+        digest = content_hash([path])
+        self._known[name] = [stat.st_size, stat.st_mtime_ns, digest]
+        return digest
+
+    def save(self) -> None:
+        with contextlib.suppress(C2nError):  # only a speed-up: the next run hashes again
+            write_json(self.path, self._known, "the campaign's hash memo")
+
+
+def _stored(cache: Path) -> dict[str, dict[str, Any]]:
+    """The rows of earlier runs (a file that does not read back is no row: its drive runs again)."""
+    rows = {}
+    for path in cache.glob("*.json"):
+        try:
+            row = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(row, dict) and row.get("key") == path.stem:
+            rows[path.stem] = row
+    return rows

@@ -1,0 +1,116 @@
+"""c2n campaign MANIFEST.csv: every drive of a test programme analysed as c2n analyze does, on
+local worker processes or a Dask cluster, resumably; then C2n per tyre set (or any tag) with
+intervals that count the spread between sessions, the differences between groups, and trends
+against numeric tags."""
+
+import argparse
+import os
+import time
+from concurrent.futures import Executor
+from contextlib import AbstractContextManager
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+from app.cli.common import error_console, number
+from app.errors import UsageError, printable
+
+
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "campaign", help="analyse and compare many drives (tyre sets, pressures, days)", description=__doc__
+    )
+    parser.add_argument(
+        "manifest", type=Path, metavar="MANIFEST.csv", help="a 'log' column (relative to it) and tag columns"
+    )
+    parser.add_argument(
+        "--out", type=Path, metavar="DIR", help="results go here (default: MANIFEST-campaign beside it)"
+    )
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=number(1, 1024, integer=True),
+        metavar="N",
+        help=f"local worker processes (default: the CPU count, {os.cpu_count()})",
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="a Dask distributed scheduler, e.g. tcp://10.0.0.5:8786"
+    )
+    parser.add_argument(
+        "--by", metavar="COLUMN", help="the tag to group by (e.g. tyre_set); default: one group"
+    )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        metavar="F",
+        help="vehicle config for every log (default: a session's own copy, else config/mondeo.toml)",
+    )
+    parser.set_defaults(run=run)
+    return parser
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    from app.campaign import outputs, work
+    from app.campaign.manifest import read_manifest
+
+    manifest = read_manifest(args.manifest)
+    if args.by is not None and args.by not in manifest.tag_names:
+        tags = ", ".join(manifest.tag_names) or "none"
+        raise UsageError(f"--by {args.by}: not a column of {args.manifest} (tags: {tags})")
+    out = args.out or args.manifest.with_name(f"{args.manifest.stem}-campaign")
+    config = args.config.resolve() if args.config else None
+    started = time.perf_counter()
+    frames = 0
+    with Progress(
+        TextColumn("campaign"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("sessions  {task.fields[rate]}"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=True,
+    ) as progress:
+        task = progress.add_task("", total=len(manifest.entries), rate="")
+
+        def arrived(index: int, row: dict[str, Any]) -> None:
+            nonlocal frames
+            if not row.get("cached"):
+                frames += int(row.get("frames") or 0)
+            elapsed = max(time.perf_counter() - started, 1e-9)
+            progress.update(task, advance=1, rate=f"{frames / elapsed:,.0f} frames/s")
+
+        def workers() -> AbstractContextManager[Executor]:
+            if args.scheduler:
+                return work.dask_workers(args.scheduler)
+            return work.local_workers(args.workers or os.cpu_count() or 1)
+
+        rows = work.run(manifest, config, out, workers, arrived)
+    elapsed = time.perf_counter() - started
+    columns, table = outputs.table_rows(manifest, rows)
+    outputs.write_tables(out, columns, table)
+    comparison = outputs.compare(manifest, table, args.by)
+    outputs.write_comparison(out, comparison)
+    outputs.write_report(out, comparison, f"c2n campaign — {args.manifest.name}")
+    cached = sum(1 for row in rows if row.get("cached"))
+    console.print(
+        f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "
+        f"{frames:,} frames analysed); results in {out}"
+    )
+    for name, pooled in comparison.groups.items():
+        low, high = pooled.ci95
+        console.print(
+            f"  {args.by or 'all'} {name}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
+            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f})"
+        )
+    for d in comparison.differences:
+        console.print(f"  {d.a} − {d.b}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad")
+    errors = error_console()
+    for log, error in comparison.failed:
+        errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)
+    if comparison.failed:
+        errors.print(
+            f"c2n: {len(comparison.failed)} of {len(rows)} sessions failed (see report.html)", markup=False
+        )
+    return 0

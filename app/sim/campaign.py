@@ -1,0 +1,108 @@
+"""A simulated tyre programme to try ``c2n campaign`` on: N drives of a few tyre sets.
+
+Each tyre set has a true C2n and a pressure; each drive is on a day, and a day moves each set's
+C2n a little (temperature, wear: ``DAY_SCATTER``), so the sessions of one set disagree by more
+than their own intervals — what a random-effects comparison is for. The drives are speed sweeps
+on two circles in both directions (``c2n simulate --scenario radii``: two radii let the fit tell
+tyre softening from the sensor position), written as BLF logs beside a ``manifest.csv``; the
+truth is sealed in ``sealed/truth.json``.
+"""
+
+import csv
+import io
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from app.config import DEFAULT_CONFIG, load_config
+from app.errors import C2nError, OutputError
+from app.sim.pack import write_log
+from app.sim.session import DriveOptions, simulate_drive
+from app.sinks.files import write_atomically, write_json
+
+# tyre set -> (true C2n [1/rad], pressure [kPa]): stiffer with pressure, as tyres are
+TYRE_SETS: dict[str, tuple[float, float]] = {"A": (13.8, 200.0), "B": (14.9, 230.0), "C": (16.1, 260.0)}
+DAY_SCATTER = 0.012  # σ of a session's C2n about its set's, relative
+DAYS = 4
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    name: str
+    tyre_set: str
+    pressure_kpa: float
+    day: int
+    seed: int
+    c2n: float
+
+
+def plan_campaign(n: int, seed: int) -> list[SessionSpec]:
+    rng = np.random.default_rng(seed)
+    sets = list(TYRE_SETS)
+    specs = []
+    for i in range(n):
+        tyre_set = sets[i % len(sets)]
+        nominal, pressure = TYRE_SETS[tyre_set]
+        day = 1 + (i // len(sets)) % DAYS
+        c2n = nominal * (1 + DAY_SCATTER * float(rng.standard_normal()))
+        specs.append(SessionSpec(f"s{i + 1:03d}", tyre_set, pressure, day, seed * 1000 + i, c2n))
+    return specs
+
+
+def write_campaign(
+    out: Path,
+    n: int,
+    seed: int,
+    config_path: Path = DEFAULT_CONFIG,
+    workers: int | None = None,
+    on_session: Callable[[SessionSpec, float], None] | None = None,
+    sensor: dict[str, Any] | None = None,
+) -> Path:
+    """Write the drives, ``manifest.csv`` and ``sealed/truth.json`` into ``out`` (new or empty);
+    returns the manifest's path."""
+    if n < 1:
+        raise C2nError(f"a campaign needs at least one session, not {n}")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise OutputError(f"{out}: exists and is not an empty folder — choose a new one")
+    load_config(config_path)  # a bad config fails here, once
+    specs = plan_campaign(n, seed)
+    (out / "logs").mkdir(parents=True, exist_ok=True)
+    jobs = [(Path(config_path), out / "logs" / f"{spec.name}.blf", spec, sensor or {}) for spec in specs]
+    with ProcessPoolExecutor(max_workers=max(1, min(workers or os.cpu_count() or 1, n))) as pool:
+        futures = {pool.submit(_write_session, *job): job[2] for job in jobs}
+        for future in as_completed(futures):
+            elapsed = future.result()
+            if on_session:
+                on_session(futures[future], elapsed)
+    manifest = out / "manifest.csv"
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(["log", "tyre_set", "pressure_kPa", "day"])
+    for spec in specs:
+        writer.writerow([f"logs/{spec.name}.blf", spec.tyre_set, f"{spec.pressure_kpa:g}", spec.day])
+    write_atomically(manifest, lambda tmp: tmp.write_text(text.getvalue(), encoding="utf-8"), "the manifest")
+    truth = {
+        "seed": seed,
+        "tyre_sets": {name: {"c2n": c2n, "pressure_kPa": p} for name, (c2n, p) in TYRE_SETS.items()},
+        "day_scatter": DAY_SCATTER,
+        "sessions": {
+            f"logs/{s.name}.blf": {"tyre_set": s.tyre_set, "day": s.day, "c2n": s.c2n} for s in specs
+        },
+    }
+    (out / "sealed").mkdir(exist_ok=True)
+    write_json(out / "sealed" / "truth.json", truth, "the sealed truth")
+    return manifest
+
+
+def _write_session(config_path: Path, log: Path, spec: SessionSpec, sensor: dict[str, Any]) -> float:
+    start = time.perf_counter()
+    options = DriveOptions(scenario="radii", seed=spec.seed, c2n=spec.c2n, sensor=sensor)
+    drive = simulate_drive(load_config(config_path), options)
+    write_log(drive.messages, log)  # the truth goes under sealed/, not beside the log
+    return time.perf_counter() - start

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     formats = tuple(args.format or FORMATS)
     export.need_writers(formats)  # before the drive is read: a missing extra is said at once
     if not args.no_plots:
-        need("matplotlib", "the plots and the report (or --no-plots)", export.EXTRA)
+        need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     log, config, out = _inputs(args)
     pipeline = Pipeline(config)
     source = LogSource([log], triage=pipeline.decoder)

@@ -31,7 +31,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.gap.measured import measure
 
     if args.report:
-        need("matplotlib", "c2n gap --report", "export")  # its residual maps
+        need("matplotlib", "drawing the residual maps of --report", "export")
     config = load_config(args.config)
     with console.status("reading the drive…"):
         measured = measure(args.logs, config)

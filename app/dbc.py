@@ -6,8 +6,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import cantools
-
 from app.errors import DbcError, one_line
 
 log = logging.getLogger(__name__)
@@ -32,6 +30,8 @@ def load_dbc(path: Path, channel: ChannelSpec | None = None) -> Dbc:
     Real-world DBCs often have overlapping signals; those load with ``strict=False`` and a
     warning, as long as cantools can read them at all.
     """
+    import cantools  # here, not at the top: it imports python-can, and `c2n --help` needs neither
+
     if not path.is_file():
         raise DbcError(f"{path}: DBC file not found — check [dbc] files in the config")
     try:

@@ -5,6 +5,8 @@ the file and the fix in the message, so the CLI can print one line and exit 1 (2
 UsageError). They are raised ``from`` the library's error, so ``--debug`` shows the cause.
 """
 
+import importlib
+
 
 class C2nError(Exception):
     """A user-facing error: its message is one line naming the file or field and the fix."""
@@ -36,6 +38,21 @@ class UsageError(C2nError):
 
 class NoResultError(C2nError):
     """The input was read but cannot give a C2n (e.g. a required role had no frames)."""
+
+
+class MissingLibraryError(C2nError):
+    """A library of an optional extra is not installed; the message names the extra that brings it."""
+
+
+def need(library: str, purpose: str, extra: str, otherwise: str = "") -> None:
+    """Import ``library`` now, or say in one line what wants it and how to install it:
+    ``reading .mf4 logs needs asammdf: pip install 'c2n[mf4]'`` (then ``otherwise``)."""
+    try:
+        importlib.import_module(library)
+    except ModuleNotFoundError as error:
+        raise MissingLibraryError(
+            f"{purpose} needs {library}: pip install 'c2n[{extra}]'{otherwise}"
+        ) from error
 
 
 def one_line(error: BaseException, limit: int = 200) -> str:

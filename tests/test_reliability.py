@@ -531,7 +531,7 @@ def test_bus_off_is_announced_shown_recorded_and_measuring_resumes(
             super().__init__(*args, **kwargs)
             dashboards.append(self)
 
-    monkeypatch.setattr(live_command, "Dashboard", SeenDashboard)
+    monkeypatch.setattr("app.sinks.dashboard.Dashboard", SeenDashboard)  # live imports it when it runs
 
     def drive_the_car() -> None:
         wait_until(lambda: any(record.glob("20*/frames.log")), "the session to start")

@@ -11,17 +11,21 @@
    only iterates python-can's reader over the same file;
 5. memory: peak RSS of a 10-minute and an 8-hour session (accelerated, each in its own process);
    and the compiled motion filter against the reference on filterpy's KalmanFilter, and what each
-   stage costs a frame (``parts``).
+   stage costs a frame (``parts``);
+6. startup: wall time and peak RSS of ``c2n --help`` and ``c2n analyze --help``, each in a fresh
+   process, and what an install of c2n weighs, alone and with each extra: the files of every
+   distribution it needs, from this venv's records (``startup``).
 
 The mix: the optical sensor at 250 Hz (three messages), the vehicle messages at their cycle
 times, and 96 background ids at about 81 Hz each, 9,009 frames/s in all.
 
-    python tools/bench.py [--runs 5] [--only kernel,parts,live,cpu,offline,memory] [--hours 8]
+    python tools/bench.py [--runs 5] [--only kernel,parts,live,cpu,offline,memory,startup] [--hours 8]
 """
 
 import argparse
 import contextlib
 import io
+import json
 import os
 import pty
 import resource
@@ -32,11 +36,14 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import can
 import numpy as np
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
 from rich.console import Console
 
 from app.cli import main as c2n
@@ -279,6 +286,68 @@ def memory(seconds: float) -> tuple[int, float]:
     return int(out[0]), float(out[1])
 
 
+# -- 6. startup -------------------------------------------------------------------------------------
+
+C2N = Path(sys.executable).with_name("c2n")
+
+
+# Started from a small process: a child's peak RSS counts the pages of the process that spawned
+# it (Linux keeps the high-water mark across exec), and this benchmark's are ~240 MiB.
+_TIMER = """
+import json, os, sys, time
+argv, runs = json.loads(sys.argv[1]), int(sys.argv[2])
+null = os.open(os.devnull, os.O_WRONLY)
+actions = [(os.POSIX_SPAWN_DUP2, null, 1), (os.POSIX_SPAWN_DUP2, null, 2)]
+out = []
+for _ in range(runs):
+    start = time.perf_counter()
+    pid = os.posix_spawn(argv[0], argv, os.environ, file_actions=actions)
+    _, status, usage = os.wait4(pid, 0)
+    out.append((time.perf_counter() - start, usage.ru_maxrss / 1024, os.waitstatus_to_exitcode(status)))
+print(json.dumps(out))
+"""
+
+
+def startup(argv: list[str], runs: int) -> list[tuple[float, float]]:
+    """Wall time (s) and peak RSS (MiB) of ``runs`` fresh ``c2n`` processes, one after another."""
+    timer = [sys.executable, "-c", _TIMER, json.dumps(argv), str(runs)]
+    child = subprocess.run(timer, capture_output=True, text=True, check=True)
+    results = json.loads(child.stdout)
+    assert all(code == 0 for _, _, code in results), f"{argv}: {results}"
+    return [(wall, rss) for wall, rss, _ in results]
+
+
+def _installed_mb(name: str) -> float:
+    files = metadata.distribution(name).files or []
+    paths = (Path(str(f.locate())) for f in files)
+    return sum(p.stat().st_size for p in paths if p.is_file()) / 1e6
+
+
+def _closure(name: str, extras: frozenset[str] = frozenset()) -> set[str]:
+    """The installed distributions ``name[extras]`` needs, itself included (normalised names)."""
+    need, todo = set(), [(name, extras)]
+    while todo:
+        dist, wanted = todo.pop()
+        key = canonicalize_name(dist)
+        if (key, wanted) in need:
+            continue
+        need.add((key, wanted))
+        for text in metadata.requires(dist) or []:
+            req = Requirement(text)
+            if req.marker is None or any(req.marker.evaluate({"extra": e}) for e in {"", *wanted}):
+                todo.append((req.name, frozenset(req.extras)))
+    return {key for key, _ in need}
+
+
+def install_sizes() -> dict[str, float]:
+    """MB installed for c2n alone and with each extra, from this venv's package records."""
+    extras = metadata.metadata("c2n").get_all("Provides-Extra") or []
+    sizes = {}
+    for label, wanted in [("core", frozenset()), *((e, frozenset({e})) for e in extras)]:
+        sizes[label] = sum(_installed_mb(n) for n in _closure("c2n", wanted))
+    return sizes
+
+
 # -- the motion filter -------------------------------------------------------------------------------
 
 
@@ -364,7 +433,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--runs", type=int, default=5)
-    parser.add_argument("--only", default="kernel,parts,live,cpu,offline,memory")
+    parser.add_argument("--only", default="kernel,parts,live,cpu,offline,memory,startup")
     parser.add_argument("--hours", type=float, default=8.0, help="the long session's length")
     parser.add_argument("--session-memory", type=float, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -426,6 +495,15 @@ def main() -> None:
         print(f"5. peak RSS, 10 min          {short:.1f} MiB ({short_frames:,} frames)")
         print(f"   peak RSS, {args.hours:g} h            {long:.1f} MiB ({long_frames:,} frames)")
         print(f"   growth                    {100 * (long / short - 1):+.1f} %  (goal within 10 %)")
+    if "startup" in only:
+        for argv in ([str(C2N), "--help"], [str(C2N), "analyze", "--help"]):
+            runs = startup(argv, max(args.runs, 3))
+            shown = " ".join(["c2n", *argv[1:]])
+            print(f"6. {shown:26s}{summary([r[0] for r in runs], 's', digits=2)}")
+            print(f"   {'peak RSS':26s}{summary([r[1] for r in runs], 'MiB', digits=0)}")
+        for label, size in install_sizes().items():
+            name = "c2n" if label == "core" else f"c2n[{label}]"
+            print(f"   installed, {name:19s}{size:,.0f} MB")
 
 
 if __name__ == "__main__":

@@ -54,10 +54,8 @@ def local_workers(n: int) -> Iterator[cf.Executor]:
 @contextmanager
 def dask_workers(address: str) -> Iterator[cf.Executor]:
     """The workers of a Dask distributed cluster (``distributed.Client(address)``)."""
-    try:
-        from distributed import Client
-    except ImportError:
-        raise C2nError("--scheduler needs Dask: pip install 'c2n[dask]'") from None
+    from distributed import Client  # the command checked it is there (app.errors.need)
+
     try:
         client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError) as error:

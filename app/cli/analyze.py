@@ -8,12 +8,6 @@ from rich.console import Console
 from app.cli.common import add_config, error_console
 from app.config import load_config
 from app.errors import NoResultError, printable
-from app.pipeline import Pipeline
-from app.run_loop import run as run_pipeline
-from app.sinks import summary
-from app.sinks.event_printer import EventPrinter, print_result
-from app.sinks.progress import ReadProgress
-from app.sources.logs import LogSource
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -31,6 +25,14 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    # loaded when the command runs, not at import: `c2n --help` needs none of them
+    from app.pipeline import Pipeline
+    from app.run_loop import run as run_pipeline
+    from app.sinks import summary
+    from app.sinks.event_printer import EventPrinter, print_result
+    from app.sinks.progress import ReadProgress
+    from app.sources.logs import LogSource
+
     config = load_config(args.config)
     pipeline = Pipeline(config)
     source = LogSource(args.logs, merge=args.merge, triage=pipeline.decoder)

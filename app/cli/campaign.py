@@ -15,7 +15,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 from app.cli.common import error_console, number
-from app.errors import UsageError, printable
+from app.errors import UsageError, need, printable
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -54,6 +54,11 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.campaign import outputs, work
     from app.campaign.manifest import read_manifest
+
+    need("pyarrow", "c2n campaign (results.parquet)", "export")
+    need("matplotlib", "c2n campaign (report.html's plots)", "export")
+    if args.scheduler:
+        need("distributed", "c2n campaign --scheduler", "dask")
 
     manifest = read_manifest(args.manifest)
     if args.by is not None and args.by not in manifest.tag_names:

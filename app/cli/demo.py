@@ -9,24 +9,21 @@ import threading
 import uuid
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
-import can
 from rich.console import Console
 from rich.text import Text
 
 from app.cli.common import add_config, number
 from app.config import Config, load_config
 from app.errors import C2nError
-from app.pipeline import Pipeline
-from app.run_loop import run as run_pipeline
 from app.sim.scenarios import SCENARIOS
-from app.sim.session import DriveOptions, SimulatedDrive, describe, simulate_drive, write_drive
 from app.sinks import files
-from app.sinks.dashboard import Dashboard
-from app.sinks.event_printer import EventPrinter, print_result
-from app.sources.buses import BusSource
-from app.sources.logs import LogReport, read_log
-from app.sources.playback import paced
+
+if TYPE_CHECKING:
+    import can
+
+    from app.sim.session import SimulatedDrive
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -50,7 +47,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 class Player(threading.Thread):
     """Sends a log onto a bus in compressed recorded time; sets ``finished`` when done."""
 
-    def __init__(self, log: Path, bus: can.BusABC, rate: float, stop: threading.Event) -> None:
+    def __init__(self, log: Path, bus: "can.BusABC", rate: float, stop: threading.Event) -> None:
         super().__init__(name="c2n-player", daemon=True)
         self.log, self.bus, self.rate, self.stop = log, bus, rate, stop
         self.finished = threading.Event()
@@ -58,6 +55,9 @@ class Player(threading.Thread):
         self.sent = 0
 
     def run(self) -> None:
+        from app.sources.logs import LogReport, read_log
+        from app.sources.playback import paced
+
         try:
             for msg in paced(read_log(self.log, LogReport(self.log)), self.rate):
                 if self.stop.is_set():
@@ -71,6 +71,9 @@ class Player(threading.Thread):
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    # loaded when the command runs, not at import: `c2n --help` needs none of them
+    from app.sim.session import DriveOptions, describe, simulate_drive
+
     config = load_config(args.config)
     console.print(f"c2n demo: simulating a {args.scenario} drive (seed {args.seed})…", style="dim")
     drive = simulate_drive(config, DriveOptions(scenario=args.scenario, seed=args.seed))
@@ -98,8 +101,17 @@ def remove_stale(root: Path | None = None) -> list[Path]:
 
 
 def _replay(
-    args: argparse.Namespace, console: Console, config: Config, drive: SimulatedDrive, channel: str
+    args: argparse.Namespace, console: Console, config: Config, drive: "SimulatedDrive", channel: str
 ) -> int:
+    import can
+
+    from app.pipeline import Pipeline
+    from app.run_loop import run as run_pipeline
+    from app.sim.session import write_drive
+    from app.sinks.dashboard import Dashboard
+    from app.sinks.event_printer import EventPrinter, print_result
+    from app.sources.buses import BusSource
+
     truth = drive.truth
     with tempfile.TemporaryDirectory(prefix=f"{TEMP_PREFIX}{os.getpid()}-") as tmp:
         log = Path(tmp) / "demo-drive.blf"

@@ -8,17 +8,8 @@ from rich.console import Console
 
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
-from app.errors import printable
-from app.pipeline import Pipeline
-from app.run_loop import run as run_pipeline
-from app.sinks import events_csv as events
-from app.sinks import summary
-from app.sinks.event_printer import EventPrinter, print_result
+from app.errors import need, printable
 from app.sinks.files import folder_atomically
-from app.sinks.progress import ReadProgress
-from app.sinks.recorder import read_session
-from app.sinks.trace import TraceRecorder
-from app.sources.logs import LogSource
 
 FORMATS = ("csv", "parquet", "mf4")  # app.sinks.channels.FORMATS; pyarrow and asammdf load only when used
 
@@ -52,6 +43,8 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 def _inputs(args: argparse.Namespace) -> tuple[Path, Config, Path]:
     """The log, the config and the output folder."""
+    from app.sinks.recorder import read_session
+
     path: Path = args.input
     if path.is_dir():
         log, copy = read_session(path)
@@ -71,8 +64,21 @@ def _ours(name: str) -> bool:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    # loaded when the command runs, not at import: `c2n --help` needs none of them
+    from app.pipeline import Pipeline
+    from app.run_loop import run as run_pipeline
     from app.sinks import channels as export
+    from app.sinks import events_csv as events
+    from app.sinks import summary
+    from app.sinks.event_printer import EventPrinter, print_result
+    from app.sinks.progress import ReadProgress
+    from app.sinks.trace import TraceRecorder
+    from app.sources.logs import LogSource
 
+    formats = tuple(args.format or FORMATS)
+    export.need_writers(formats)  # before the drive is read: a missing extra is said at once
+    if not args.no_plots:
+        need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     log, config, out = _inputs(args)
     pipeline = Pipeline(config)
     source = LogSource([log], triage=pipeline.decoder)
@@ -92,7 +98,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     result = summary.build(snapshot, config, [str(log)], source.reports)
     written: list[Path] = []
     with console.status("writing the exports…"), folder_atomically(out, _ours, "c2n export") as staging:
-        for fmt in args.format or FORMATS:
+        for fmt in formats:
             path = staging / f"channels.{fmt}"
             export.write(trace, fmt, path)
             written.append(path)

@@ -9,6 +9,7 @@ from rich.console import Console
 
 from app.cli.common import add_config
 from app.config import load_config
+from app.errors import need
 from app.gap.result import GapResult
 from app.sinks.files import write_json
 
@@ -29,6 +30,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.gap.diagnose import diagnose
     from app.gap.measured import measure
 
+    if args.report:
+        need("matplotlib", "drawing the residual maps of --report", "export")
     config = load_config(args.config)
     with console.status("reading the drive…"):
         measured = measure(args.logs, config)

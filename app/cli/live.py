@@ -8,24 +8,21 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import can
 from rich.console import Console
 from rich.text import Text
 
 from app.cli.common import add_bus, add_config, bus_kwargs, channels, error_console, number
 from app.config import load_config
 from app.errors import OutputError, printable
-from app.pipeline import Pipeline
-from app.run_loop import run as run_pipeline
-from app.sinks import summary
-from app.sinks.dashboard import Dashboard
-from app.sinks.event_printer import EventPrinter, print_result
-from app.sinks.recorder import RAW_FORMATS, SessionRecorder
-from app.sinks.sink import Sink
-from app.sources.buses import Backoff, BusSource, open_buses
-from app.sources.playback import drive_time
+
+if TYPE_CHECKING:
+    import can
+
+    from app.sources.buses import Backoff
+
+RAW_FORMATS = (".log", ".asc", ".blf")  # app.sinks.recorder.RAW_FORMATS, named here for `--help`
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -75,22 +72,35 @@ def session_folder(parent: Path) -> Path:
     return folder
 
 
-OpenBuses = Callable[..., list[can.BusABC]]
+OpenBuses = Callable[..., list["can.BusABC"]]
 
 
 def run(
     args: argparse.Namespace,
     console: Console,
-    open_bus: OpenBuses = open_buses,
-    backoff: Backoff | None = None,
+    open_bus: OpenBuses | None = None,
+    backoff: "Backoff | None" = None,
     clock: Callable[[], float] = time.monotonic,
 ) -> int:
-    """The session. A bus that goes away is reopened with ``open_bus`` after ``backoff`` delays
-    (default 0.5 s doubling to 5 s, on ``clock``) while the recording and the pipeline carry on."""
+    """The session. A bus that goes away is reopened with ``open_bus`` (default
+    ``app.sources.buses.open_buses``) after ``backoff`` delays (default 0.5 s doubling to 5 s, on
+    ``clock``) while the recording and the pipeline carry on."""
+    # loaded when the command runs, not at import: `c2n --help` needs none of them
+    from app.pipeline import Pipeline
+    from app.run_loop import run as run_pipeline
+    from app.sinks import summary
+    from app.sinks.dashboard import Dashboard
+    from app.sinks.event_printer import EventPrinter, print_result
+    from app.sinks.recorder import SessionRecorder
+    from app.sinks.sink import Sink
+    from app.sources.buses import Backoff, BusSource, open_buses
+    from app.sources.playback import drive_time
+
+    opener: OpenBuses = open_bus or open_buses
     config = load_config(args.config)
     wanted: Sequence[str | int | None] = channels(args)
     options: dict[str, Any] = bus_kwargs(args)
-    buses = open_bus(args.interface, wanted, args.bitrate, **options)
+    buses = opener(args.interface, wanted, args.bitrate, **options)
     title = ", ".join(str(bus.channel_info) for bus in buses)
     pipeline = Pipeline(config)
     recorder = (
@@ -107,8 +117,8 @@ def run(
             f"frame times stretched ×{args.rate:g}: the bus carries a replay at that rate", style="dim"
         )
 
-    def reopen(index: int) -> can.BusABC:
-        return open_bus(args.interface, [wanted[index]], args.bitrate, **options)[0]
+    def reopen(index: int) -> "can.BusABC":
+        return opener(args.interface, [wanted[index]], args.bitrate, **options)[0]
 
     def bus_changed(text: str) -> None:
         console.print(Text(f"c2n: {text}", style="bold yellow"), soft_wrap=True)

@@ -3,15 +3,15 @@
 import argparse
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import can
 from rich.console import Console
 
 from app.cli.common import add_bus, bus_kwargs, channels, number
 from app.errors import BusError, C2nError, printable
-from app.sources.buses import open_buses
-from app.sources.logs import LogReport, open_log, read_log
-from app.sources.playback import looped, paced
+
+if TYPE_CHECKING:
+    import can
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +53,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 class Router:
     """Which bus each of the log's channels goes to."""
 
-    def __init__(self, buses: list[can.BusABC], names: list[str | int | None], mapping: list[str]) -> None:
+    def __init__(self, buses: list["can.BusABC"], names: list[str | int | None], mapping: list[str]) -> None:
         self.buses = buses
         self.by_name = {str(name): bus for name, bus in zip(names, buses, strict=True)}
         self.routes: dict[str, can.BusABC] = {}
@@ -65,7 +65,7 @@ class Router:
                 )
             self.routes[source] = self.by_name[target]
 
-    def bus_for(self, msg: can.Message) -> can.BusABC:
+    def bus_for(self, msg: "can.Message") -> "can.BusABC":
         key = str(msg.channel)
         bus = self.routes.get(key)
         if bus is None:
@@ -76,6 +76,13 @@ class Router:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    # loaded when the command runs, not at import: `c2n --help` needs none of them
+    import can
+
+    from app.sources.buses import open_buses
+    from app.sources.logs import LogReport, open_log, read_log
+    from app.sources.playback import looped, paced
+
     reader = open_log(args.log)  # a missing or unknown file fails before the bus opens
     getattr(reader, "stop", lambda: None)()
     names = channels(args)

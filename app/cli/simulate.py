@@ -7,6 +7,7 @@ each with a random effect, as a blind pack whose truth is sealed in DIR/sealed/.
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -15,11 +16,11 @@ from app.cli.common import add_config, number
 from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
 from app.errors import C2nError
 from app.sim.effects import EFFECT_NAMES, EFFECTS, Effect
-from app.sim.imperfections import NO_IMPERFECTIONS, of_session
-from app.sim.pack import CaseResult, write_pack
 from app.sim.scenarios import SCENARIOS
-from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
-from app.sim.standard import QUICK_PLAN, STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
+
+if TYPE_CHECKING:
+    from app.sim.pack import CaseResult
+    from app.sim.standard import StandardPlan
 
 SESSIONS = ("standard",)
 # options of the bicycle-model path, with their defaults: sessions take effects instead
@@ -191,6 +192,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
         raise C2nError(
             "--effect, --effect-size, --quick, --realistic and --ideal need --session standard or --pack N"
         )
+    from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
+
     args.scenario = args.scenario or "constant_radius"
     config = load_config(args.config)
     sensor: dict[str, object] = {
@@ -237,11 +240,17 @@ def _check_session_options(args: argparse.Namespace) -> None:
         raise C2nError("--effect-size needs --effect NAME")
 
 
-def _plan(args: argparse.Namespace) -> StandardPlan:
+def _plan(args: argparse.Namespace) -> "StandardPlan":
+    from app.sim.standard import QUICK_PLAN, STANDARD_PLAN
+
     return QUICK_PLAN if args.quick else STANDARD_PLAN
 
 
 def _run_session(args: argparse.Namespace, console: Console) -> int:
+    from app.sim.imperfections import NO_IMPERFECTIONS, of_session
+    from app.sim.session import describe, write_drive
+    from app.sim.standard import StandardOptions, simulate_standard
+
     config = load_config(args.config)
     effect = Effect.of(args.effect or "none", 0.0 if args.effect in (None, "none") else args.effect_size)
     sensor: dict[str, object] = {"sigma_velocity_mps": args.noise}
@@ -269,6 +278,8 @@ def _run_session(args: argparse.Namespace, console: Console) -> int:
 
 
 def _run_pack(args: argparse.Namespace, console: Console) -> int:
+    from app.sim.pack import write_pack
+
     if args.pack < 1:
         raise C2nError(f"--pack needs at least one case, not {args.pack}")
     out = args.out or Path(f"pack-seed{args.seed}")
@@ -282,7 +293,7 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
     )
     task = progress.add_task("simulating", total=args.pack)
 
-    def done(case: CaseResult) -> None:
+    def done(case: "CaseResult") -> None:
         # nothing about the effect: whoever makes the pack stays blind too
         progress.console.print(
             f"{out / case.name}: {case.duration_s:.0f} s of driving, {case.frames:,} frames "

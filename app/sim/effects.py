@@ -19,13 +19,15 @@ quantisation stay on in every case.
 
 import math
 from dataclasses import dataclass, replace
-from typing import Literal
-
-import numpy as np
+from typing import TYPE_CHECKING, Literal
 
 from app.errors import C2nError
-from app.sim.sensors import SensorSetup
-from app.sim.two_track import TwoTrackParams
+
+if TYPE_CHECKING:  # annotations only: `c2n simulate --help` lists the effects without the simulator
+    import numpy as np
+
+    from app.sim.sensors import SensorSetup
+    from app.sim.two_track import TwoTrackParams
 
 
 @dataclass(frozen=True)
@@ -182,7 +184,7 @@ class Effect:
 NO_EFFECT = Effect()
 
 
-def draw_effect(rng: np.random.Generator, names: tuple[str, ...] = EFFECT_NAMES) -> Effect:
+def draw_effect(rng: "np.random.Generator", names: tuple[str, ...] = EFFECT_NAMES) -> Effect:
     """One effect of ``names``, each (none too) equally likely; magnitude uniform in its range, sign
     random."""
     spec = EFFECTS[names[int(rng.integers(len(names)))]]
@@ -191,7 +193,7 @@ def draw_effect(rng: np.random.Generator, names: tuple[str, ...] = EFFECT_NAMES)
     return Effect(spec.name, (sign if spec.signed else 1.0) * magnitude, spec.unit)
 
 
-def apply_to_vehicle(effect: Effect, params: TwoTrackParams) -> TwoTrackParams:
+def apply_to_vehicle(effect: Effect, params: "TwoTrackParams") -> "TwoTrackParams":
     """The car and road with the effect (unchanged for a sensor effect or none)."""
     size = effect.size
     match effect.name:
@@ -211,7 +213,7 @@ def apply_to_vehicle(effect: Effect, params: TwoTrackParams) -> TwoTrackParams:
     return params
 
 
-def apply_to_sensor(effect: Effect, setup: SensorSetup) -> SensorSetup:
+def apply_to_sensor(effect: Effect, setup: "SensorSetup") -> "SensorSetup":
     """The sensors with the effect (unchanged for a vehicle or road effect or none)."""
     size = effect.size
     match effect.name:

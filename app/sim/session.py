@@ -10,7 +10,7 @@ import numpy as np
 from app import paper
 from app.config import Config
 from app.dbc import load_dbc
-from app.errors import C2nError, LogFileError, OutputError
+from app.errors import C2nError, LogFileError, OutputError, need
 from app.sim.drive import DriveTrace, simulate
 from app.sim.scenarios import SCENARIOS, SweepPlan
 from app.sim.sensors import SensorSetup, frames
@@ -98,6 +98,8 @@ def write_drive(drive: SimulatedDrive, log: Path) -> Path:
     """Write the frames to ``log`` (format by suffix) and the truth beside it; returns the truth path."""
     if log.suffix.lower() not in LOG_SUFFIXES:
         raise LogFileError(f"{log}: unknown log format '{log.suffix}' — use one of {', '.join(LOG_SUFFIXES)}")
+    if log.suffix.lower() == ".mf4":
+        need("asammdf", "writing .mf4 logs", "mf4")  # python-can's MF4Writer
     log.parent.mkdir(parents=True, exist_ok=True)
     try:
         with can.Logger(log) as writer:

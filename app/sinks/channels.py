@@ -4,24 +4,33 @@ DIAdem).
 
 CSV and Parquet are written with pyarrow (fast, columnar; NaN becomes an empty cell / null), MF4
 with asammdf: one channel group on the trace's time base, each channel named, unit-tagged and
-commented.
+commented. Both are optional extras (``LIBRARIES``), imported when a file is written.
 """
 
 import datetime
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.csv
-import pyarrow.parquet
 
 from app import __version__
+from app.errors import need
 from app.sinks.files import write_atomically
 from app.sinks.trace import TIME, Trace
 
 FORMATS = ("csv", "parquet", "mf4")
+# the library each format is written with (the extra EXTRA installs them), and the format's name
+LIBRARIES = {"csv": ("pyarrow", "CSV"), "parquet": ("pyarrow", "Parquet"), "mf4": ("asammdf", "MF4")}
+EXTRA = "export"
+
+
+def need_writers(formats: tuple[str, ...]) -> None:
+    """The libraries of these formats, or one line saying how to install the one missing."""
+    for fmt in formats:
+        library, name = LIBRARIES[fmt]
+        need(library, f"writing {name} channels", EXTRA)
 
 
 def csv_header(name: str, unit: str) -> str:
@@ -29,7 +38,10 @@ def csv_header(name: str, unit: str) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
-def _table(trace: Trace, names: Callable[[str, str], str]) -> pa.Table:
+def _table(trace: Trace, names: Callable[[str, str], str]) -> Any:
+    """A pyarrow Table of the trace's columns."""
+    import pyarrow as pa
+
     arrays = [pa.array(trace[c.name], type=pa.float64(), from_pandas=True) for c in trace.channels]
     fields = [
         pa.field(
@@ -44,11 +56,15 @@ def _table(trace: Trace, names: Callable[[str, str], str]) -> pa.Table:
 
 
 def write_csv(trace: Trace, path: Path) -> None:
+    import pyarrow.csv
+
     pyarrow.csv.write_csv(_table(trace, csv_header), str(path))
 
 
 def write_parquet(trace: Trace, path: Path) -> None:
     """Column names without units; each field's metadata holds ``unit`` and ``description``."""
+    import pyarrow.parquet
+
     pyarrow.parquet.write_table(_table(trace, lambda name, unit: name), str(path), compression="zstd")
 
 
@@ -85,4 +101,5 @@ WRITERS: dict[str, Callable[[Trace, Path], None]] = {
 
 def write(trace: Trace, fmt: str, path: Path) -> None:
     """Write atomically (``app.sinks.files``), translating OS errors."""
+    need_writers((fmt,))
     write_atomically(path, partial(WRITERS[fmt], trace), f"the {fmt.upper()} channels")

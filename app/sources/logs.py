@@ -21,10 +21,9 @@ from typing import Any, Literal, cast, overload
 
 import can
 
-from app.errors import LogFileError, one_line
+from app.errors import LogFileError, need, one_line
 from app.sources.blf_bulk import TriagedBLFReader
 from app.sources.blocks import FrameBlock
-from app.sources.mf4_bulk import TriagedMF4Reader, holds_frames
 from app.sources.triage import NotInBulk, Triage
 
 log = logging.getLogger(__name__)
@@ -63,7 +62,8 @@ def _size(path: Path) -> int:
 
 
 def _format(path: Path) -> str:
-    """The log's suffix (the one before .gz), after the checks every log passes."""
+    """The log's suffix (the one before .gz), after the checks every log passes (and the
+    library its format needs: asammdf for MF4, an optional extra)."""
     if not path.exists():
         raise LogFileError(f"{path}: no such file")
     if path.is_dir():
@@ -76,6 +76,8 @@ def _format(path: Path) -> str:
     )
     if path.stat().st_size == 0:
         raise LogFileError(f"{path}: the file is empty")
+    if real == ".mf4":
+        need("asammdf", "reading .mf4 logs", "mf4")
     return real
 
 
@@ -223,8 +225,19 @@ def read_log(
 
 
 _BulkReader = Callable[[Path, Triage, Callable[[int], None]], Iterable[can.Message | FrameBlock]]
-_BULK_READERS: dict[str, _BulkReader] = {".blf": TriagedBLFReader, ".mf4": TriagedMF4Reader}
-_BLOCK_READERS: dict[str, _BulkReader] = {".mf4": partial(TriagedMF4Reader, blocks=True)}
+
+
+def _triaged_mf4(
+    path: Path, triage: Triage, skipped: Callable[[int], None], blocks: bool = False
+) -> Iterable[can.Message | FrameBlock]:
+    _format(path)  # asammdf, or the line that says how to install it
+    from app.sources.mf4_bulk import TriagedMF4Reader
+
+    return TriagedMF4Reader(path, triage, skipped, blocks=blocks)
+
+
+_BULK_READERS: dict[str, _BulkReader] = {".blf": TriagedBLFReader, ".mf4": _triaged_mf4}
+_BLOCK_READERS: dict[str, _BulkReader] = {".mf4": partial(_triaged_mf4, blocks=True)}
 
 
 def _bulk_reader(
@@ -305,6 +318,8 @@ def check_readable(path: Path) -> None:
 
 def _check_mf4(path: Path) -> None:
     """check_readable for MF4, without python-can's reader (``holds_frames`` says why)."""
+    from app.sources.mf4_bulk import holds_frames
+
     try:
         found = holds_frames(path)
     except Exception as error:

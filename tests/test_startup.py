@@ -1,0 +1,123 @@
+"""A quick start: ``c2n --help`` and every ``c2n <command> --help`` load no heavy library."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from app.cli import COMMANDS, main
+from tests.simulated import REPO
+
+# what the commands load when they run (numpy is light enough, but --help has no use for it either)
+HEAVY = ("asammdf", "pandas", "scipy", "numba", "pyarrow", "matplotlib", "filterpy", "cantools", "can")
+HEAVY += ("numpy", "threadpoolctl", "vehiclemodels")
+
+_CHILD = """
+import contextlib, io, json, sys
+from app.cli import main
+helps = [["--help"]] + [[name, "--help"] for name in sys.argv[1:]]
+with contextlib.redirect_stdout(io.StringIO()) as out:
+    codes = [main(argv) for argv in helps]
+print(json.dumps({"codes": codes, "chars": len(out.getvalue()), "modules": sorted(sys.modules)}))
+"""
+
+
+def command_names() -> list[str]:
+    return [command.__name__.rpartition(".")[2].replace("_", "-") for command in COMMANDS]
+
+
+def test_help_of_c2n_and_of_every_command_loads_no_heavy_library() -> None:
+    names = command_names()
+    child = subprocess.run(
+        [sys.executable, "-c", _CHILD, *names], capture_output=True, text=True, cwd=REPO, check=True
+    )
+    seen = json.loads(child.stdout)
+    assert seen["codes"] == [0] * (len(names) + 1), child.stderr
+    assert seen["chars"] > 200 * len(names)  # the help texts were printed
+    loaded = {name.partition(".")[0] for name in seen["modules"]}
+    assert sorted(loaded & set(HEAVY)) == []
+
+
+def test_the_choices_named_for_help_are_the_ones_the_writers_take() -> None:
+    from app.cli import export, live
+    from app.sinks import channels, recorder
+
+    assert live.RAW_FORMATS == recorder.RAW_FORMATS
+    assert export.FORMATS == channels.FORMATS
+
+
+# -- a lean install: the core without the extras ------------------------------------------------------
+
+EXTRAS = ("asammdf", "pandas", "pyarrow", "matplotlib", "filterpy", "vehiclemodels")  # not in c2n's core
+
+_LEAN_CHILD = """
+import sys
+for name in sys.argv[1].split(","):
+    sys.modules[name] = None  # as if not installed: importing it raises ModuleNotFoundError
+from app.cli import main
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+def test_analyze_of_a_blf_log_works_without_any_extra(drive_log: Path) -> None:
+    child = subprocess.run(
+        [sys.executable, "-c", _LEAN_CHILD, ",".join(EXTRAS), "analyze", str(drive_log)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
+    assert child.returncode == 0, child.stderr
+    assert "C2n" in child.stdout and "Traceback" not in child.stderr
+
+
+READING_MF4 = "reading .mf4 logs needs asammdf: pip install 'c2n[mf4]'"
+
+
+@pytest.mark.parametrize(
+    ("missing", "argv", "line"),
+    [
+        (
+            "asammdf",
+            ["analyze", "{dir}/drive.mf4"],
+            "reading .mf4 logs needs asammdf: pip install 'c2n[mf4]'",
+        ),
+        ("asammdf", ["replay", "{dir}/drive.mf4"], "reading .mf4 logs needs asammdf: pip install 'c2n[mf4]'"),
+        (
+            "asammdf",
+            ["simulate", "--out", "{dir}/sim.mf4"],
+            "writing .mf4 logs needs asammdf: pip install 'c2n[mf4]'",
+        ),
+        (
+            "pyarrow",
+            ["export", "{dir}/drive.blf", "--format", "parquet", "--no-plots"],
+            "writing Parquet channels needs pyarrow: pip install 'c2n[export]'",
+        ),
+        (
+            "matplotlib",
+            ["export", "{dir}/drive.blf", "--format", "csv"],
+            "drawing the plots needs matplotlib: pip install 'c2n[export]' (or --no-plots)",
+        ),
+        (
+            "matplotlib",
+            ["gap", "{dir}/drive.blf", "--report", "{dir}/gap.html"],
+            "drawing the residual maps of --report needs matplotlib: pip install 'c2n[export]'",
+        ),
+    ],
+)
+def test_a_command_that_needs_a_missing_extra_says_which_in_one_line(
+    missing: str,
+    argv: list[str],
+    line: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    for name in ("drive.mf4", "drive.blf"):
+        (tmp_path / name).write_bytes(b"not read: the library is missing first")
+    monkeypatch.setitem(sys.modules, missing, None)  # as if not installed
+    code = main([arg.replace("{dir}", str(tmp_path)) for arg in argv])
+    err = capsys.readouterr().err
+    assert (code, err) == (1, f"c2n: error: {line}\n")
+    assert not (tmp_path / "sim.mf4").exists() and not (tmp_path / "gap.html").exists()

@@ -10,7 +10,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 
 @dataclass(frozen=True)
@@ -39,7 +38,9 @@ class LineFit:
 
     @property
     def t95(self) -> float:
-        return float(stats.t.ppf(0.975, max(self.n_eff - 2.0, 1.0)))
+        from scipy.special import stdtrit  # the t quantile; imported at the first fit, not at the start
+
+        return float(stdtrit(max(self.n_eff - 2.0, 1.0), 0.975))
 
     def at(self, x: float) -> float:
         return self.a + self.b * (x - self.x_mean)

@@ -34,7 +34,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy import stats
 
 _TERMS = ("psi0", "d", "ay", "ay3")
 _K = len(_TERMS)
@@ -179,7 +178,9 @@ class SampleRegression:
         softens = cubic.coef[-1] * cubic.coef[cubic.terms.index(2)] > 0
         chosen = cubic if softens and abs(t3) > self.softening_t else linear
         terms = chosen.terms
-        q = float(stats.t.ppf(0.975, max(b - len(terms), 1)))
+        from scipy.special import stdtrit  # the t quantile; imported at the first fit, not at the start
+
+        q = float(stdtrit(max(b - len(terms), 1), 0.975))
 
         def ci(value: float, se: float) -> tuple[float, float]:
             return (value - q * se, value + q * se)

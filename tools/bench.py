@@ -14,12 +14,17 @@
    stage costs a frame (``parts``);
 6. startup: wall time and peak RSS of ``c2n --help`` and ``c2n analyze --help``, each in a fresh
    process, and what an install of c2n weighs, alone and with each extra: the files of every
-   distribution it needs, from this venv's records (``startup``).
+   distribution it needs, from this venv's records, and the launch-to-first-frame time of
+   ``c2n live`` (``startup``);
+7. campaign: ``c2n campaign`` on simulated drives: frames/s per worker on 1 and 2 local workers
+   against a lone analysis of the same files, the re-run with nothing changed, and the workers'
+   peak RSS (``campaign``, not in the default set: ``--only campaign``).
 
 The mix: the optical sensor at 250 Hz (three messages), the vehicle messages at their cycle
 times, and 96 background ids at about 81 Hz each, 9,009 frames/s in all.
 
     python tools/bench.py [--runs 5] [--only kernel,parts,live,cpu,offline,memory,startup] [--hours 8]
+    python tools/bench.py --only campaign [--campaign-sessions 8]
 """
 
 import argparse
@@ -470,6 +475,40 @@ def repeat(runs: int, fn: Callable[[], float]) -> list[float]:
     return [fn() for _ in range(runs)]
 
 
+# -- 7. campaign ------------------------------------------------------------------------------------
+
+
+def campaign_figures(sessions: int) -> dict[str, float]:
+    """One measurement of ``c2n campaign`` on ``sessions`` simulated drives: a lone analysis of
+    each file in this process, then the campaign on 1 and on 2 local workers (fresh each), and a
+    re-run with nothing changed; the children's peak RSS."""
+    from app.campaign import work
+    from app.campaign.manifest import read_manifest
+    from app.campaign.session import Job, analyse
+    from app.sim.campaign import write_campaign
+
+    figures: dict[str, float] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        manifest_path = write_campaign(Path(tmp) / "programme", sessions, 5, workers=2)
+        manifest = read_manifest(manifest_path)
+        started = time.perf_counter()
+        frames = sum(int(analyse(Job(e.log, None))["frames"]) for e in manifest.entries)
+        figures["lone analyze, frames/s"] = frames / (time.perf_counter() - started)
+        for n in (1, 2):
+            out = Path(tmp) / f"out{n}"
+            started = time.perf_counter()
+            work.run(manifest, None, out, lambda n=n: work.local_workers(n))  # type: ignore[misc]
+            elapsed = time.perf_counter() - started
+            figures[f"{n} worker(s), sessions/s"] = sessions / elapsed
+            figures[f"{n} worker(s), frames/s per worker"] = frames / elapsed / n
+            figures[f"{n} worker(s), first run s"] = elapsed
+        started = time.perf_counter()
+        work.run(manifest, None, Path(tmp) / "out2", lambda: work.local_workers(2))
+        figures["re-run with nothing changed, s"] = time.perf_counter() - started
+    figures["peak RSS of a worker, MiB"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    return figures
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -477,6 +516,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--only", default="kernel,parts,live,cpu,offline,memory,startup")
     parser.add_argument("--hours", type=float, default=8.0, help="the long session's length")
+    parser.add_argument("--campaign-sessions", type=int, default=8, help="drives of the campaign figures")
     parser.add_argument("--session-memory", type=float, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.session_memory is not None:
@@ -537,6 +577,22 @@ def main() -> None:
         print(f"5. peak RSS, 10 min          {short:.1f} MiB ({short_frames:,} frames)")
         print(f"   peak RSS, {args.hours:g} h            {long:.1f} MiB ({long_frames:,} frames)")
         print(f"   growth                    {100 * (long / short - 1):+.1f} %  (goal within 10 %)")
+    if "campaign" in only:
+        runs = [campaign_figures(args.campaign_sessions) for _ in range(max(1, min(args.runs, 3)))]
+        drives = f"{args.campaign_sessions} simulated drives (two circles, 100 Hz)"
+        print(f"7. campaign of {drives}, {len(runs)} runs:")
+        for name in runs[0]:
+            print(f"   {name:38s}{summary([r[name] for r in runs], '', digits=2)}")
+        lone = [r["lone analyze, frames/s"] for r in runs]
+        for n in (1, 2):
+            ratio = [r[f"{n} worker(s), frames/s per worker"] / x for r, x in zip(runs, lone, strict=True)]
+            print(
+                f"   {n} worker(s) per worker / lone analyze {summary(ratio, '×', digits=2)}  (goal ≥ 0.8×)"
+            )
+        scale = [r["2 worker(s), sessions/s"] / r["1 worker(s), sessions/s"] for r in runs]
+        print(f"   2 workers / 1 worker                 {summary(scale, '×', digits=2)}  (goal ≥ 1.7×)")
+        rerun = [r["re-run with nothing changed, s"] / r["2 worker(s), first run s"] for r in runs]
+        print(f"   re-run / first run                   {summary(rerun, '%', 100, 1)}  (goal ≤ 5 %)")
     if "startup" in only:
         for argv in ([str(C2N), "--help"], [str(C2N), "analyze", "--help"]):
             runs = startup(argv, max(args.runs, 3))

@@ -10,6 +10,7 @@ import concurrent.futures as cf
 import contextlib
 import json
 import multiprocessing
+import os
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
@@ -53,18 +54,25 @@ def local_workers(n: int) -> Iterator[cf.Executor]:
 
 @contextmanager
 def dask_workers(address: str) -> Iterator[cf.Executor]:
-    """The workers of a Dask distributed cluster (``distributed.Client(address)``)."""
-    from distributed import Client  # the command checked it is there (app.errors.need)
+    """The workers of a Dask distributed cluster (``distributed.Client(address)``); ``local``
+    starts a ``LocalCluster`` of one single-threaded worker process per CPU for the run."""
+    from distributed import Client, LocalCluster  # the command checked they are there
 
-    try:
-        client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
-    except (OSError, TimeoutError) as error:
-        raise C2nError(f"--scheduler {address}: no Dask scheduler answers ({error})") from None
-    try:
+    with contextlib.ExitStack() as stack:
+        if address == "local":
+            workers = os.cpu_count() or 1
+            cluster = LocalCluster(  # type: ignore[no-untyped-call]
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            )
+            stack.enter_context(cluster)
+            address = cluster.scheduler_address
+        try:
+            client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
+        except (OSError, TimeoutError) as error:
+            raise C2nError(f"--scheduler {address}: no Dask scheduler answers ({error})") from None
+        stack.callback(client.close)
         with client.get_executor(pure=False) as executor:  # type: ignore[no-untyped-call]
             yield executor
-    finally:
-        client.close()  # type: ignore[no-untyped-call]
 
 
 def run(

@@ -36,7 +36,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help=f"local worker processes (default: the CPU count, {os.cpu_count()})",
     )
     where.add_argument(
-        "--scheduler", metavar="ADDRESS", help="a Dask distributed scheduler, e.g. tcp://10.0.0.5:8786"
+        "--scheduler",
+        metavar="ADDRESS",
+        help="a Dask distributed scheduler, e.g. tcp://10.0.0.5:8786; 'local': a LocalCluster of one "
+        "worker process per CPU, started for the run",
     )
     parser.add_argument(
         "--by", metavar="COLUMN", help="the tag to group by (e.g. tyre_set); default: one group"

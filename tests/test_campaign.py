@@ -220,3 +220,39 @@ def test_manifest_mistakes_are_one_line(tmp_path: Path) -> None:
     (tmp_path / "ok.csv").write_text("log,tyre_set\na.blf,A\n")
     code, _, err = run_cli(["campaign", str(tmp_path / "ok.csv"), "--by", "pressure"])
     assert code == 2 and "--by pressure: not a column" in err
+
+
+def test_an_interrupted_campaign_keeps_what_is_done_and_goes_on_from_there(campaign: Path) -> None:
+    """Ctrl-C (SIGINT) once two drives are in: the run says how many are kept and how to go on,
+    exit 1; the same command again analyses only the rest. A copy of a log under another name is
+    known by its content."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    lines = campaign.read_text().splitlines()[:9]
+    subset = campaign.parent / "interrupted.csv"
+    subset.write_text("\n".join([*lines, "logs/copy.blf,A,200,9"]) + "\n")
+    (campaign.parent / "logs" / "copy.blf").write_bytes((campaign.parent / "logs" / "s001.blf").read_bytes())
+    out = campaign.parent / "interrupted"
+    argv = [sys.executable, "-m", "app", "campaign", str(subset), "--workers", "1", "--out", str(out)]
+    child = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while len(list((out / "cache").glob("*-*.json"))) < 2 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    child.send_signal(signal.SIGINT)
+    _, err = child.communicate(timeout=120)
+    cached = {path.stem for path in (out / "cache").glob("*-*.json")}
+    assert child.returncode == 1 and "Traceback" not in err
+    assert f"c2n: error: interrupted: {len(cached)} of 9 sessions are done and kept" in err
+    assert 2 <= len(cached) < 8 and not (out / "results.csv").exists()
+    code, text, _ = run_cli(["campaign", str(subset), "--workers", "2", "--out", str(out)])
+    assert code == 0
+    rows = list(csv.DictReader((out / "results.csv").open(encoding="utf-8-sig", newline="")))
+    assert all(row["error"] == "" for row in rows) and len(rows) == 9
+    copy = next(row for row in rows if row["log"] == "logs/copy.blf")
+    original = next(row for row in rows if row["log"] == "logs/s001.blf")
+    assert copy["c2n"] == original["c2n"] and copy["key"] == original["key"]
+    known = sum(row["key"] in cached for row in rows)  # s001's copy among them: the same content
+    assert known == len(cached) + 1 and f"({known} known from an earlier run" in text

@@ -11,6 +11,7 @@ import contextlib
 import json
 import multiprocessing
 import os
+import signal
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
@@ -48,8 +49,15 @@ def run_task(task: Task) -> dict[str, Any]:
 @contextmanager
 def local_workers(n: int) -> Iterator[cf.Executor]:
     """Worker processes on this machine, started fresh (spawn: no state inherited)."""
-    with cf.ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("spawn")) as pool:
+    context = multiprocessing.get_context("spawn")
+    with cf.ProcessPoolExecutor(max_workers=n, mp_context=context, initializer=_leave_ctrl_c) as pool:
         yield pool
+
+
+def _leave_ctrl_c() -> None:
+    """A worker leaves Ctrl-C (sent to the whole terminal's process group) to the campaign, which
+    keeps what is done and stops the rest; a worker killed by it would break the pool."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @contextmanager
@@ -109,18 +117,38 @@ def run(
         futures = {
             executor.submit(run_task, Task(Job(manifest.entries[i].log, config), known)): i for i in pending
         }
-        for future in cf.as_completed(futures):
-            i = futures[future]
-            row = future.result()
-            key = row.get("key")
-            if key is not None and set(row) == {"key"}:
-                row = stored[key] | {"cached": True}
-            elif key is not None:
-                write_json(cache / f"{key}.json", row, "the campaign's cache")
-                row = row | {"cached": False}
-            rows[i] = row
-            on_row(i, row)
+        try:
+            done = cf.as_completed(futures)
+            for future in done:
+                _take(future.result(), futures[future], rows, stored, cache, on_row)
+        except KeyboardInterrupt:  # what is done is kept; the rest is not started
+            for future in futures:
+                future.cancel()
+            kept = sum(1 for row in rows if row)
+            raise C2nError(
+                f"interrupted: {kept} of {len(rows)} sessions are done and kept in {cache}; "
+                "run the same command again to go on"
+            ) from None
     return rows
+
+
+def _take(
+    row: dict[str, Any],
+    i: int,
+    rows: list[dict[str, Any]],
+    stored: dict[str, dict[str, Any]],
+    cache: Path,
+    on_row: Callable[[int, dict[str, Any]], None],
+) -> None:
+    """A worker's row: kept in the cache (or, when only its key came back, the row kept there)."""
+    key = row.get("key")
+    if key is not None and set(row) == {"key"}:
+        row = stored[key] | {"cached": True}
+    elif key is not None:
+        write_json(cache / f"{key}.json", row, "the campaign's cache")
+        row = row | {"cached": False}
+    rows[i] = row
+    on_row(i, row)
 
 
 class HashMemo:

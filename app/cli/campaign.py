@@ -5,10 +5,12 @@ against numeric tags."""
 
 import argparse
 import os
+import signal
 import time
 from concurrent.futures import Executor
 from contextlib import AbstractContextManager
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 from rich.console import Console
@@ -54,6 +56,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     return parser
 
 
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    raise KeyboardInterrupt
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.campaign import outputs, work
     from app.campaign.manifest import read_manifest
@@ -94,7 +100,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 return work.dask_workers(args.scheduler)
             return work.local_workers(args.workers or os.cpu_count() or 1)
 
-        rows = work.run(manifest, config, out, workers, arrived)
+        previous = signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM ends it as Ctrl-C does
+        try:
+            rows = work.run(manifest, config, out, workers, arrived)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
     elapsed = time.perf_counter() - started
     columns, table = outputs.table_rows(manifest, rows)
     outputs.write_tables(out, columns, table)

@@ -318,3 +318,38 @@ def test_live_ends_cleanly_on_ctrl_c_and_sigterm_and_writes_the_summary(
 def test_every_command_has_help(command: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main([command, "--help"]) == 0
     assert f"usage: c2n {command}" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "command", ["live", "replay", "analyze", "export", "simulate", "gap", "gap-check", "campaign", "demo"]
+)
+def test_help_is_self_contained_and_says_the_defaults(
+    command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """No reference to a document users do not have, no code marks, and each default said."""
+    assert main([command, "--help"]) == 0
+    text = capsys.readouterr().out
+    assert "DESIGN" not in text and "``" not in text
+    flat = " ".join(text.split())
+    expected = {
+        "live": "--rate X the bus carries a replay",
+        "replay": "(default: 1.0)",
+        "analyze": "(- : standard output)",
+        "export": "(default:",
+        "simulate": "(default: 0)",
+        "gap": "(- : standard output)",
+        "gap-check": "(default:",
+        "campaign": "--by COLUMN",
+        "demo": "(default:",
+    }
+    assert expected[command] in flat
+
+
+def test_json_dash_is_standard_output_and_the_words_go_to_stderr(
+    drive_log: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["analyze", str(drive_log), "--json", "-"]) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)  # nothing but the JSON on stdout
+    assert summary["c2n"] == pytest.approx(15.1, rel=0.01)
+    assert "C2n = " in captured.err and not Path("-").exists()

@@ -25,7 +25,31 @@ def build_parser() -> argparse.ArgumentParser:
     for command in COMMANDS:
         sub = command.add_parser(subparsers)
         sub.add_argument("--debug", action="store_true", help="show tracebacks and debug logging")
+        _plain(sub)
     return parser
+
+
+class _Formatter(argparse.HelpFormatter):
+    """Help that says each option's default, unless its words already do."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        nothing = default is None or default is False or default == [] or default == argparse.SUPPRESS
+        if "default" in text or not action.option_strings or nothing:  # 0 is a default, False is not
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+def _plain(parser: argparse.ArgumentParser) -> None:
+    """The command's help as a user reads it: the module docstring's code marks (``x``) gone,
+    each option's default said."""
+    parser.formatter_class = _Formatter
+    if parser.description:
+        parser.description = parser.description.replace("``", "")
+    for action in parser._actions:
+        if action.help:
+            action.help = action.help.replace("``", "")
 
 
 class _WarningFormatter(logging.Formatter):
@@ -55,7 +79,9 @@ def main(argv: Sequence[str] | None = None, console: Console | None = None) -> i
         parser.print_help(sys.stderr)
         return 2
     _configure_logging(args.debug)
-    console = console or Console(highlight=False, soft_wrap=True)
+    # `--json -` (or `--report -`): standard output carries the file, the words go to stderr
+    to_stdout = any(str(getattr(args, name, None)) == "-" for name in ("json", "report"))
+    console = console or Console(file=sys.stderr if to_stdout else None, highlight=False, soft_wrap=True)
     try:
         return int(args.run(args, console))
     except C2nError as error:

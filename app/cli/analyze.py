@@ -16,7 +16,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "logs", nargs="+", type=Path, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4"
     )
     add_config(parser)
-    parser.add_argument("--json", type=Path, metavar="OUT", help="write the summary (DESIGN §6) here")
+    parser.add_argument(
+        "--json", type=Path, metavar="OUT", help="write the summary JSON here (- : standard output)"
+    )
     parser.add_argument(
         "--merge", action="store_true", help="the logs are channels of one drive: merge them by timestamp"
     )

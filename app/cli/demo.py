@@ -37,7 +37,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         metavar="X",
         help="replay X times faster than driven",
     )
-    parser.add_argument("--seed", type=int, default=2026, metavar="N")
+    parser.add_argument("--seed", type=int, default=2026, metavar="N", help="seed of the simulated drive")
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="constant_radius")
     add_config(parser)
     parser.set_defaults(run=run)

@@ -20,8 +20,15 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "logs", nargs="+", type=Path, metavar="LOG", help="the measured drive (any log format)"
     )
     add_config(parser)
-    parser.add_argument("--json", type=Path, metavar="OUT", help="write the diagnosis (DESIGN §6) here")
-    parser.add_argument("--report", type=Path, metavar="OUT", help="write an HTML report with residual maps")
+    parser.add_argument(
+        "--json", type=Path, metavar="OUT", help="write the diagnosis JSON here (- : standard output)"
+    )
+    parser.add_argument(
+        "--report",
+        type=Path,
+        metavar="OUT",
+        help="write an HTML report with residual maps (- : standard output)",
+    )
     parser.set_defaults(run=run)
     return parser
 

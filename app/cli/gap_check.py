@@ -23,7 +23,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         metavar="N",
         help="parallel cases (default: the CPU count)",
     )
-    parser.add_argument("--json", type=Path, metavar="OUT", help="write the scores here")
+    parser.add_argument(
+        "--json", type=Path, metavar="OUT", help="write the scores JSON here (- : standard output)"
+    )
     parser.set_defaults(run=run)
     return parser
 

@@ -43,7 +43,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         default=".log",
         help="raw frame log format (default .log, candump)",
     )
-    parser.add_argument("--json", type=Path, metavar="OUT", help="also write the summary here")
+    parser.add_argument(
+        "--json", type=Path, metavar="OUT", help="also write the summary JSON here (- : standard output)"
+    )
     parser.add_argument(
         "--duration", type=number(0.0, 1e7, low_allowed=False), metavar="S", help="stop after S seconds"
     )

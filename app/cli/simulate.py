@@ -124,7 +124,13 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         metavar="LOG",
         help="log to write (.blf, .asc, .log, .csv, .mf4, .trc); with --pack a new folder",
     )
-    parser.add_argument("--seed", type=int, default=0, metavar="N")
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        metavar="N",
+        help="seed of the noise (and of a pack's or campaign's cases)",
+    )
     add_config(parser)
     parser.add_argument(
         "--c2n",

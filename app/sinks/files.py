@@ -8,6 +8,7 @@ import glob
 import json
 import os
 import shutil
+import sys
 import tempfile
 import uuid
 from collections.abc import Callable, Iterator, Mapping
@@ -49,7 +50,18 @@ def json_ready(value: Any) -> Any:
     return value
 
 
+STDOUT = Path("-")  # a file name that means standard output, as for cat and tar
+
+
 def write_text(path: Path, text: str, what: str) -> None:
+    """``path`` ``-``: standard output (the command's own words then go to stderr)."""
+    if path == STDOUT:
+        try:
+            sys.stdout.write(text)
+            sys.stdout.flush()
+        except OSError as error:  # a closed pipe
+            raise OutputError(f"standard output: cannot write {what} ({error.strerror or error})") from error
+        return
     write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"), what)
 
 

@@ -18,7 +18,7 @@ from app.cli import main
 from app.config import load_config
 from app.sim.session import write_drive
 from app.sinks.channels import csv_header
-from app.sinks.trace import TraceRecorder
+from app.sinks.trace import DECODED, TraceRecorder
 from app.sources.logs import LogSource
 from tests.simulated import cached_drive, run_pipeline
 
@@ -38,13 +38,16 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return folder / "drive-export"
 
 
+DECIMALS = {c.name: c.decimals for c in TraceRecorder(DECODED).channels}
+
+
 def run_cli(argv: list[str]) -> int:
     with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
         return main(argv)
 
 
 def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
-    with path.open(newline="", encoding="utf-8") as file:
+    with path.open(newline="", encoding="utf-8-sig") as file:
         rows = list(csv.reader(file))
     values = np.array([[float(v) if v else math.nan for v in row] for row in rows[1:]])
     return rows[0], values
@@ -61,10 +64,13 @@ def test_mf4_has_the_channels_units_and_values_of_the_csv(exported: Path) -> Non
     with MDF(exported / "channels.mf4") as mdf:
         for column, name_unit in enumerate(header[1:], start=1):
             name = name_unit.split(" [")[0]
-            signal = mdf.get(name)
+            signal = mdf.get(name, raw=True)  # the flags' values, not their words
             assert csv_header(name, str(signal.unit)) == name_unit
-            np.testing.assert_allclose(signal.timestamps, values[:, 0], rtol=0, atol=1e-9)
-            np.testing.assert_allclose(signal.samples, values[:, column], rtol=1e-12, equal_nan=True)
+            # the CSV keeps 6 decimals of time and 4 of most values; the MF4 every bit (its time
+            # base spreads frames of one microsecond by 1 ns)
+            np.testing.assert_allclose(signal.timestamps, values[:, 0], rtol=0, atol=1e-6)
+            atol = 0.5 * 10.0 ** -DECIMALS[name]
+            np.testing.assert_allclose(signal.samples, values[:, column], rtol=0, atol=atol, equal_nan=True)
             assert signal.comment  # the description travels with the channel
 
 
@@ -76,7 +82,8 @@ def test_parquet_has_the_values_and_units_of_the_csv(exported: Path) -> None:
         unit = field.metadata[b"unit"].decode()
         assert csv_header(field.name, unit) == header[column]
         got = table.column(field.name).to_numpy(zero_copy_only=False).astype(float)
-        np.testing.assert_allclose(got, values[:, column], rtol=1e-12, equal_nan=True)
+        atol = 0.5 * 10.0 ** -DECIMALS[field.name]  # the CSV keeps each channel's decimals
+        np.testing.assert_allclose(got, values[:, column], rtol=0, atol=atol, equal_nan=True)
 
 
 def test_channels_hold_the_filtered_and_decoded_drive(exported: Path) -> None:
@@ -194,3 +201,42 @@ def test_progress_follows_the_file(tmp_path: Path) -> None:
             positions.append(source.bytes_read())
     assert positions == sorted(positions) and 0 < positions[-1] < source.total_bytes  # type: ignore[operator]
     assert source.bytes_read() == source.total_bytes == log.stat().st_size
+
+
+def test_files_open_in_their_tools_without_loss(exported: Path, tmp_path: Path) -> None:
+    """The CSV: a byte-order mark (a spreadsheet then reads m/s² right), values rounded to their
+    resolution; the semicolon dialect with decimal commas for a spreadsheet set so. The MF4: the
+    flags with their words, and a time base asammdf turns into a table without losing a row."""
+    raw = (exported / "channels.csv").read_bytes()
+    assert raw.startswith("\ufeff".encode()) and "m/s²".encode() in raw
+    header, values = read_csv(exported / "channels.csv")
+    text = raw.decode("utf-8-sig")
+    assert "0000000" not in text and "9999999" not in text  # no 28.40000000000009
+    with MDF(exported / "channels.mf4") as mdf:
+        frame = mdf.to_dataframe(raw=True)
+        assert len(frame) == len(values)  # every row, though frames share microseconds
+        words = set(mdf.get("steady").samples.tolist()) | set(mdf.get("direction").samples.tolist())
+        known = {b"steady", b"not steady", b"left", b"right", b"straight", b"no estimate"}
+        assert words <= known and {b"steady", b"left", b"right"} <= words
+    out = tmp_path / "semicolon"
+    assert (
+        run_cli(
+            [
+                "export",
+                str(exported.parent / "drive.blf"),
+                "--format",
+                "csv",
+                "--no-plots",
+                "--csv-dialect",
+                "excel-semicolon",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    with (out / "channels.csv").open(newline="", encoding="utf-8-sig") as file:
+        rows = list(csv.reader(file, delimiter=";"))
+    assert rows[0] == header
+    again = np.array([[float(v.replace(",", ".")) if v else math.nan for v in row] for row in rows[1:]])
+    np.testing.assert_array_equal(again, values)

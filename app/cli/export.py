@@ -34,6 +34,13 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="channel file format; repeat for several (default: all of csv, parquet, mf4)",
     )
     parser.add_argument(
+        "--csv-dialect",
+        choices=("excel", "excel-semicolon"),
+        default="excel",
+        help="excel: ',' between fields and '.' in numbers; excel-semicolon: ';' and ',' (a spreadsheet "
+        "set to a decimal comma); both UTF-8 with a byte-order mark",
+    )
+    parser.add_argument(
         "--out", type=Path, metavar="DIR", help="output folder (default: SESSION/export or LOG-export)"
     )
     parser.add_argument("--no-plots", action="store_true", help="no PNG plots and no HTML report")
@@ -100,7 +107,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     with console.status("writing the exports…"), folder_atomically(out, _ours, "c2n export") as staging:
         for fmt in formats:
             path = staging / f"channels.{fmt}"
-            export.write(trace, fmt, path)
+            export.write(trace, fmt, path, args.csv_dialect)
             written.append(path)
         events.write(staging / "events.csv", [*snapshot.crossings, *snapshot.rejections], t0)
         summary.write(staging / "summary.json", result)

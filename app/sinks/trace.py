@@ -24,6 +24,7 @@ class Channel:
     name: str
     unit: str
     description: str
+    decimals: int = 4  # what the CSV keeps: the measurement's resolution, with a digit to spare
 
 
 _DEG = 180.0 / math.pi
@@ -48,7 +49,7 @@ _FILTERED: tuple[tuple[Channel, Callable[[Record], float]], ...] = (
         lambda r: r.estimate.sideslip_rad * _DEG if r.estimate else _NAN,
     ),
     (
-        Channel("sideslip_sigma", "deg", "standard deviation of the filtered sideslip"),
+        Channel("sideslip_sigma", "deg", "standard deviation of the filtered sideslip", 5),
         lambda r: r.estimate.sideslip_sigma_rad * _DEG if r.estimate else _NAN,
     ),
     (
@@ -60,15 +61,15 @@ _FILTERED: tuple[tuple[Channel, Callable[[Record], float]], ...] = (
         lambda r: _num(r.estimate.ay_mps2) if r.estimate else _NAN,
     ),
     (
-        Channel("filter_health", "", "mean normalised innovation² (≈ 1 when the noise model fits)"),
+        Channel("filter_health", "", "mean normalised innovation² (≈ 1 when the noise model fits)", 3),
         lambda r: r.estimate.health if r.estimate else _NAN,
     ),
     (
-        Channel("steady", "", "1 while the steady-state gate holds, else 0"),
+        Channel("steady", "", "1 while the steady-state gate holds, else 0", 0),
         lambda r: 1.0 if r.steady is not None and r.steady.steady else 0.0,
     ),
     (
-        Channel("direction", "", "+1 turning left, -1 right, 0 straight or unknown"),
+        Channel("direction", "", "+1 turning left, -1 right, 0 straight or unknown", 0),
         lambda r: {"left": 1.0, "right": -1.0}.get((r.steady.direction or "") if r.steady else "", 0.0),
     ),
 )
@@ -96,7 +97,7 @@ DECODED: Mapping[str, tuple[Channel, float]] = {
     "roll_rate": (Channel("roll_rate_measured", "deg/s", "roll rate (decoded, + leaning right)"), _DEG),
 }
 
-TIME = Channel("time", "s", "time since the first frame")
+TIME = Channel("time", "s", "time since the first frame", 6)  # frame times are µs-resolved
 
 
 def _num(x: float | None) -> float:

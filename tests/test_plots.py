@@ -139,6 +139,9 @@ def test_crossings_are_marked_at_u0_on_the_zero_line(exported: Exported) -> None
     got = sorted((float(xs(m)[0]), float(ys(m)[0]), m.get_marker()) for m in markers)
     want = sorted((c["u0_mps"], 0.0, {"up": "^", "down": "v"}[c["sweep"]]) for c in crossings)
     assert got == want and len(got) == 4
+    # on the page the four kinds sit apart (they agree in u0 and would hide each other)
+    on_page = {round(float(m.get_transform().transform((xs(m)[0], ys(m)[0]))[1]), 1) for m in markers}
+    assert len(on_page) == 4
 
 
 def test_timeseries_marks_each_crossing_on_every_panel(exported: Exported) -> None:

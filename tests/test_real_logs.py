@@ -350,7 +350,7 @@ def assert_exported(out: Path, code: int, stderr: str, channel: str | None) -> N
     assert "Traceback" not in stderr and "no frames for role 'vx'" in stderr
     assert {p.name for p in out.iterdir()} >= EXPORTED
     assert len(list(out.glob("*.png"))) == 4
-    with (out / "channels.csv").open() as file:
+    with (out / "channels.csv").open(encoding="utf-8-sig") as file:
         header = file.readline().strip().split(",")
         rows = [line.split(",") for line in file]
     if channel is None:

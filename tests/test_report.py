@@ -59,7 +59,7 @@ def test_the_headline_and_the_crossings_are_shown(report: Path, exported: Export
     document = report.read_text(encoding="utf-8")
     summary = exported.summary.to_json()
     low, high = summary["c2n_ci95"]
-    assert f'<span class="value">{summary["c2n"]}</span> 95 % [{low}, {high}]' in document
+    assert f'<span class="value">{summary["c2n"]}</span> 1/rad, 95 % [{low}, {high}] 1/rad' in document
     assert f"({summary['c2n_method']})" in document
     u0 = summary["u0_mps"]
     assert f"{u0} m/s = {u0 * 3.6:.2f} km/h" in document

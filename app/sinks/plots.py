@@ -15,6 +15,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.transforms import offset_copy
 from numpy.typing import ArrayLike
 
 from app.errors import OutputError
@@ -118,16 +119,27 @@ def _to_mps(kmh: ArrayLike) -> np.ndarray:
     return np.asarray(kmh) / _KMH_PER_MPS
 
 
+_STAGGER_PT = 7.0  # the four kinds of crossing (left/right, up/down) drawn this far apart
+
+
 def _mark_crossings_at_zero(ax: Axes, crossings: Sequence[CrossingRow]) -> None:
+    """A marker at (u0, 0) per crossing; the kinds are staggered a few points up and down so the
+    crossings of one u0 (they should agree) stay apart instead of hiding each other."""
     labelled: set[tuple[str, str]] = set()
+    kinds = [(d, s) for d in ("left", "right") for s in ("up", "down")]
     for crossing in crossings:
         u0, direction, sweep = crossing.u0_mps, crossing.direction, crossing.sweep
         if u0 is None:
             continue
         key = (direction, sweep)
+        k = kinds.index(key) if key in kinds else 0
+        figure = ax.get_figure(root=True)
+        assert isinstance(figure, Figure)  # an Axes of ours always has its figure
+        shifted = offset_copy(ax.transData, fig=figure, y=(k - 1.5) * _STAGGER_PT, units="points")
         ax.plot(
             [u0],
             [0.0],
+            transform=shifted,
             linestyle="none",
             marker=_MARKER.get(sweep, "o"),
             markersize=10,
@@ -218,7 +230,7 @@ def draw_vr_vs_u2(figure: Figure, trace: Trace, summary: Summary) -> None:
         x_end = max(float(np.max(x)) if len(x) else 0.0, u0_squared) * 1.05
         line_x = np.array([0.0, x_end])
         line_y = list(d - line_x / (g * c2n))
-        ax.plot(line_x, line_y, color="black", linewidth=1.5, label=f"d − u²/(g·C2n), C2n = {c2n:.3f}")
+        ax.plot(line_x, line_y, color="black", linewidth=1.5, label=f"d − u²/(g·C2n), C2n = {c2n:.3f} 1/rad")
         if u0_squared > 0:
             u0 = math.sqrt(u0_squared)
             ax.axvline(
@@ -254,7 +266,7 @@ def draw_c2n_per_crossing(figure: Figure, trace: Trace, summary: Summary) -> Non
     ax = figure.add_subplot()
     ax.set_title("C2n of each crossing")
     ax.set_xlabel("|a_y| at the crossing [m/s²]")
-    ax.set_ylabel("C2n [–]")
+    ax.set_ylabel("C2n [1/rad]")
     shown = 0
     for crossing in summary.crossings:
         c2n, ay, (low, high) = crossing.c2n, crossing.ay_mps2, crossing.ci95
@@ -278,7 +290,7 @@ def draw_c2n_per_crossing(figure: Figure, trace: Trace, summary: Summary) -> Non
     headline = summary.c2n
     if headline is not None:
         method = summary.c2n_method or "headline"
-        ax.axhline(headline, color="black", linewidth=1.2, label=f"{method}: C2n = {headline:.3f}")
+        ax.axhline(headline, color="black", linewidth=1.2, label=f"{method}: C2n = {headline:.3f} 1/rad")
         low, high = summary.c2n_ci95 or (None, None)
         if low is not None and high is not None:
             ax.axhspan(low, high, color="0.5", alpha=0.2, label=f"95 % [{low:.3f}, {high:.3f}]")

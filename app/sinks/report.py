@@ -92,8 +92,8 @@ def _header(summary: Summary, title: str) -> str:
 def _headline(summary: Summary) -> str:
     u0 = summary.u0_mps
     headline = (
-        f'<p class="headline">C2n = <span class="value">{text(summary.c2n)}</span> '
-        f"95 % {interval(summary.c2n_ci95)} "
+        f'<p class="headline">C2n = <span class="value">{text(summary.c2n)}</span> 1/rad, '
+        f"95 % {interval(summary.c2n_ci95)} 1/rad "
         f'<span class="method">({text(summary.c2n_method)})</span></p>'
     )
     values = fields(

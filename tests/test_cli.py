@@ -353,3 +353,17 @@ def test_json_dash_is_standard_output_and_the_words_go_to_stderr(
     summary = json.loads(captured.out)  # nothing but the JSON on stdout
     assert summary["c2n"] == pytest.approx(15.1, rel=0.01)
     assert "C2n = " in captured.err and not Path("-").exists()
+
+
+def test_replay_and_simulate_show_their_progress_on_a_terminal(drive_log: Path, tmp_path: Path) -> None:
+    import io
+
+    out = io.StringIO()
+    terminal = Console(file=out, force_terminal=True, width=120)
+    channel = f"progress-{uuid.uuid4().hex}"
+    assert main(["replay", str(drive_log), "-i", "virtual", "-c", channel, "--rate", "1000"], terminal) == 0
+    shown = out.getvalue()
+    assert f"replaying {drive_log.name}" in shown and "frames sent" in shown
+    out = io.StringIO()
+    assert main(["simulate", "--out", str(tmp_path / "x.blf")], Console(file=out, force_terminal=True)) == 0
+    assert "simulating the constant_radius drive" in out.getvalue()

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rich.console import Console
+from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 
 from app.cli.common import add_bus, bus_kwargs, channels, number
 from app.errors import BusError, C2nError, printable
@@ -90,14 +91,28 @@ def run(args: argparse.Namespace, console: Console) -> int:
     router = Router(buses, names, args.map)
     report = LogReport(args.log)
     sent = 0
+    progress = Progress(
+        TextColumn("replaying {task.fields[name]}"),
+        BarColumn(),
+        TaskProgressColumn(),
+        TextColumn("{task.fields[sent]:,} frames sent"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=True,
+        disable=not console.is_terminal,
+    )
+    task = progress.add_task("", total=args.log.stat().st_size or None, name=args.log.name, sent=0)
     try:
         messages = looped(lambda: read_log(args.log, report), None if args.loop == 0 else args.loop)
-        for msg in paced(messages, args.rate):
-            try:
-                router.bus_for(msg).send(msg)
-            except can.CanError as error:
-                raise BusError(f"sending frame {sent + 1} failed: {error}") from error
-            sent += 1
+        with progress:
+            for msg in paced(messages, args.rate):
+                try:
+                    router.bus_for(msg).send(msg)
+                except can.CanError as error:
+                    raise BusError(f"sending frame {sent + 1} failed: {error}") from error
+                sent += 1
+                if not sent % 512:  # where the reader is in the file (a loop starts it again)
+                    progress.update(task, completed=report.bytes_read() or 0, sent=sent)
     except KeyboardInterrupt:
         pass
     finally:

@@ -224,8 +224,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         sensor=sensor,
     )
     out = args.out or Path(f"sim-{args.scenario}-seed{args.seed}.blf")
-    drive = simulate_drive(config, options)
-    truth = write_drive(drive, out)
+    with console.status(f"simulating the {args.scenario} drive…"):
+        drive = simulate_drive(config, options)
+        truth = write_drive(drive, out)
     console.print(f"wrote {out} and {truth.name}: {describe(drive.truth)}")
     return 0
 
@@ -277,8 +278,9 @@ def _run_session(args: argparse.Namespace, console: Console) -> int:
         model=args.model,
     )
     out = args.out or Path(f"sim-{args.session}-seed{args.seed}.blf")
-    drive = simulate_standard(config, options)
-    truth = write_drive(drive, out)
+    with console.status(f"simulating the {args.session} session on the {args.model} model…"):
+        drive = simulate_standard(config, options)
+        truth = write_drive(drive, out)
     console.print(f"wrote {out} and {truth.name}: {effect.describe()}, {describe(drive.truth)}")
     return 0
 

@@ -17,7 +17,7 @@ from app.sinks.files import json_ready, write_atomically, write_json
 from app.sinks.html import fields, figure, none, page, section, table, text, write_html
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")
-_LAST = ("frames", "seconds", "cached", "key")
+_LAST = ("frames", "seconds", "worker_peak_mib", "cached", "key")
 
 
 def table_rows(manifest: Manifest, rows: Sequence[dict[str, Any]]) -> tuple[list[str], list[dict[str, Any]]]:

@@ -9,6 +9,7 @@ error, never an exception: one damaged file must not end a campaign of hundreds.
 import hashlib
 import json
 import logging
+import resource
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -64,7 +65,7 @@ def config_hash(config_path: Path, dbc_dir: Path | None, file_hash: Callable[[Pa
 
 def analyse(job: Job) -> dict[str, Any]:
     """The row of one drive: every key of the analyze summary, flattened, with ``error`` (None
-    when there is a result), ``frames`` and the ``seconds`` it took."""
+    when there is a result), ``frames``, the ``seconds`` it took and ``worker_peak_mib``."""
     started = time.perf_counter()
     frames = 0
     try:
@@ -78,6 +79,8 @@ def analyse(job: Job) -> dict[str, Any]:
         row = {"error": printable(f"{job.log}: the analysis failed ({type(error).__name__}: {error})")}
     row["frames"] = frames
     row["seconds"] = round(time.perf_counter() - started, 3)
+    # the worker's peak memory so far: flat over a campaign when nothing accumulates
+    row["worker_peak_mib"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     return row
 
 

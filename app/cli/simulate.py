@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
 from app.cli.common import add_config, number
 from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
@@ -291,15 +291,7 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
     if args.pack < 1:
         raise C2nError(f"--pack needs at least one case, not {args.pack}")
     out = args.out or Path(f"pack-seed{args.seed}")
-    progress = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not console.is_terminal,
-    )
-    task = progress.add_task("simulating", total=args.pack)
+    progress, task = _counting(console, args.pack)
 
     def done(case: "CaseResult") -> None:
         # nothing about the effect: whoever makes the pack stays blind too
@@ -335,15 +327,7 @@ def _run_campaign(args: argparse.Namespace, console: Console) -> int:
     if args.pack is not None or args.session is not None or args.scenario is not None:
         raise C2nError("--campaign writes drives of its own: leave out --pack, --session and --scenario")
     out = args.out or Path(f"campaign-seed{args.seed}")
-    progress = Progress(
-        TextColumn("simulating"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not console.is_terminal,
-    )
-    task = progress.add_task("", total=args.campaign)
+    progress, task = _counting(console, args.campaign)
     with progress:
         manifest = write_campaign(
             out, args.campaign, args.seed, args.config, args.workers, lambda spec, s: progress.advance(task)
@@ -353,3 +337,16 @@ def _run_campaign(args: argparse.Namespace, console: Console) -> int:
         f"next: c2n campaign {manifest} --by tyre_set"
     )
     return 0
+
+
+def _counting(console: Console, total: int) -> tuple[Progress, TaskID]:
+    """A bar of drives simulated, on a terminal."""
+    progress = Progress(
+        TextColumn("simulating"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        disable=not console.is_terminal,
+    )
+    return progress, progress.add_task("", total=total)

@@ -29,6 +29,17 @@ class ProfileView:
     def empty(self) -> bool:
         return not (len(self.left[0]) or len(self.right[0]))
 
+    def __eq__(self, other: object) -> bool:  # arrays compare by value (a Snapshot compares its parts)
+        if not isinstance(other, ProfileView):
+            return NotImplemented
+        return all(
+            np.array_equal(a, b)
+            for mine, theirs in ((self.left, other.left), (self.right, other.right))
+            for a, b in zip(mine, theirs, strict=True)
+        )
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays inside: no hash
+
 
 class SideslipProfile:
     def __init__(self) -> None:

@@ -121,9 +121,13 @@ def run(
             done = cf.as_completed(futures)
             for future in done:
                 _take(future.result(), futures[future], rows, stored, cache, on_row)
-        except KeyboardInterrupt:  # what is done is kept; the rest is not started
+        except KeyboardInterrupt:  # what is done is kept; what runs is finished; the rest not started
             for future in futures:
                 future.cancel()
+            cf.wait(futures)
+            for future, i in futures.items():  # (one cut short while being taken, too)
+                if not rows[i] and not future.cancelled() and future.exception() is None:
+                    _take(future.result(), i, rows, stored, cache, on_row)
             kept = sum(1 for row in rows if row)
             raise C2nError(
                 f"interrupted: {kept} of {len(rows)} sessions are done and kept in {cache}; "

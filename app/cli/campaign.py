@@ -100,11 +100,14 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 return work.dask_workers(args.scheduler)
             return work.local_workers(args.workers or os.cpu_count() or 1)
 
-        previous = signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM ends it as Ctrl-C does
+        # Ctrl-C and SIGTERM both stop it keeping what is done, also where SIGINT was inherited
+        # ignored (a shell starts background jobs so, and Python then leaves it ignored)
+        previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
         try:
             rows = work.run(manifest, config, out, workers, arrived)
         finally:
-            signal.signal(signal.SIGTERM, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
     elapsed = time.perf_counter() - started
     columns, table = outputs.table_rows(manifest, rows)
     outputs.write_tables(out, columns, table)

@@ -14,6 +14,7 @@ import pytest
 from app import paper
 from app.cli import main
 from app.config import load_config
+from app.gap.candidates import CANDIDATES
 from app.gap.check import CaseAnswer, score
 from app.gap.diagnose import diagnose, problem, roll_lever_m
 from app.gap.measured import Measured, measure
@@ -105,6 +106,26 @@ def test_longitudinal_load_transfer_moves_the_steady_state_as_the_shifted_loads_
     assert clipped.c1_nominal[mid] == pytest.approx(p.c1n * (p.w1_n + 0.7 * p.w2_n), rel=1e-6)
 
 
+def test_a_slope_s_gravity_along_the_heading_moves_load_as_braking_does() -> None:
+    """Heading 0 on a pad falling ahead (the lateral component zero): at constant speed the car
+    holds back m·g_x, which moves m·h·g_x/L of load forward; the steady state is eq. 6 and
+    R = (L + K·u²)/δ with the axle stiffnesses of the shifted loads."""
+    config = load_config()
+    p = BicycleParams.from_config(config)
+    u, delta, downhill, height = 12.0, math.radians(1.5), 0.4, 0.55  # g_x = 0.4 m/s² ahead
+    drive = prepare(p, steady_drive(u, delta, seconds=40.0), cg_height_m=height)
+    sim = run(drive, config.d_m, Mods(slope_sin_mps2=-downhill))
+    forward = p.mass_kg * height * downhill / p.wheelbase_m
+    c1, c2 = p.c1n * (p.w1_n + forward), p.c2n * (p.w2_n - forward)
+    understeer = p.mass_kg / p.wheelbase_m * (p.b_m / c1 - p.a_m / c2)
+    radius = u / sim.r[-1]
+    assert radius == pytest.approx((p.wheelbase_m + understeer * u * u) / delta, rel=1e-6)
+    expected = paper.sideslip_at_sensor(u, radius, config.d_m, c2 / p.w2_n, p.g)
+    assert sim.beta[-1] == pytest.approx(math.atan(expected), abs=1e-6)
+    level = run(drive, config.d_m)
+    assert abs(sim.beta[-1] - level.beta[-1]) > 1e-4  # the shift is not lost in the tolerance
+
+
 def test_the_roll_rate_moves_the_sensor_by_its_height_above_the_roll_axis() -> None:
     """A head h above the roll axis, rolling at p: its lateral velocity is v_s − p·h, so the
     sideslip it reads is atan((v_s − p·h)/u); h = sensor height − roll-axis height from the config."""
@@ -179,8 +200,11 @@ def test_a_drive_the_model_explains_is_none(tmp_path: Path) -> None:
     assert result["c2n"]["sim"] == pytest.approx(load_config().tyres.c2n_per_rad, rel=0.01)
 
 
-def answered(effect: str, shrink: float, confounded: list[str] | None = None) -> GapResult:
-    """A diagnosis as gap-check scores it: the verdict, its confounded group, its shrink."""
+def answered(
+    effect: str, shrink: float, confounded: list[str] | None = None, total: float | None = None
+) -> GapResult:
+    """A diagnosis as gap-check scores it: the verdict, its confounded group, its shrink (alone and
+    with a secondary effect beside it)."""
     return GapResult(
         diagnosis=effect,
         confounded_with=tuple(confounded or ()),
@@ -190,6 +214,7 @@ def answered(effect: str, shrink: float, confounded: list[str] | None = None) ->
         candidates=(),
         c2n=GapC2n(None, None, None, None, None, None, None),
         shrink_heldout=shrink,
+        shrink_heldout_with_secondary=shrink if total is None else total,
         heldout_rms_deg=BeforeAfter(0.0, 0.0),
         heldout_yaw_rms_degps=BeforeAfter(0.0, 0.0),
         verdict=effect,
@@ -215,20 +240,23 @@ def test_gap_check_scoring() -> None:
         }
     }
 
-    def said(effect: str, confounded: list[str] | None = None, shrink: float = 0.8) -> GapResult:
-        return answered(effect, shrink, confounded)
+    def said(
+        effect: str, confounded: list[str] | None = None, shrink: float = 0.8, total: float | None = None
+    ) -> GapResult:
+        return answered(effect, shrink, confounded, total)
 
     answers = [
         CaseAnswer("case_001", said("none", shrink=0.0)),
         CaseAnswer("case_002", said("tyre_ply_steer", shrink=0.1)),  # a false alarm
-        CaseAnswer("case_003", said("speed_scale_error", ["roll_steer"], 0.6)),  # right, confounded
-        CaseAnswer("case_004", said("speed_scale_error", shrink=0.9)),
+        CaseAnswer("case_003", said("speed_scale_error", ["roll_steer"], 0.6, 0.85)),  # right, confounded
+        CaseAnswer("case_004", said("speed_scale_error", shrink=0.9)),  # nothing secondary
         CaseAnswer("case_005", said("none", shrink=0.0)),  # missed
     ]
     scores = score(answers, truth)
     assert scores["accuracy"] == pytest.approx(3 / 5)
     assert scores["false_alarm_rate"] == pytest.approx(1 / 2)
     assert scores["shrink_heldout_median"] == pytest.approx(0.6)
+    assert scores["shrink_with_secondary_median"] == pytest.approx(0.85)  # of 0.1, 0.85, 0.9
     assert scores["confusion"]["none -> tyre_ply_steer"] == 1
 
 
@@ -430,3 +458,16 @@ def test_a_car_without_stiffness_or_a_drive_too_short_is_one_error_line(tmp_path
     write_drive(dataclasses.replace(drive, messages=drive.messages[: len(drive.messages) // 20]), short)
     code, _, err = run_cli(["gap", str(short)])
     assert code == 1 and "too short to diagnose" in err and "\n" not in err.strip()
+
+
+@pytest.mark.parametrize(
+    ("downhill_deg", "said"),
+    [(-90.0, "90° right of the start"), (30.0, "30° left of"), (0.0, "straight ahead"), (180.0, "behind")],
+)
+def test_a_slope_is_said_to_fall_where_its_gravity_points(downhill_deg: float, said: str) -> None:
+    """A pad falling towards D (from the start heading, left positive) pulls the car sideways by
+    g·s·sin(D − ψ) at heading ψ: the components the fit gives are A = −s·cos D, B = s·sin D."""
+    slope = next(c for c in CANDIDATES if c.effect == "road_cross_slope")
+    grade, d = 2.5, math.radians(downhill_deg)
+    text = slope.action((-grade * math.cos(d), grade * math.sin(d)))
+    assert "slopes 2.5 %" in text and said in text

@@ -72,6 +72,22 @@ def test_draws_cover_every_effect_with_sizes_in_range() -> None:
         assert signs == ({-1.0, 1.0} if spec.signed else ({1.0} if spec.high > 0 else set()))
 
 
+def test_a_pack_of_one_effect_draws_only_its_sizes_and_keeps_each_case_s_test_day() -> None:
+    mixed = plan_pack(20, 808)
+    nones = plan_pack(20, 808, only="none")
+    slopes = plan_pack(20, 808, model="commonroad", only="road_cross_slope")
+    assert {case.effect for case in nones} == {NO_EFFECT}
+    assert {case.effect.name for case in slopes} == {"road_cross_slope"}
+    assert len({case.effect.size for case in slopes}) == 20
+    assert all(1.0 <= abs(case.effect.size) <= 4.0 for case in slopes)
+    # the test day's imperfections and handbook configs are the mixed pack's, case by case
+    assert [(c.seed, c.imperfections, c.handbook) for c in nones] == [
+        (c.seed, c.imperfections, c.handbook) for c in mixed
+    ]
+    with pytest.raises(C2nError, match="commonroad model cannot carry it"):
+        plan_pack(2, 808, model="commonroad", only="roll_steer")
+
+
 @pytest.mark.parametrize(
     ("make", "message"),
     [
@@ -334,6 +350,8 @@ def test_cli_pack_prints_a_line_per_case_and_keeps_the_effect_sealed(tmp_path: P
         ["--session", "standard", "--scenario", "radii"],
         ["--effect", "roll_steer"],
         ["--session", "standard", "--effect-size", "0.1"],
+        ["--pack", "2", "--effect", "roll_steer", "--effect-size", "0.1"],
+        ["--pack", "2", "--model", "commonroad", "--effect", "roll_steer"],
     ],
 )
 def test_cli_refuses_options_that_do_not_fit(

@@ -78,6 +78,11 @@ def lines(result: GapResult) -> list[str]:
         out.append(
             f"  also {other.effect} (shrinks what is left by {other.shrink_heldout:.0%}): {other.action}"
         )
+    if result.secondary and result.shrink_heldout_with_secondary > result.shrink_heldout:
+        out.append(
+            f"  with {result.secondary[0].effect} beside it the held-out sideslip gap shrinks by "
+            f"{result.shrink_heldout_with_secondary:.0%} in all"
+        )
     out.append("  calibrated (the config's value → this drive's, 95 %):")
     for name, value in result.calibration.items():
         label, unit = _CALIBRATION_LABELS.get(name, (name, ""))

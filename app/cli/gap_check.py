@@ -73,16 +73,19 @@ def run(args: argparse.Namespace, console: Console) -> int:
 
 def summary_line(summary: dict[str, object]) -> str:
     """Accuracy, false alarms on 'none', named effects that made the gap worse, median shrink."""
-    alarm, shrink, quartiles = (
+    alarm, shrink, quartiles, total = (
         summary["false_alarm_rate"],
         summary["shrink_heldout_median"],
         summary["shrink_heldout_quartiles"],
+        summary["shrink_with_secondary_median"],
     )
     alarms = (
         f"{summary['false_alarms']} of {summary['none_cases']}" if alarm is not None else "— (no 'none' case)"
     )
     spread = f" (quartiles {quartiles[0]:.0%}, {quartiles[1]:.0%})" if isinstance(quartiles, list) else ""
     errors = f"; {summary['errors']} not diagnosed" if summary["errors"] else ""
+    if isinstance(total, float) and isinstance(shrink, float) and total > shrink:
+        spread += f"; {total:.0%} with the secondary effects listed"
     return (
         f"accuracy {summary['accuracy']:.0%} of {summary['n']} cases; false alarms on 'none' {alarms}; "
         f"named effects with a negative shrink {summary['negative_shrinks']}; median held-out shrink "

@@ -40,8 +40,6 @@ _DRIVE_ONLY = {
     "noise": 0.02,
     "sensor_lateral": None,
     "single_channel": False,
-    "effect": None,
-    "effect_size": None,
 }
 
 
@@ -62,7 +60,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "--pack",
         type=number(1, 10000, integer=True),
         metavar="N",
-        help="write N standard sessions with random effects into --out DIR",
+        help="write N standard sessions with random effects (--effect: that one in each) into --out DIR",
     )
     parser.add_argument(
         "--campaign",
@@ -245,6 +243,8 @@ def _check_session_options(args: argparse.Namespace) -> None:
                 raise C2nError(f"{flag} is for a single --session; a pack's cases use the config as it is")
     if args.effect_size is not None and args.effect is None:
         raise C2nError("--effect-size needs --effect NAME")
+    if args.effect_size is not None and args.pack is not None:
+        raise C2nError("--effect-size is for one --session; a pack draws its sizes from the effect's range")
 
 
 def _plan(args: argparse.Namespace) -> "StandardPlan":
@@ -313,6 +313,7 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
             done,
             realistic=realistic,
             model=args.model,
+            only=args.effect,
         )
     console.print(
         f"wrote {len(result.cases)} cases to {out} in {result.elapsed_s:.1f} s; "

@@ -126,6 +126,15 @@ def _side(value: float, positive: str, negative: str) -> str:
     return positive if value >= 0 else negative
 
 
+def _downhill(slope: tuple[float, ...]) -> str:
+    """Where a slope falls, from its lateral gravity A·sin ψ + B·cos ψ (ψ the heading, left turns
+    positive): the direction D it falls to gives A = −g_s·cos D, B = g_s·sin D."""
+    angle = math.degrees(math.atan2(slope[1], -slope[0]))
+    if abs(angle) < 0.5 or abs(angle) > 179.5:
+        return "straight ahead of the start heading" if abs(angle) < 90 else "behind the start heading"
+    return f"{abs(angle):.0f}° {_side(angle, 'left', 'right')} of the start heading"
+
+
 CANDIDATES: tuple[Candidate, ...] = (
     Candidate(
         "sensor_yaw_misalignment",
@@ -175,9 +184,8 @@ CANDIDATES: tuple[Candidate, ...] = (
             Param("slope_cos_pct", 2.0, lambda x: {"slope_cos_mps2": 9.81 * x / 100}, -8.0, 8.0),
         ),
         lambda v: (
-            f"the test area slopes {math.hypot(*v):.1f} % (falling towards "
-            f"{math.degrees(math.atan2(v[0], v[1])):.0f}° from the start heading): drive full circles "
-            "both ways, or find a level pad"
+            f"the test area slopes {math.hypot(*v):.1f} % (falling towards {_downhill(v)}): drive full "
+            "circles both ways, or find a level pad"
         ),
     ),
     Candidate(

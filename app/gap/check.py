@@ -82,7 +82,8 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
     within the diagnosis's confounded group: a named effect's, or the effects a verdict of "none"
     says the calibration absorbs), false alarms on 'none', named effects that made the
     held-out gap worse, and the named effects' held-out shrink (of the gap each was named by: the
-    sideslip's, or the vehicle speed signal's). A sealed case without an answer (its log gone)
+    sideslip's, or the vehicle speed signal's), alone and with the first secondary effect listed
+    beside it. A sealed case without an answer (its log gone)
     counts as a failure."""
     by_case = {answer.case: answer for answer in answers}
     rows = []
@@ -103,6 +104,7 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
                 "confounded_with": group,
                 "correct": ok,
                 "shrink_heldout": result.shrink_heldout if result else None,
+                "shrink_heldout_with_secondary": result.shrink_heldout_with_secondary if result else None,
                 "error": answer.error,
             }
         )
@@ -119,6 +121,7 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     alarms = sum(r["diagnosis"] != "none" for r in none_rows)
     named = [r for r in rows if r["diagnosis"] not in ("none", "unexplained", "error")]
     shrinks = [float(r["shrink_heldout"]) for r in named if r["shrink_heldout"] is not None]
+    totals = [float(r["shrink_heldout_with_secondary"]) for r in named if r["shrink_heldout"] is not None]
     confusion = Counter((r["truth"], r["diagnosis"]) for r in rows)
     return {
         "n": n,
@@ -130,6 +133,7 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "errors": sum(r["diagnosis"] == "error" for r in rows),
         "shrink_heldout_median": float(np.median(shrinks)) if shrinks else None,
         "shrink_heldout_quartiles": [float(q) for q in np.percentile(shrinks, [25, 75])] if shrinks else None,
+        "shrink_with_secondary_median": float(np.median(totals)) if totals else None,
         "confusion": {f"{t} -> {s}": k for (t, s), k in sorted(confusion.items())},
     }
 

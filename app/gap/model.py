@@ -103,6 +103,7 @@ class Prepared:
     c1_nominal: np.ndarray  # axle stiffnesses with the longitudinal load transfer, N/rad
     c2_nominal: np.ndarray
     sway: np.ndarray  # the head's lateral velocity from rolling, p·h
+    transfer_kg_s2: float = 0.0  # the load moved rearward per m/s² of specific force, m·h/L
 
 
 def prepare(
@@ -125,6 +126,7 @@ def prepare(
         c1_nominal=p.c1n * (p.w1_n - transfer),
         c2_nominal=p.c2n * (p.w2_n + transfer),
         sway=m.p * roll_lever_m,
+        transfer_kg_s2=p.mass_kg * cg_height_m / p.wheelbase_m if cg_height_m else 0.0,
     )
 
 
@@ -151,18 +153,22 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
     # the vehicle's speed signal; a head yawed by ψ reads the speed cos ψ low, so the true speed
     # the vehicle's signal measures is the optical one over cos ψ
     speed_reading = (1.0 + mods.speed_scale) * _shift(w.u_optical, t, -late) / math.cos(mods.misalignment_rad)
-    c1, c2 = w.c1_nominal * mods.c1n_factor, w.c2_nominal * mods.c2n_factor
+    n = len(t)
+    c1, c2, lateral = w.c1_nominal, w.c2_nominal, np.zeros(n)
+    if mods.slope_sin_mps2 or mods.slope_cos_mps2:
+        heading = np.cumsum(np.nan_to_num(r_meas)) * w.dt
+        lateral = mods.slope_sin_mps2 * np.sin(heading) + mods.slope_cos_mps2 * np.cos(heading)
+        # its gravity along the heading (the lateral component's turned by a quarter) moves load
+        # between the axles as braking does, m·h·(a_x − g_x)/L with a_x the speed's own
+        g_x = mods.slope_cos_mps2 * np.sin(heading) - mods.slope_sin_mps2 * np.cos(heading)
+        rearward = -w.transfer_kg_s2 * g_x
+        c1, c2 = c1 - p.c1n * rearward, c2 + p.c2n * rearward
+    c1, c2 = c1 * mods.c1n_factor, c2 * mods.c2n_factor
     if mods.softening1_per_mps4 or mods.softening2_per_mps4:
         ay2 = ay * ay
         c1 = c1 * np.clip(1.0 - mods.softening1_per_mps4 * ay2, 0.2, 2.0)
         c2 = c2 * np.clip(1.0 - mods.softening2_per_mps4 * ay2, 0.2, 2.0)
-    n = len(t)
     delta2 = mods.roll_steer_rad_per_mps2 * ay + mods.ply_rad if mods.roll_steer_rad_per_mps2 else None
-    if mods.slope_sin_mps2 or mods.slope_cos_mps2:
-        heading = np.cumsum(np.nan_to_num(r_meas)) * w.dt
-        lateral = mods.slope_sin_mps2 * np.sin(heading) + mods.slope_cos_mps2 * np.cos(heading)
-    else:
-        lateral = np.zeros(n)
     if mods.turn_force_g:
         lateral = lateral + G * mods.turn_force_g * np.tanh(ay / TURN_AY_MPS2)
     v_cg, yaw = step_lateral(

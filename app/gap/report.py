@@ -113,6 +113,7 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
             ("what it means", text(result.action)),
             ("confounded with", text(", ".join(result.confounded_with) or None)),
             ("held-out shrink", text(result.shrink_heldout)),
+            ("with the secondary effect beside it", text(result.shrink_heldout_with_secondary)),
             (
                 "held-out sideslip gap",
                 f"{text(result.heldout_rms_deg.before)}° → {text(result.heldout_rms_deg.after)}°",

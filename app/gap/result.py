@@ -99,7 +99,8 @@ class GapResult:
     located: tuple[Located, ...]
     candidates: tuple[CandidateScore, ...]
     c2n: GapC2n
-    shrink_heldout: float
+    shrink_heldout: float  # of the gap the dominant effect was named by
+    shrink_heldout_with_secondary: float  # the sideslip gap's, the first secondary effect added
     heldout_rms_deg: BeforeAfter  # the calibrated model's held-out sideslip gap, and with the effect
     heldout_yaw_rms_degps: BeforeAfter
     verdict: str  # the diagnosis in a sentence: what was found and why

@@ -68,14 +68,21 @@ def case_seed(pack_seed: int, index: int) -> int:
     return int(np.random.SeedSequence([pack_seed, index]).generate_state(1)[0])
 
 
-def plan_pack(n: int, pack_seed: int, realistic: bool = True, model: str = "two_track") -> list[CaseSpec]:
-    """The cases: each one's effect, and with ``realistic`` a test day's imperfections and a
-    handbook config (its C1n and C2n each ±20 % off the car's), every draw from a random stream
-    of its own, so the effects do not depend on whether the pack is realistic."""
+def plan_pack(
+    n: int, pack_seed: int, realistic: bool = True, model: str = "two_track", only: str | None = None
+) -> list[CaseSpec]:
+    """The cases: each one's effect (``only``: that effect in every case, its size drawn from its
+    range — a pack of 'none' counts false alarms), and with ``realistic`` a test day's
+    imperfections and a handbook config (its C1n and C2n each ±20 % off the car's), every draw
+    from a random stream of its own, so the effects do not depend on whether the pack is realistic."""
+    names = commonroad.EFFECTS if model == "commonroad" else EFFECT_NAMES
+    if only is not None:
+        if only not in names:
+            raise C2nError(f"--effect {only}: the {model} model cannot carry it (it can: {', '.join(names)})")
+        names = (only,)
     cases = []
     for index in range(1, n + 1):
         seed = case_seed(pack_seed, index)
-        names = commonroad.EFFECTS if model == "commonroad" else EFFECT_NAMES
         effect = draw_effect(np.random.default_rng([seed, _EFFECT_STREAM]), names)
         if realistic:
             imperfections = of_session(seed)
@@ -97,6 +104,7 @@ def write_pack(
     clock: Callable[[], float] = time.perf_counter,
     realistic: bool = True,
     model: str = "two_track",
+    only: str | None = None,
 ) -> PackResult:
     """Write the pack into ``out`` (new or empty); ``on_case`` hears of each case as it is done.
     ``realistic``: every case carries a test day's imperfections and a handbook config."""
@@ -106,7 +114,7 @@ def write_pack(
         raise OutputError(f"{out}: exists and is not an empty folder — choose a new one")
     config_text = _portable_config(Path(config_path))
     load_config(config_path)  # a bad config fails here, once, not in every worker
-    specs = plan_pack(n, pack_seed, realistic, model)
+    specs = plan_pack(n, pack_seed, realistic, model, only)
     start = clock()
     jobs = [(Path(config_path), out / spec.name, spec, plan, config_text, model) for spec in specs]
     workers = max(1, min(workers or os.cpu_count() or 1, n))

@@ -19,8 +19,9 @@ from app.decode.decoder import Decoder
 from app.detect.crossings import CrossingDetector
 from app.detect.steady_state import DIRECTIONS, STEADY, SteadyStateGate
 from app.estimate.compiled import CompiledMotionFilter, estimate_of
-from app.records import Crossing, CrossingRejected, Event, Record, SteadyState
+from app.records import Crossing, CrossingRejected, Estimate, Event, Record, SteadyState
 from app.results.combine import Combined, combine
+from app.results.heading import Heading
 from app.results.pairing import Paired, pair
 from app.results.regression import RegressionFit, SampleRegression
 from app.results.sideslip_profile import SideslipProfile
@@ -30,6 +31,7 @@ from app.sources.blocks import FrameBlock, RecordBlock
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)
 _LATERAL = {"beta": ("beta",), "vy": ("vy",), "auto": ("beta", "vy")}  # what sideslip_source allows
+_R = Estimate._fields.index("r_radps")  # the yaw rate's column of the filter's estimates
 _REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
 
 
@@ -62,6 +64,7 @@ class Pipeline:
         self.gate = SteadyStateGate(config.detector)
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
         self.regression = SampleRegression(config.vehicle.gravity_mps2)
+        self.heading = Heading()
         self.profile = SideslipProfile()
         self.state = SessionState()
         self._last_fit = -float("inf")
@@ -125,13 +128,14 @@ class Pipeline:
         estimate = self.filter.step(record)
         if estimate is None:
             return record
+        heading = self.heading.step(record.t, estimate.r_radps)
         steady = self.gate.step(record.t, estimate, state.latest.get("steer"), state.sensor_problem)
         events = self.detector.step(record.t, estimate, steady)
         self._collect(events)
         if steady.steady and estimate.v_meas_mps is not None:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
             if estimate.r_radps is not None:
-                self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
+                self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps, heading)
         if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
             self._last_fit = record.t
             state.regression = self.regression.fit()
@@ -178,6 +182,7 @@ class Pipeline:
         if not len(rows):
             return []
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
+        headings = self.heading.steps(t[rows], out[:, _R]).tolist()
         times = t[rows].tolist()
         steady_fields = iter(out[np.equal(kinds, STEADY)].tolist())  # the rows the detector sees
         detector, regression, profile = self.detector, self.regression, self.profile
@@ -195,7 +200,8 @@ class Pipeline:
                 if steady and estimate.v_meas_mps is not None:
                     profile.add(estimate.u_mps, estimate.v_meas_mps, DIRECTIONS[directions[k]])
                     if estimate.r_radps is not None:
-                        regression.add(now, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps)
+                        u, r, v = estimate.u_mps, estimate.r_radps, estimate.v_meas_mps
+                        regression.add(now, u, r, v, headings[k])
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
                 state.regression = regression.fit()

@@ -135,3 +135,67 @@ def test_a_narrow_ay_band_that_cannot_see_softening_widens_the_interval_to_both_
     assert narrow.c2n_ci95[0] <= c2n <= narrow.c2n_ci95[1]  # ... the widened interval holds the truth
     wide = fitted(circle(30.0, 0.5, 4.0))
     assert wide is not None and wide.softening_resolved and wide.softening_hidden_pct < 3.0
+
+
+def circle_samples(
+    c2n: float, d: float, slope: float, downhill_deg: float, radii: tuple[float, ...], sweep_s: float = 20.0
+):
+    """(t, u, r, v, ψ) for sweeps up and down (``sweep_s`` each) on full circles of a pad that
+    slopes ``slope`` (a fraction) falling towards ``downhill_deg`` from the start heading: the
+    tyres make up the slope's pull g·s·sin(D − ψ), so β = d·κ − (a_y − g_y)/(g·C2n)."""
+    u0, hz = paper.crossing_speed(c2n, d, G), 50.0
+    t, heading, downhill = 0.0, 0.0, math.radians(downhill_deg)
+    for radius in radii:
+        up = np.linspace(0.6 * u0, 1.4 * u0, int(sweep_s * hz))
+        for u in np.concatenate([up, up[::-1]]):
+            r = u / radius
+            g_y = G * slope * math.sin(downhill - heading)
+            beta = d * r / u - (u * r - g_y) / (G * c2n)
+            yield t, float(u), float(r), float(u * beta), heading
+            t += 1.0 / hz
+            heading += r / hz
+        t += 5.0
+
+
+def test_a_sloping_pad_is_fitted_and_taken_out_of_c2n() -> None:
+    regression = SampleRegression(G)
+    for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.02, -90.0, (60.0, -60.0, 90.0, -90.0)):
+        regression.add(t, u, r, v, heading)
+    fit = regression.fit()
+    assert fit is not None and fit.slope_pct is not None and fit.slope_ci95_pct is not None
+    assert fit.c2n == pytest.approx(14.0, rel=1e-9)
+    assert fit.d_m == pytest.approx(1.2, rel=1e-9)
+    assert fit.slope_pct == pytest.approx(2.0, rel=1e-9)
+    assert fit.slope_downhill_deg == pytest.approx(-90.0, abs=1e-6)
+    falling_left = SampleRegression(G)
+    for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.03, 45.0, (60.0, -60.0, 90.0, -90.0), 60.0):
+        falling_left.add(t, u, r, v, heading)
+    fit = falling_left.fit()
+    assert fit is not None and fit.slope_pct == pytest.approx(3.0, rel=1e-9)
+    assert fit.slope_downhill_deg == pytest.approx(45.0, abs=1e-6)
+    assert fit.c2n == pytest.approx(14.0, rel=1e-9)
+
+
+def test_a_quarter_turn_of_headings_fits_no_slope() -> None:
+    """Samples on one short arc: sin ψ and cos ψ barely move, the offset and d take them."""
+    regression = SampleRegression(G)
+    for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.0, 0.0, (60.0, -60.0)):
+        regression.add(t, u, r, v, heading % (math.pi / 4))
+    fit = regression.fit()
+    assert fit is not None and fit.slope_pct is None and fit.slope_downhill_deg is None
+
+
+def test_the_heading_is_the_same_frame_by_frame_and_in_blocks() -> None:
+    from app.results.heading import Heading
+
+    rng = np.random.default_rng(4)
+    t = np.cumsum(rng.uniform(0.004, 0.02, 500))
+    r = rng.normal(0.2, 0.05, 500)
+    r[rng.random(500) < 0.2] = np.nan  # frames without a yaw rate hold the heading
+    one = Heading()
+    expected = [one.step(float(a), None if math.isnan(b) else float(b)) for a, b in zip(t, r, strict=True)]
+    blocks = Heading()
+    got = np.concatenate([blocks.steps(t[k : k + 37], r[k : k + 37]) for k in range(0, 500, 37)])
+    assert got.tolist() == expected  # exactly: the same additions in the same order
+    steady = Heading()
+    assert steady.steps(t, np.full(500, 0.3))[-1] == pytest.approx(0.3 * (t[-1] - t[0]), rel=1e-12)

@@ -24,6 +24,13 @@ two models) exceeds ``UNRESOLVED_PCT`` of C2n — what real tyres soften by at t
 would then pass unseen — the interval spans both models' intervals and ``softening_resolved``
 says so (one circle to 3.5 m/s² sampled at 50–100 Hz: 1.4–2.2 %).
 
+A test pad is rarely level: a drainage slope of 1–2 % is common. Its gravity g·s·sin(D − ψ) pulls
+the car sideways as the heading ψ turns, and the tyres make up the difference, so the sideslip
+gains (g_y)/(g·C2n) — a term A·sin ψ + B·cos ψ. Where the steady samples cover the headings
+(full circles) the two terms are fitted beside the others, and the slope s = C2n·√(A² + B²) and
+the direction D it falls to (atan2(B, −A) from the start heading, left positive) are reported;
+on a 2 % slope, left out, they move C2n by several per cent. The heading is the integrated yaw rate.
+
 Samples at 50–250 Hz are autocorrelated, so the covariance is Newey–West (Bartlett) over short
 time blocks. Only each block's sufficient statistics are kept (XᵀX, Xᵀy), so memory does not
 grow with the samples; past ``max_blocks`` the oldest blocks are merged in pairs.
@@ -35,10 +42,12 @@ from typing import Literal
 
 import numpy as np
 
-_TERMS = ("psi0", "d", "ay", "ay3")
+_TERMS = ("psi0", "d", "ay", "ay3", "sin", "cos")
 _K = len(_TERMS)
 _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrelation across it)
 UNRESOLVED_PCT = 3.0  # softening that could hide in the data, % of C2n, beyond which both models count
+_SLOPE_SPREAD = 0.3  # the headings' spread (of sin ψ, cos ψ beside the other terms; full circles 0.5)
+# beyond which a slope's two terms are fitted
 
 
 @dataclass(frozen=True)
@@ -61,6 +70,9 @@ class RegressionFit:
     curvature_range: tuple[float, float]  # |κ| = |r/u| of the samples [1/m]: 1/κ are the radii driven
     softening_resolved: bool = True  # False: the data cannot tell linear tyres from softening ones
     softening_hidden_pct: float = 0.0  # the softening, % of C2n, that could hide in the data (2 se)
+    slope_pct: float | None = None  # the pad's slope, where the headings let it be fitted
+    slope_ci95_pct: tuple[float, float] | None = None
+    slope_downhill_deg: float | None = None  # where it falls, from the start heading, left positive
 
 
 class SampleRegression:
@@ -83,7 +95,7 @@ class SampleRegression:
         self._run = np.zeros(capacity, dtype=np.int64)
         self._n = np.zeros(capacity, dtype=np.int64)
         self._blocks = 0
-        self._open: list[tuple[float, float, float]] = []  # (κ, a_y, β) of the block being filled
+        self._open: list[tuple[float, float, float, float]] = []  # (κ, a_y, β, ψ) of the open block
         self._block_start = -math.inf
         self._t_last = -math.inf
         self._run_id = 0
@@ -96,8 +108,9 @@ class SampleRegression:
     def n_samples(self) -> int:
         return int(self._n[: self._blocks].sum()) + len(self._open)
 
-    def add(self, t: float, u: float, r: float, v_meas: float) -> None:
-        """One steady sample: filtered speed and yaw rate, measured lateral velocity at the sensor."""
+    def add(self, t: float, u: float, r: float, v_meas: float, heading: float = 0.0) -> None:
+        """One steady sample: filtered speed and yaw rate, measured lateral velocity at the sensor,
+        and the heading (the yaw rate integrated since the start)."""
         if not t - self._t_last <= _GAP_S:
             self._close_block()
             self._run_id += 1
@@ -110,11 +123,11 @@ class SampleRegression:
         kappa = r / u
         self._ay_min, self._ay_max = min(self._ay_min, abs(ay)), max(self._ay_max, abs(ay))
         self._kappa_min, self._kappa_max = min(self._kappa_min, abs(kappa)), max(self._kappa_max, abs(kappa))
-        self._open.append((kappa, ay, v_meas / u))
+        self._open.append((kappa, ay, v_meas / u, heading))
 
     def _open_stats(self) -> tuple[np.ndarray, np.ndarray]:
-        kappa, ay, beta = np.array(self._open).T
-        x = np.column_stack([np.ones_like(ay), kappa, ay, ay**3])
+        kappa, ay, beta, heading = np.array(self._open).T
+        x = np.column_stack([np.ones_like(ay), kappa, ay, ay**3, np.sin(heading), np.cos(heading)])
         return x.T @ x, x.T @ beta
 
     def _close_block(self) -> None:
@@ -169,6 +182,9 @@ class SampleRegression:
         mean_k, mean_k2 = total[0, 1] / n, total[1, 1] / n
         psi0_free = mean_k2 > 0 and (mean_k2 - mean_k**2) >= 0.04 * mean_k2
         base = [0, 1, 2] if psi0_free else [1, 2]
+        slope_free = psi0_free and _spread(total, base, [4, 5], n) >= _SLOPE_SPREAD
+        if slope_free:
+            base += [4, 5]
         cubic = _solve(xtx, xty, run, [*base, 3], n)
         linear = _solve(xtx, xty, run, base, n)
         if cubic is None or linear is None:
@@ -206,6 +222,7 @@ class SampleRegression:
         psi0 = psi0_se = None
         if psi0_free:
             psi0, psi0_se = chosen.coef[0], math.sqrt(chosen.cov[0, 0])
+        slope = _slope(chosen, c2n, q) if slope_free else None
         softening = None
         if chosen is cubic:
             softening = -cubic.coef[-1] * self.g * c2n  # α2 = a_y/(g·C2n)·(1 + s·a_y²)
@@ -228,6 +245,9 @@ class SampleRegression:
             curvature_range=(self._kappa_min, self._kappa_max),
             softening_resolved=resolved,
             softening_hidden_pct=hidden,
+            slope_pct=slope[0] if slope else None,
+            slope_ci95_pct=slope[1] if slope else None,
+            slope_downhill_deg=slope[2] if slope else None,
         )
 
 
@@ -236,6 +256,34 @@ class _Solution:
     terms: list[int]
     coef: np.ndarray
     cov: np.ndarray
+
+
+def _spread(total: np.ndarray, base: list[int], extra: list[int], n: int) -> float:
+    """How much of the ``extra`` terms the ``base`` terms leave: the smaller eigenvalue of their
+    covariance beside the others, per sample (sin ψ and cos ψ over full circles: 0.5)."""
+    b = total[np.ix_(base, base)]
+    e = total[np.ix_(extra, extra)]
+    c = total[np.ix_(extra, base)]
+    try:
+        schur = e - c @ np.linalg.solve(b, c.T)
+    except np.linalg.LinAlgError:
+        return 0.0
+    return float(np.linalg.eigvalsh(schur)[0]) / n
+
+
+def _slope(fit: "_Solution", c2n: float, q: float) -> tuple[float, tuple[float, float], float]:
+    """The slope in % with its 95 % interval (delta method on √(A² + B²); from zero where the
+    interval reaches it), and the direction it falls to in degrees: A·sin ψ + B·cos ψ is
+    g_y/(g·C2n) with g_y = g·s·sin(D − ψ), so A = −s·cos D/C2n and B = s·sin D/C2n."""
+    i, j = fit.terms.index(4), fit.terms.index(5)
+    a, b = fit.coef[i], fit.coef[j]
+    size = math.hypot(a, b)
+    cov = fit.cov[np.ix_([i, j], [i, j])]
+    grad = np.array([a, b]) / size if size > 0 else np.zeros(2)
+    se = math.sqrt(max(float(grad @ cov @ grad), 0.0))
+    pct = 100.0 * abs(c2n)
+    interval = (max(pct * (size - q * se), 0.0), pct * (size + q * se))
+    return pct * size, interval, math.degrees(math.atan2(b, -a))
 
 
 def _solve(xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, terms: list[int], n: int) -> _Solution | None:

@@ -70,6 +70,9 @@ class RegressionRow:
     ay_range_mps2: Interval
     softening_resolved: bool  # False: the a_y range cannot tell linear from softening tyres
     softening_hidden_pct: float | None  # softening that could hide in the data, % of C2n
+    slope_pct: float | None  # the test pad's slope, fitted where the headings cover full circles
+    slope_ci95_pct: Interval | None
+    slope_downhill_deg: float | None  # where it falls: degrees from the start heading, left positive
 
 
 @dataclass(frozen=True)
@@ -293,6 +296,9 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"from softening ones (a softening of {fit.softening_hidden_pct:.0f} % could hide in it), so the "
             "interval covers both; steady laps at lower a_y (slower, or a larger circle) would narrow it"
         )
+    slope = _slope_warning(fit)
+    if slope is not None:
+        out.append(slope)
     if snapshot.replay_hint:
         out.append(snapshot.replay_hint)
     beyond = _crossing_beyond_gate(snapshot, config)
@@ -313,6 +319,27 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
         )
     return out
+
+
+SLOPE_WARN_PCT = 1.0  # a pad slope this steep, and beyond its noise, is worth a word
+
+
+def _slope_warning(fit: RegressionFit | None) -> str | None:
+    """A slope the regression found: where it falls, that it is taken out of C2n, and that the
+    crossings (each at one heading) still carry it."""
+    if fit is None or fit.slope_pct is None or fit.slope_ci95_pct is None or fit.slope_downhill_deg is None:
+        return None
+    if fit.slope_pct < SLOPE_WARN_PCT or fit.slope_ci95_pct[0] <= 0.0:
+        return None
+    towards = fit.slope_downhill_deg
+    side = "left" if towards >= 0 else "right"
+    low, high = fit.slope_ci95_pct
+    return (
+        f"the test pad slopes {fit.slope_pct:.1f} % [{low:.1f}, {high:.1f}] "
+        f"(falling {abs(towards):.0f}° {side} of the start heading): the regression takes it out of C2n; "
+        "each crossing happens at one heading and carries it — pair left and right circles, or find a "
+        "level pad"
+    )
 
 
 def _crossing_beyond_gate(snapshot: Snapshot, config: Config) -> str | None:
@@ -396,6 +423,9 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         ay_range_mps2=_pair(fit.ay_range, digits=3),
         softening_resolved=fit.softening_resolved,
         softening_hidden_pct=_round(fit.softening_hidden_pct, 2),
+        slope_pct=_maybe(fit.slope_pct, 2),
+        slope_ci95_pct=_pair(fit.slope_ci95_pct, digits=2) if fit.slope_ci95_pct is not None else None,
+        slope_downhill_deg=_maybe(fit.slope_downhill_deg, 0),
     )
 
 

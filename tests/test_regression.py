@@ -138,11 +138,19 @@ def test_a_narrow_ay_band_that_cannot_see_softening_widens_the_interval_to_both_
 
 
 def circle_samples(
-    c2n: float, d: float, slope: float, downhill_deg: float, radii: tuple[float, ...], sweep_s: float = 20.0
+    c2n: float,
+    d: float,
+    slope: float,
+    downhill_deg: float,
+    radii: tuple[float, ...],
+    sweep_s: float = 20.0,
+    transfer: float = 0.0,
 ):
     """(t, u, r, v, ψ) for sweeps up and down (``sweep_s`` each) on full circles of a pad that
     slopes ``slope`` (a fraction) falling towards ``downhill_deg`` from the start heading: the
-    tyres make up the slope's pull g·s·sin(D − ψ), so β = d·κ − (a_y − g_y)/(g·C2n)."""
+    tyres make up the slope's pull g·s·sin(D − ψ), so β = d·κ − (a_y − g_y)/(g·C2n); and the
+    slope's gravity along the heading g_x = g·s·cos(D − ψ) changes the rear's give per m/s² of
+    a_y by the factor 1 + ``transfer``·g_x/g (load moved between the axles)."""
     u0, hz = paper.crossing_speed(c2n, d, G), 50.0
     t, heading, downhill = 0.0, 0.0, math.radians(downhill_deg)
     for radius in radii:
@@ -150,7 +158,8 @@ def circle_samples(
         for u in np.concatenate([up, up[::-1]]):
             r = u / radius
             g_y = G * slope * math.sin(downhill - heading)
-            beta = d * r / u - (u * r - g_y) / (G * c2n)
+            softer = 1.0 + transfer * slope * math.cos(downhill - heading)
+            beta = d * r / u - (u * r * softer - g_y) / (G * c2n)
             yield t, float(u), float(r), float(u * beta), heading
             t += 1.0 / hz
             heading += r / hz
@@ -174,6 +183,25 @@ def test_a_sloping_pad_is_fitted_and_taken_out_of_c2n() -> None:
     assert fit is not None and fit.slope_pct == pytest.approx(3.0, rel=1e-9)
     assert fit.slope_downhill_deg == pytest.approx(45.0, abs=1e-6)
     assert fit.c2n == pytest.approx(14.0, rel=1e-9)
+
+
+def test_a_slope_s_load_transfer_is_fitted_and_leaves_c2n_as_on_the_level() -> None:
+    """The slope's pull along the heading makes the rear give more going downhill than up: C2n
+    is the level pad's, where leaving the a_y·sin ψ, a_y·cos ψ terms out would move it."""
+    samples = list(circle_samples(14.0, 1.2, 0.03, 130.0, (60.0, -60.0, 90.0, -90.0), transfer=3.0))
+    regression = SampleRegression(G)
+    for t, u, r, v, heading in samples:
+        regression.add(t, u, r, v, heading)
+    fit = regression.fit()
+    assert fit is not None and fit.slope_pct == pytest.approx(3.0, rel=1e-9)
+    assert fit.slope_downhill_deg == pytest.approx(130.0, abs=1e-6)
+    assert fit.c2n == pytest.approx(14.0, rel=1e-9) and fit.d_m == pytest.approx(1.2, rel=1e-9)
+    level = SampleRegression(G)
+    for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.0, 0.0, (60.0, -60.0, 90.0, -90.0)):
+        level.add(t, u, r, v, heading)
+    flat = level.fit()
+    assert flat is not None and flat.c2n == pytest.approx(14.0, rel=1e-9)
+    assert flat.slope_pct == pytest.approx(0.0, abs=1e-6)  # no slope: its transfer terms stay out
 
 
 def test_a_quarter_turn_of_headings_fits_no_slope() -> None:

@@ -598,10 +598,10 @@ def main() -> None:
         print(f"   re-run / first run                   {summary(rerun, '%', 100, 1)}  (goal ≤ 5 %)")
     if "startup" in only:
         for argv in ([str(C2N), "--help"], [str(C2N), "analyze", "--help"]):
-            runs = startup(argv, max(args.runs, 3))
+            starts = startup(argv, max(args.runs, 3))
             shown = " ".join(["c2n", *argv[1:]])
-            print(f"6. {shown:26s}{summary([r[0] for r in runs], 's', digits=2)}")
-            print(f"   {'peak RSS':26s}{summary([r[1] for r in runs], 'MiB', digits=0)}")
+            print(f"6. {shown:26s}{summary([r[0] for r in starts], 's', digits=2)}")
+            print(f"   {'peak RSS':26s}{summary([r[1] for r in starts], 'MiB', digits=0)}")
         first_frame(1)  # the numba cache warm, as on a laptop that ran c2n before
         firsts = first_frame(max(args.runs, 3))
         print(f"   c2n live, first frame      {summary(firsts, 's', digits=2)}  (goal ≤ 1.5 s)")

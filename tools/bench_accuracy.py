@@ -1,13 +1,17 @@
 """Accuracy of C2n over seeded simulated sessions: medians, worst cases and interval coverage.
 
 Cases (issue 3): (a) linear tyres, realistic noise; (b) the sensor head yawed 0.3°; (c) Magic-
-Formula tyres (μ = 1) with runs up to the 4 m/s² gate; (d) the vehicle speed 0.2 s late. Each
-session: a bicycle-model drive with a random true C2n (10–19 1/rad), S-Motion-like noise
+Formula tyres (μ = 1) with runs up to the 4 m/s² gate; (d) the vehicle speed 0.2 s late; (e) a
+planar slope of 1–3 % falling in a random direction, on the standard session (three radii both
+ways) of the two-track model (its scenario is "standard", whatever --scenarios says); (f) the same
+sessions level, its control. Each
+session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad), S-Motion-like noise
 (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°), written as CAN frames
 and run through the `c2n analyze` pipeline.
 
     python tools/bench_accuracy.py                       # cases a–d on the two-radius session
     python tools/bench_accuracy.py --cases a --scenarios constant_radius,constant_steer,step_steer
+    python tools/bench_accuracy.py --cases e,f --sessions 10      # sloping pads, and level
 """
 
 import argparse
@@ -21,14 +25,19 @@ import numpy as np
 
 from app.config import load_config
 from app.pipeline import Pipeline
+from app.sim.effects import Effect
 from app.sim.session import DriveOptions, simulate_drive
+from app.sim.standard import StandardOptions, simulate_standard
 
 CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "a": ("linear tyres", {}),
     "b": ("head yawed 0.3°", {"sensor": {"yaw_misalignment_deg": 0.3}}),
     "c": ("Magic Formula μ=1, to 4 m/s²", {"tyre": "magic", "mu": 1.0, "ay_max_mps2": 4.0}),
     "d": ("speed 0.2 s late", {"sensor": {"speed_latency_s": 0.2}}),
+    "e": ("slope 1–3 %, any direction", {}),
+    "f": ("level (the control of e)", {}),
 }
+STANDARD = "ef"  # the cases on the two-track standard session
 
 
 def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
@@ -37,9 +46,21 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
     options = dict(CASES[case][1])
     sensor = {"optical_hz": optical_hz} | options.pop("sensor", {})
     config = load_config()
-    drive = simulate_drive(
-        config, DriveOptions(scenario=scenario, seed=seed, c2n=truth, sensor=sensor, **options)
-    )
+    if case == "e":
+        rng = np.random.default_rng(20_000 + seed)
+        slope = Effect.of("road_cross_slope", float(rng.uniform(1.0, 3.0)))
+        falls = float(rng.uniform(-180.0, 180.0))
+        drive = simulate_standard(
+            config, StandardOptions(seed, slope, c2n=truth, sensor=sensor, downhill_deg=falls)
+        )
+        truth = float(drive.truth["c2n"])
+    elif case == "f":
+        drive = simulate_standard(config, StandardOptions(seed, c2n=truth, sensor=sensor))
+        truth = float(drive.truth["c2n"])
+    else:
+        drive = simulate_drive(
+            config, DriveOptions(scenario=scenario, seed=seed, c2n=truth, sensor=sensor, **options)
+        )
     pipeline = Pipeline(config)
     started = time.perf_counter()
     for message in drive.messages:
@@ -123,8 +144,9 @@ def main() -> None:
         for scenario in scenarios:
             rows = [r for r in results if r["case"] == case and r["scenario"] == scenario]
             singles = [e for r in rows for e in r["crossings"]]
+            drive = "standard" if case in STANDARD else scenario
             print(
-                f"({case}) {CASES[case][0]:<30} {scenario:<16} {_stats([r['headline'] for r in rows])} "
+                f"({case}) {CASES[case][0]:<30} {drive:<16} {_stats([r['headline'] for r in rows])} "
                 f"{_share([r['headline_covers'] for r in rows])} {sum(r['softening'] for r in rows):>5}  "
                 f"{_stats([r['paired'] for r in rows])} {_share([r['paired_covers'] for r in rows])}  "
                 f"{_stats(singles)}"

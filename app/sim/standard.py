@@ -17,7 +17,7 @@ With the Mondeo config: u0 12.7 m/s, speeds 7.6–16.5 m/s, radii 68/96/137 m, 9
 import copy
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -152,6 +152,8 @@ class StandardOptions:
     plan_c2n: float | None = None  # the C2n the driver plans speeds from (None: the config's)
     model: Literal["two_track", "commonroad"] = "two_track"  # the generator
     commonroad_set: str = commonroad.DEFAULT_SET  # its parameter set
+    downhill_deg: float | None = None  # a cross slope's fall, from the start heading (left positive);
+    # None: to the side the effect's sign says (+: the right)
 
 
 def simulate_standard(config: Config, options: StandardOptions = StandardOptions()) -> SimulatedDrive:
@@ -168,6 +170,8 @@ def simulate_standard(config: Config, options: StandardOptions = StandardOptions
         c1n * (1.0 + imperfect.c1n_error) if c1n is not None else None,
     )
     params = apply_to_vehicle(options.effect, nominal)
+    if options.downhill_deg is not None:
+        params = replace(params, slope_downhill_rad=math.radians(options.downhill_deg))
     ratio = config.vehicle.steering_ratio or 15.0
     session = _session(config, options, nominal.bicycle(), nominal.c2n)
     trace = simulate_two_track(params, session.scenario, ratio, options.dt_s)
@@ -202,7 +206,10 @@ def _on_commonroad(config: Config, options: StandardOptions) -> SimulatedDrive:
     road = commonroad.Road()
     if name == "road_cross_slope":
         size = options.effect.size
-        road = commonroad.Road(abs(size) / 100.0, -math.copysign(math.pi / 2, size))
+        falls = -math.copysign(math.pi / 2, size)
+        if options.downhill_deg is not None:
+            falls = math.radians(options.downhill_deg)
+        road = commonroad.Road(abs(size) / 100.0, falls)
     ratio = config.vehicle.steering_ratio or 15.0
     session = _session(config, options, car.bicycle(), car.cn_per_rad)
     trace = commonroad.simulate_commonroad(car, session.scenario, ratio, road)

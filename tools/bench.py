@@ -386,12 +386,16 @@ def _closure(name: str, extras: frozenset[str] = frozenset()) -> set[str]:
     return {key for key, _ in need}
 
 
-def install_sizes() -> dict[str, float]:
-    """MB installed for c2n alone and with each extra, from this venv's package records."""
+def install_sizes() -> dict[str, float | None]:
+    """MB installed for c2n alone and with each extra, from this venv's package records (None:
+    the extra is not installed here)."""
     extras = metadata.metadata("c2n").get_all("Provides-Extra") or []
-    sizes = {}
+    sizes: dict[str, float | None] = {}
     for label, wanted in [("core", frozenset()), *((e, frozenset({e})) for e in extras)]:
-        sizes[label] = sum(_installed_mb(n) for n in _closure("c2n", wanted))
+        try:
+            sizes[label] = sum(_installed_mb(n) for n in _closure("c2n", wanted))
+        except metadata.PackageNotFoundError:
+            sizes[label] = None
     return sizes
 
 
@@ -607,7 +611,8 @@ def main() -> None:
         print(f"   c2n live, first frame      {summary(firsts, 's', digits=2)}  (goal ≤ 1.5 s)")
         for label, size in install_sizes().items():
             name = "c2n" if label == "core" else f"c2n[{label}]"
-            print(f"   installed, {name:19s}{size:,.0f} MB")
+            shown = "not installed in this venv" if size is None else f"{size:,.0f} MB"
+            print(f"   installed, {name:19s}{shown}")
 
 
 if __name__ == "__main__":

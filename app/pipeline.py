@@ -63,7 +63,7 @@ class Pipeline:
         )
         self.gate = SteadyStateGate(config.detector)
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
-        self.regression = SampleRegression(config.vehicle.gravity_mps2)
+        self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m)
         self.heading = Heading()
         self.profile = SideslipProfile()
         self.state = SessionState()

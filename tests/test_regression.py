@@ -227,3 +227,67 @@ def test_the_heading_is_the_same_frame_by_frame_and_in_blocks() -> None:
     assert got.tolist() == expected  # exactly: the same additions in the same order
     steady = Heading()
     assert steady.steps(t, np.full(500, 0.3))[-1] == pytest.approx(0.3 * (t[-1] - t[0]), rel=1e-12)
+
+
+def one_speed_samples(c2n: float, d: float, psi0: float, speed: float, rng: np.random.Generator):
+    """(t, u, r, v) on circles of four radii, both ways, all at about one speed (±1 %): a_y = u²·κ
+    then moves with κ alone, so d·κ and a_y/(g·C2n) cannot be told apart."""
+    t, hz = 0.0, 50.0
+    for radius in (60.0, -60.0, 90.0, -90.0, 120.0, -120.0):
+        for k in range(int(30 * hz)):
+            u = speed * (1.0 + 0.01 * math.sin(k / hz))
+            r = u / radius
+            beta = psi0 + d * r / u - u * r / (G * c2n)
+            yield t, u, r, u * beta + rng.normal(0.0, 0.01)
+            t += 1.0 / hz
+        t += 5.0
+
+
+def test_samples_at_one_speed_hold_d_at_the_tape_s_value_and_say_so() -> None:
+    """One speed cannot place d beside C2n: the fit holds d where the config says (counting a
+    centimetre of tape in the interval), and the intervals hold the truth at about their rate
+    when the tape is that good."""
+    rng = np.random.default_rng(8)
+    free = fitted(one_speed_samples(14.0, 1.2, math.radians(0.2), 11.0, rng))
+    assert free is not None and not free.d_fixed  # no tape value: d fitted, and C2n barely placed
+    assert free.c2n_ci95[1] - free.c2n_ci95[0] > 0.1 * 14.0
+    covered, errors = 0, []
+    for seed in range(40):
+        rng = np.random.default_rng(100 + seed)
+        tape = 1.2 + rng.normal(0.0, 0.01)
+        fit = fitted(one_speed_samples(14.0, 1.2, math.radians(0.2), 11.0, rng), d_tape_m=tape)
+        assert fit is not None and fit.d_fixed and fit.d_m == tape and fit.d_ci95 == (tape, tape)
+        assert fit.speed_range[0] == pytest.approx(11.0 * 0.99, rel=1e-3)
+        covered += fit.c2n_ci95[0] <= 14.0 <= fit.c2n_ci95[1]
+        errors.append(abs(fit.c2n / 14.0 - 1.0))
+    assert covered >= 34  # 95 % of 40, less what chance takes
+    assert float(np.median(errors)) < 0.01
+    assert fit.c2n_ci95[1] - fit.c2n_ci95[0] < 0.5 * (free.c2n_ci95[1] - free.c2n_ci95[0])
+
+
+def test_a_speed_sweep_fits_d_even_with_a_tape_value() -> None:
+    fit = fitted(sweep_samples(14.99, 1.11, math.radians(-0.3), (80.0, -80.0)), d_tape_m=1.5)
+    assert fit is not None and not fit.d_fixed
+    assert fit.d_m == pytest.approx(1.11, rel=1e-9) and fit.c2n == pytest.approx(14.99, rel=1e-9)
+
+
+def test_the_summary_says_d_was_held_and_what_to_drive() -> None:
+    """Through the pipeline's regression (d from the config) to the summary: the key, the speeds
+    and a warning naming the config's d and the sweep that would measure it."""
+    from app.config import load_config
+    from app.pipeline import Pipeline
+    from app.sinks import summary
+
+    config = load_config()
+    pipeline = Pipeline(config)
+    rng = np.random.default_rng(3)
+    for t, u, r, v in one_speed_samples(14.0, config.d_m, 0.0, 11.0, rng):
+        pipeline.regression.add(t, u, r, v)
+    pipeline.finish()
+    result = summary.build(pipeline.snapshot(), config, ["one speed"]).to_json()
+    fit = result["regression"]
+    assert fit["d_fixed"] is True and fit["d_m"] == config.d_m
+    assert fit["speed_range_mps"][0] == pytest.approx(10.89, abs=0.01)
+    assert fit["c2n_ci95"][0] <= 14.0 <= fit["c2n_ci95"][1]
+    said = [w for w in result["warnings"] if "too narrow to fit the sensor's d" in w]
+    assert len(said) == 1 and f"the config's {config.d_m:g} m" in said[0] and "sweep the speed" in said[0]

@@ -288,6 +288,17 @@ RIVAL_NUISANCE: dict[str, str] = {
     # calibrated C2n take much of; sweeps to 4 m/s² tell them apart
     "load_transfer_nonlinearity": "turn_force_pct",
 }
+# What tells each such effect apart from its rival, said where a verdict of "none" rests on a
+# calibrated rival: the drive showed the nuisance, and the effect could be inside it.
+HIDDEN_BY_RIVAL: dict[str, str] = {
+    "sensor_position_error": (
+        "d measured with a tape, or radii further apart at the same a_y (a sensor off by Δd moves the "
+        "sideslip by Δd·κ, a force that follows the turn by as much at every radius)"
+    ),
+    "load_transfer_nonlinearity": (
+        "sweeps to 4 m/s² and beyond (softening grows with a_y³, a force that follows the turn does not)"
+    ),
+}
 
 
 def separating_manoeuvre(a: str, b: str) -> str:

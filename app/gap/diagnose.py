@@ -38,6 +38,7 @@ from app.errors import NoResultError
 from app.gap.candidates import (
     CANDIDATES,
     HIDDEN_BY_CALIBRATION,
+    HIDDEN_BY_RIVAL,
     NUISANCE_TWINS,
     RIVAL_NUISANCE,
     Candidate,
@@ -901,7 +902,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     else:
         diagnosis = "none" if ho.gap <= none_gap(ho) else "unexplained"
         if diagnosis == "none":
-            confounded = list(HIDDEN_BY_CALIBRATION)
+            confounded = [*HIDDEN_BY_CALIBRATION, *hidden_by_rivals(calibration)]
     # the effect's own part of the sideslip: the fit beside it, with and without it
     without = pb.simulate(best.without_effect()) if best is not None else calibrated
     effect_delta = after_sim.beta - without.beta
@@ -940,10 +941,12 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         heldout_yaw_rms_degps=BeforeAfter(
             round(best.yaw_before if best else ho.yaw, 5), round(best.yaw_after if best else ho.yaw, 5)
         ),
-        verdict=_verdict(diagnosis, best, ho),
+        verdict=_verdict(diagnosis, best, ho, confounded),
         action=best.candidate.action(best.effect_values) if best is not None else None,
         separate_by={
-            other: HIDDEN_BY_CALIBRATION[other] if best is None else separating_manoeuvre(diagnosis, other)
+            other: {**HIDDEN_BY_CALIBRATION, **HIDDEN_BY_RIVAL}[other]
+            if best is None
+            else separating_manoeuvre(diagnosis, other)
             for other in confounded
         },
         noise=GapNoise(
@@ -1013,14 +1016,24 @@ def _candidate_score(s: Scored, best: Scored | None, reasons: dict[str, str | No
     )
 
 
-def _verdict(diagnosis: str, best: Scored | None, ho: Heldout) -> str:
+def hidden_by_rivals(calibration: Calibration) -> list[str]:
+    """The effects whose rival nuisance the drive showed (calibrated free, not held at nominal):
+    such an effect could be inside it."""
+    free = {p.name for p in calibration.params if p.free}
+    return [effect for effect, rival in RIVAL_NUISANCE.items() if rival in free and effect in HIDDEN_BY_RIVAL]
+
+
+def _verdict(diagnosis: str, best: Scored | None, ho: Heldout, confounded: list[str]) -> str:
     """The diagnosis in a sentence: what was found, and what the held-out test showed."""
     if best is None and diagnosis == "none":
-        hidden = ", ".join(f"a {effect.replace('_', ' ')}" for effect in HIDDEN_BY_CALIBRATION)
+        twins = {**NUISANCE_TWINS, **RIVAL_NUISANCE}
+        inside: dict[str, list[str]] = {}
+        for effect in confounded:
+            inside.setdefault(twins[effect], []).append(f"a {effect.replace('_', ' ')}")
+        hidden = "; ".join(f"{' or '.join(e)} would be inside the calibrated {n}" for n, e in inside.items())
         return (
             f"none: the calibrated model is within {ho.gap:.4f}° of the drive's sideslip (held out); "
-            f"no effect shrinks it beyond noise ({hidden} would be inside the calibrated "
-            f"{', '.join(NUISANCE_TWINS[e] for e in HIDDEN_BY_CALIBRATION)})"
+            f"no effect shrinks it beyond noise ({hidden})"
         )
     if best is None:
         return (

@@ -27,12 +27,15 @@ says so (one circle to 3.5 m/s² sampled at 50–100 Hz: 1.4–2.2 %).
 A test pad is rarely level: a drainage slope of 1–2 % is common. Its gravity g·s·sin(D − ψ) pulls
 the car sideways as the heading ψ turns, and the tyres make up the difference, so the sideslip
 gains (g_y)/(g·C2n) — a term A·sin ψ + B·cos ψ. Where the steady samples cover the headings
-(full circles) the two terms are fitted beside the others, and the slope s = C2n·√(A² + B²) and
+(full circles) the two terms are tried beside the others, and the slope s = C2n·√(A² + B²) and
 the direction D it falls to (atan2(B, −A) from the start heading, left positive) are reported;
 on a 2 % slope, left out, they move C2n by several per cent. The slope's gravity along the heading,
 g·s·cos(D − ψ), also moves load between the axles as braking does, which changes how much the rear
-tyres give per m/s² of a_y: two terms a_y·sin ψ and a_y·cos ψ. They are fitted where the slope is
-found (its two terms' Wald χ² beyond the 95 % point): on 1–3 % slopes falling in any direction
+tyres give per m/s² of a_y: two terms a_y·sin ψ and a_y·cos ψ. All four are kept where the slope
+is found (its two terms' Wald χ² beyond the 95 % point, and at least ``SLOPE_MIN_PCT``), and left
+out where it is not: on a level
+pad they only add variance (one radius both ways, one drive in four: the four spare terms let the
+a_y³ term pass for softening and C2n read 7 % high). On 1–3 % slopes falling in any direction
 they took the worst C2n error of ten sessions from 2.3 % to 0.5 % and the intervals' coverage from
 3 to 10 of 10 (tools/bench_accuracy.py, case e). The heading is the integrated yaw rate.
 
@@ -53,6 +56,10 @@ _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrel
 UNRESOLVED_PCT = 3.0  # softening that could hide in the data, % of C2n, beyond which both models count
 _SLOPE_SPREAD = 0.3  # the headings' spread (of sin ψ, cos ψ beside the other terms; full circles 0.5)
 # beyond which a slope's two terms are fitted
+D_TAPE_SE_M = 0.01  # how well a tape places the sensor: its share of C2n's interval where d is held
+D_HELD_GAIN = 2.0  # d is held at the tape's value where fitting it would widen C2n's interval this much
+SLOPE_MIN_PCT = 0.25  # a slope under this moves C2n by less than the method's own error (a 2 %
+# slope left out: 2.5 %), and is seen on level pads too (0.05–0.16 %: heading-borne misfit)
 _SLOPE_WALD = -2.0 * math.log(0.05)  # χ²(2) at 95 %: a slope found, its load transfer fitted too
 
 
@@ -74,6 +81,8 @@ class RegressionFit:
     n_blocks: int
     ay_range: tuple[float, float]
     curvature_range: tuple[float, float]  # |κ| = |r/u| of the samples [1/m]: 1/κ are the radii driven
+    speed_range: tuple[float, float] = (math.nan, math.nan)  # u of the samples [m/s]
+    d_fixed: bool = False  # True: the samples could not place d, which is the tape's (d_ci95 a point)
     softening_resolved: bool = True  # False: the data cannot tell linear tyres from softening ones
     softening_hidden_pct: float = 0.0  # the softening, % of C2n, that could hide in the data (2 se)
     slope_pct: float | None = None  # the pad's slope, where the headings let it be fitted
@@ -89,8 +98,10 @@ class SampleRegression:
         max_blocks: int = 32768,
         softening_t: float = 2.0,
         min_samples: int = 200,
+        d_tape_m: float | None = None,
     ) -> None:
         self.g = g
+        self.d_tape_m = d_tape_m  # the sensor's d as measured with a tape: held where the data cannot fit it
         self.block_s = block_s
         self.max_blocks = max_blocks
         self.softening_t = softening_t
@@ -109,6 +120,8 @@ class SampleRegression:
         self._ay_max = -math.inf
         self._kappa_min = math.inf
         self._kappa_max = -math.inf
+        self._u_min = math.inf
+        self._u_max = -math.inf
 
     @property
     def n_samples(self) -> int:
@@ -129,6 +142,7 @@ class SampleRegression:
         kappa = r / u
         self._ay_min, self._ay_max = min(self._ay_min, abs(ay)), max(self._ay_max, abs(ay))
         self._kappa_min, self._kappa_max = min(self._kappa_min, abs(kappa)), max(self._kappa_max, abs(kappa))
+        self._u_min, self._u_max = min(self._u_min, u), max(self._u_max, u)
         self._open.append((kappa, ay, v_meas / u, heading))
 
     def _open_stats(self) -> tuple[np.ndarray, np.ndarray]:
@@ -172,6 +186,16 @@ class SampleRegression:
                 array[half] = array[self._blocks - 1]
         self._blocks = half + self._blocks % 2
 
+    def _held_se(self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int) -> float:
+        """C2n's standard error with d held at the tape's value, the tape's own error counted: the
+        fit again with d ``D_TAPE_SE_M`` longer moves C2n by that much."""
+        longer = _solve(xtx, xty - D_TAPE_SE_M * xtx[:, :, 1], run, held.terms, n)
+        se = _c2n_se(held, self.g)
+        if longer is None:
+            return se
+        i = held.terms.index(2)
+        return math.hypot(se, 1.0 / (self.g * held.coef[i]) - 1.0 / (self.g * longer.coef[i]))
+
     def fit(self) -> RegressionFit | None:
         """The fit over every sample so far, or None while the data cannot support one."""
         b = self._blocks
@@ -189,14 +213,27 @@ class SampleRegression:
         mean_k, mean_k2 = total[0, 1] / n, total[1, 1] / n
         psi0_free = mean_k2 > 0 and (mean_k2 - mean_k**2) >= 0.04 * mean_k2
         base = [0, 1, 2] if psi0_free else [1, 2]
-        slope_free = psi0_free and _spread(total, base, [4, 5], n) >= _SLOPE_SPREAD
-        if slope_free:
-            base += [4, 5]
-            tilted = _solve(xtx, xty, run, base, n)
-            if tilted is not None and _wald(tilted, [4, 5]) > _SLOPE_WALD:
-                base += [6, 7]  # a slope found: its gravity along the heading also moves load
-        cubic = _solve(xtx, xty, run, [*base, 3], n)
+        tilted = None  # the fit with a slope's pull, where the headings let one be fitted
+        if psi0_free and _spread(total, base, [4, 5], n) >= _SLOPE_SPREAD:
+            tilted = _solve(xtx, xty, run, [*base, 4, 5], n)
+            if (
+                tilted is not None
+                and _wald(tilted, [4, 5]) > _SLOPE_WALD
+                and _tilt_pct(tilted, self.g) >= SLOPE_MIN_PCT
+            ):
+                base += [4, 5, 6, 7]  # a slope found: its pull, and its gravity along the heading
         linear = _solve(xtx, xty, run, base, n)
+        d_fixed = False
+        if self.d_tape_m is not None:  # β − d·κ on the other terms, d the tape's
+            held_xty = xty - self.d_tape_m * xtx[:, :, 1]
+            held_base = [t for t in base if t != 1]
+            held = _solve(xtx, held_xty, run, held_base, n)
+            if held is not None and (
+                linear is None
+                or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(held, xtx, held_xty, run, n)
+            ):
+                d_fixed, xty, base, linear = True, held_xty, held_base, held
+        cubic = _solve(xtx, xty, run, [*base, 3], n)
         if cubic is None or linear is None:
             return None
         t3 = cubic.coef[-1] / math.sqrt(cubic.cov[-1, -1]) if cubic.cov[-1, -1] > 0 else 0.0
@@ -211,10 +248,12 @@ class SampleRegression:
         def ci(value: float, se: float) -> tuple[float, float]:
             return (value - q * se, value + q * se)
 
-        i_ay, i_d = terms.index(2), terms.index(1)
+        i_ay = terms.index(2)
         slope = chosen.coef[i_ay]
         c2n = -1.0 / (self.g * slope)
         c2n_se = math.sqrt(chosen.cov[i_ay, i_ay]) / (self.g * slope * slope)
+        if d_fixed:  # the tape's centimetre is in C2n too
+            c2n_se = self._held_se(chosen, xtx, xty, run, n)
         c2n_ci95 = ci(c2n, c2n_se)
         c2n_linear = -1.0 / (self.g * linear.coef[linear.terms.index(2)])
         c2n_cubic = -1.0 / (self.g * cubic.coef[cubic.terms.index(2)])
@@ -228,11 +267,14 @@ class SampleRegression:
             low, high = ci(c2n_cubic, cubic_se) if slope3 < 0 else (c2n_ci95[0], math.inf)
             c2n_ci95 = (min(c2n_ci95[0], low), max(c2n_ci95[1], high))
             c2n_se = max(c2n_se, cubic_se)
-        d, d_se = chosen.coef[i_d], math.sqrt(chosen.cov[i_d, i_d])
+        if d_fixed and self.d_tape_m is not None:
+            d, d_se = self.d_tape_m, 0.0
+        else:
+            d, d_se = chosen.coef[terms.index(1)], math.sqrt(chosen.cov[terms.index(1), terms.index(1)])
         psi0 = psi0_se = None
         if psi0_free:
             psi0, psi0_se = chosen.coef[0], math.sqrt(chosen.cov[0, 0])
-        slope = _slope(chosen, c2n, q) if slope_free else None
+        slope = _slope(chosen if 4 in terms else tilted, c2n, q) if tilted is not None else None
         softening = None
         if chosen is cubic:
             softening = -cubic.coef[-1] * self.g * c2n  # α2 = a_y/(g·C2n)·(1 + s·a_y²)
@@ -253,6 +295,8 @@ class SampleRegression:
             n_blocks=b,
             ay_range=(self._ay_min, self._ay_max),
             curvature_range=(self._kappa_min, self._kappa_max),
+            speed_range=(self._u_min, self._u_max),
+            d_fixed=d_fixed,
             softening_resolved=resolved,
             softening_hidden_pct=hidden,
             slope_pct=slope[0] if slope else None,
@@ -279,6 +323,18 @@ def _spread(total: np.ndarray, base: list[int], extra: list[int], n: int) -> flo
     except np.linalg.LinAlgError:
         return 0.0
     return float(np.linalg.eigvalsh(schur)[0]) / n
+
+
+def _tilt_pct(fit: "_Solution", g: float) -> float:
+    """The slope in % the fit's sin ψ, cos ψ terms say: C2n·√(A² + B²)."""
+    c2n = -1.0 / (g * float(fit.coef[fit.terms.index(2)]))
+    return 100.0 * abs(c2n) * math.hypot(fit.coef[fit.terms.index(4)], fit.coef[fit.terms.index(5)])
+
+
+def _c2n_se(fit: "_Solution", g: float) -> float:
+    """C2n's standard error: the delta method on C2n = −1/(g·b_ay)."""
+    i = fit.terms.index(2)
+    return math.sqrt(max(float(fit.cov[i, i]), 0.0)) / (g * float(fit.coef[i]) ** 2)
 
 
 def _wald(fit: "_Solution", terms: list[int]) -> float:

@@ -73,6 +73,8 @@ class RegressionRow:
     slope_pct: float | None  # the test pad's slope, fitted where the headings cover full circles
     slope_ci95_pct: Interval | None
     slope_downhill_deg: float | None  # where it falls: degrees from the start heading, left positive
+    d_fixed: bool  # True: the samples could not place d beside C2n; d is the config's
+    speed_range_mps: Interval
 
 
 @dataclass(frozen=True)
@@ -284,6 +286,13 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
             "with d; the regression's does not)"
         )
+    if fit is not None and fit.d_fixed:
+        low, high = fit.speed_range
+        out.append(
+            f"the steady samples span {low:.1f}–{high:.1f} m/s only: too narrow to fit the sensor's d beside "
+            f"C2n, so d is the config's {config.d_m:g} m (its interval counts 1 cm of tape); sweep the "
+            "speed through u0 to measure both"
+        )
     if fit is not None and fit.model == "softening":
         out.append(
             f"the tyres soften with slip (t = {fit.softening_t:.1f}): C2n is extrapolated to zero lateral "
@@ -426,6 +435,8 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         slope_pct=_maybe(fit.slope_pct, 2),
         slope_ci95_pct=_pair(fit.slope_ci95_pct, digits=2) if fit.slope_ci95_pct is not None else None,
         slope_downhill_deg=_maybe(fit.slope_downhill_deg, 0),
+        d_fixed=fit.d_fixed,
+        speed_range_mps=_pair(fit.speed_range, digits=3),
     )
 
 

@@ -130,7 +130,7 @@ class Pipeline:
             return record
         heading = self.heading.step(record.t, estimate.r_radps)
         steady = self.gate.step(record.t, estimate, state.latest.get("steer"), state.sensor_problem)
-        events = self.detector.step(record.t, estimate, steady)
+        events = self.detector.step(record.t, estimate, steady, heading)
         self._collect(events)
         if steady.steady and estimate.v_meas_mps is not None:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
@@ -138,7 +138,7 @@ class Pipeline:
                 self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps, heading)
         if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
             self._last_fit = record.t
-            state.regression = self.regression.fit()
+            self._refit()
         record = Record(  # not dataclasses.replace: this runs for every filtered frame
             record.t,
             record.channel,
@@ -192,7 +192,9 @@ class Pipeline:
             steady = kinds[k] == STEADY
             if steady or detector.running:
                 estimate = estimate_of(next(steady_fields) if steady else out[k].tolist())
-                new = detector.step(now, estimate, SteadyState(steady, DIRECTIONS[directions[k]]))
+                new = detector.step(
+                    now, estimate, SteadyState(steady, DIRECTIONS[directions[k]]), headings[k]
+                )
                 if new:
                     self._collect(new)
                     events += new
@@ -204,7 +206,7 @@ class Pipeline:
                         regression.add(now, u, r, v, headings[k])
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
-                state.regression = regression.fit()
+                self._refit()
         last, k = int(rows[-1]), len(rows) - 1
         estimate = estimate_of(out[k].tolist())
         problem = problem_texts[problems[last]] if problems[last] >= 0 else None
@@ -248,16 +250,33 @@ class Pipeline:
         """End of input: fit pending sign changes. Returns the events this produced."""
         events = self.detector.finish()
         self._collect(events)
-        self.state.regression = self.regression.fit()
+        self._refit()
         return events
+
+    def _refit(self) -> None:
+        """The regression over every sample so far; a slope it found goes to the detector."""
+        sloped = self.detector.tilt is not None
+        fit = self.state.regression = self.regression.fit()
+        self.detector.tilt = fit.tilt if fit is not None else None
+        if self.state.crossings and sloped != (self.detector.tilt is not None):
+            self._pair()
+
+    def _pair(self) -> None:
+        """The crossings combined and paired. Where the regression finds a slope, the crossings
+        from before it was known carry it: those with it taken out are used alone."""
+        state = self.state
+        used = state.crossings
+        if self.detector.tilt is not None:
+            used = [c for c in state.crossings if c.slope_corrected] or used
+        state.combined = combine(used)
+        state.paired = pair(used, self.config.d_m, self.config.vehicle.gravity_mps2)
 
     def _collect(self, events: list[Event]) -> None:
         for event in events:
             if isinstance(event, Crossing):
                 state = self.state
                 state.crossings.append(event)
-                state.combined = combine(state.crossings)
-                state.paired = pair(state.crossings, self.config.d_m, self.config.vehicle.gravity_mps2)
+                self._pair()
             elif isinstance(event, CrossingRejected):
                 self.state.rejections.append(event)
 

@@ -82,6 +82,7 @@ class Crossing:
     sweep_rate_mps2: float  # mean du/dt over the fitted samples (+ up)
     n_samples: int
     method: Literal["v/r", "beta"]  # fitted quantity against u²
+    slope_corrected: bool = False  # the pad's slope (the regression's) taken out before the fit
 
     @property
     def u0_kmh(self) -> float:

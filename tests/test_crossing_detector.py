@@ -145,3 +145,31 @@ def test_a_second_sign_change_in_one_sweep_is_not_used() -> None:
     later = detector.step(t, flipped, SteadyState(True, "left"))
     assert [type(e) for e in later] == [CrossingRejected]
     assert "second sign change" in later[0].reason  # type: ignore[union-attr]
+
+
+def test_a_slope_the_regression_found_is_taken_out_of_the_crossing() -> None:
+    """A pad sloping so that the sideslip gains A·sin ψ + B·cos ψ as the heading ψ turns: told
+    the slope (the regression's terms), the local fit finds eq. 7's u0 exactly; not told, the
+    crossing carries the slope's pull at the headings it was driven through."""
+    tilt_a, tilt_b, radius = 0.0012, -0.0007, 80.0
+    found: dict[bool, Crossing] = {}
+    for told in (False, True):
+        detector = CrossingDetector(DetectorSettings(), D, G)
+        detector.tilt = (tilt_a, tilt_b, 0.0, 0.0) if told else None
+        events: list[Event] = []
+        t = heading = 0.0
+        for u in sweep(0.7 * U0, 1.3 * U0, radius):
+            e = estimate(float(u), radius)
+            pull = tilt_a * math.sin(heading) + tilt_b * math.cos(heading)
+            v = e.v_meas_mps + e.u_mps * pull
+            e = e._replace(
+                v_meas_mps=v, sideslip_meas_rad=math.atan2(v, e.u_mps), sideslip_rad=e.sideslip_rad + pull
+            )
+            events += detector.step(t, e, SteadyState(True, "left"), heading)
+            t += 0.01
+            heading += e.r_radps * 0.01
+        events += detector.finish()
+        (found[told],) = [event for event in events if isinstance(event, Crossing)]
+    assert found[True].slope_corrected and not found[False].slope_corrected
+    assert found[True].c2n == pytest.approx(C2N, rel=1e-6)
+    assert abs(found[False].c2n / C2N - 1) > 0.01

@@ -1,4 +1,5 @@
-"""A test pad with a drainage slope: the regression fits it and takes it out of C2n."""
+"""A test pad with a drainage slope: the regression fits it and takes it out of C2n, and out of
+the crossings found once it is known."""
 
 import json
 from pathlib import Path
@@ -29,3 +30,13 @@ def test_a_sloping_pad_reads_within_one_percent_with_the_truth_inside(
     assert fit["slope_pct"] == pytest.approx(abs(grade), rel=0.1)
     assert fit["slope_downhill_deg"] == pytest.approx(-90.0 if side == "right" else 90.0, abs=10.0)
     assert f"the test pad slopes {fit['slope_pct']:.1f} %" in capsys.readouterr().err
+    # each crossing happens at one heading: once the slope is known it is taken out of them, and
+    # the pairing uses those alone
+    crossings = result["crossings"]
+    corrected = [c for c in crossings if c["slope_corrected"]]
+    before = [c for c in crossings if not c["slope_corrected"]]
+    assert len(corrected) >= 8 and all(c["t"] < corrected[0]["t"] for c in before)
+    errors = [abs(c["c2n"] / truth - 1) for c in corrected]
+    assert max(errors) < 0.06 and sum(errors) / len(errors) < 0.03  # the sweeps' lag is still in each
+    assert abs(result["paired"]["c2n"] / truth - 1) < 0.015
+    assert result["paired"]["n"] == len(corrected)

@@ -41,6 +41,8 @@ class _Run:
     y: list[float] = field(default_factory=list)
     ay: list[float] = field(default_factory=list)
     ud: list[float] = field(default_factory=list)  # du/dt
+    tilt: list[tuple[float, float, float, float]] = field(default_factory=list)  # what a slope's
+    # sideslip does to y per unit of each of the regression's slope terms (v/r only)
     trend: int = 0  # +1 speed rising, −1 falling, 0 not yet known
     u_first: float = math.nan
     u_extreme: float = math.nan
@@ -67,7 +69,7 @@ class _Run:
 
     def restart_at_extreme(self) -> None:
         """Keep only the samples since the speed's turning point; the trend flips."""
-        for samples in (self.t, self.u, self.y, self.ay, self.ud):
+        for samples in (self.t, self.u, self.y, self.ay, self.ud, self.tilt):
             del samples[: self.i_extreme]
         self.trend = -self.trend
         self.crossed = False
@@ -81,12 +83,22 @@ class _Run:
         pending, self.pending = self.pending, None
         return pending
 
-    def append(self, t: float, u: float, y: float, ay: float, ud: float, keep_within: float) -> None:
+    def append(
+        self,
+        t: float,
+        u: float,
+        y: float,
+        ay: float,
+        ud: float,
+        keep_within: float,
+        tilt: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+    ) -> None:
         self.t.append(t)
         self.u.append(u)
         self.y.append(y)
         self.ay.append(ay)
         self.ud.append(ud)
+        self.tilt.append(tilt)
         self.appended += 1
         if self.appended % _TRIM_EVERY == 0 or len(self.t) > _MAX_RUN_SAMPLES:
             self._trim(u, keep_within)
@@ -103,6 +115,7 @@ class _Run:
         self.y = [self.y[i] for i in keep]
         self.ay = [self.ay[i] for i in keep]
         self.ud = [self.ud[i] for i in keep]
+        self.tilt = [self.tilt[i] for i in keep]
         self.u_extreme = self.u[0] if self.u else math.nan
         self.i_extreme = 0
         for i, value in enumerate(self.u):
@@ -124,6 +137,9 @@ class CrossingDetector:
         self.g = g
         self._runs: dict[Direction | None, _Run] = {}
         self._t_last: dict[Direction | None, float] = {}
+        # the pad's slope as the regression last found it (its RegressionFit.tilt), taken out of
+        # each crossing's samples before the fit: a crossing happens at one heading
+        self.tilt: tuple[float, float, float, float] | None = None
 
     @property
     def pending(self) -> list[tuple[Direction | None, float, float]]:
@@ -135,7 +151,8 @@ class CrossingDetector:
         """Whether a steady run is open (a step that is not steady may end it)."""
         return bool(self._runs)
 
-    def step(self, t: float, estimate: Estimate, steady: SteadyState) -> list[Event]:
+    def step(self, t: float, estimate: Estimate, steady: SteadyState, heading: float = 0.0) -> list[Event]:
+        """One filtered frame; ``heading`` is the yaw rate integrated from the start (rad)."""
         events: list[Event] = []
         for key in list(self._runs):
             quiet = t - self._t_last[key]
@@ -162,7 +179,12 @@ class CrossingDetector:
             run.restart_at_extreme()
         hw = self.settings.fit_half_width_mps
         ay = abs(estimate.ay_mps2) if estimate.ay_mps2 is not None else math.nan
-        run.append(t, u, y, ay, estimate.u_dot_mps2, 3 * hw)
+        basis = (0.0, 0.0, 0.0, 0.0)
+        if kind == "v/r" and estimate.r_radps:  # β = v/u, y = v/r = β·u/r; a_y = u·r as the regression's
+            sin, cos, per = math.sin(heading), math.cos(heading), u / estimate.r_radps
+            a = u * estimate.r_radps
+            basis = (sin * per, cos * per, a * sin * per, a * cos * per)
+        run.append(t, u, y, ay, estimate.u_dot_mps2, 3 * hw, basis)
         events.extend(self._watch_sign(run, key, t, u, estimate))
         if run.pending is not None and abs(u - run.pending.u) >= hw:
             events.append(self._fit(run, run.take_pending(), key))
@@ -221,6 +243,9 @@ class CrossingDetector:
             return CrossingRejected(pending.t, key, pending.sweep, pending.u, reason)
 
         t, u, y, ay, ud = (np.asarray(a) for a in (run.t, run.u, run.y, run.ay, run.ud))
+        corrected = self.tilt is not None and run.kind == "v/r"
+        if corrected:
+            y = y - np.asarray(run.tilt).reshape(-1, 4) @ np.asarray(self.tilt)
         hw = self.settings.fit_half_width_mps
         outcome: _Window | str = "no samples"
         for width in (hw, 1.5 * hw, 2.0 * hw, 3.0 * hw):  # sparse data (step steers) need a wider window
@@ -261,6 +286,7 @@ class CrossingDetector:
             sweep_rate_mps2=float(np.mean(ud[selected])),
             n_samples=n,
             method="v/r" if run.kind == "v/r" else "beta",
+            slope_corrected=corrected,
         )
 
     def _fit_window(self, u: np.ndarray, y: np.ndarray, u_flag: float, width: float) -> "_Window | str":

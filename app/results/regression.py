@@ -83,6 +83,8 @@ class RegressionFit:
     curvature_range: tuple[float, float]  # |κ| = |r/u| of the samples [1/m]: 1/κ are the radii driven
     speed_range: tuple[float, float] = (math.nan, math.nan)  # u of the samples [m/s]
     d_fixed: bool = False  # True: the samples could not place d, which is the tape's (d_ci95 a point)
+    tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
+    # tilt · (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ) [rad]; None where no slope was kept in the fit
     softening_resolved: bool = True  # False: the data cannot tell linear tyres from softening ones
     softening_hidden_pct: float = 0.0  # the softening, % of C2n, that could hide in the data (2 se)
     slope_pct: float | None = None  # the pad's slope, where the headings let it be fitted
@@ -297,6 +299,7 @@ class SampleRegression:
             curvature_range=(self._kappa_min, self._kappa_max),
             speed_range=(self._u_min, self._u_max),
             d_fixed=d_fixed,
+            tilt=_tilt(chosen),
             softening_resolved=resolved,
             softening_hidden_pct=hidden,
             slope_pct=slope[0] if slope else None,
@@ -323,6 +326,14 @@ def _spread(total: np.ndarray, base: list[int], extra: list[int], n: int) -> flo
     except np.linalg.LinAlgError:
         return 0.0
     return float(np.linalg.eigvalsh(schur)[0]) / n
+
+
+def _tilt(fit: "_Solution") -> tuple[float, float, float, float] | None:
+    """The slope's four coefficients (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ), where they were fitted."""
+    if 4 not in fit.terms:
+        return None
+    a, b, c, d = (float(fit.coef[fit.terms.index(k)]) for k in (4, 5, 6, 7))
+    return (a, b, c, d)
 
 
 def _tilt_pct(fit: "_Solution", g: float) -> float:

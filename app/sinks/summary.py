@@ -42,6 +42,7 @@ class CrossingRow:
     sweep_rate_mps2: float | None
     n_samples: int
     method: Literal["v/r", "beta"]
+    slope_corrected: bool  # the pad's slope, as the regression found it, taken out before the fit
 
 
 @dataclass(frozen=True)
@@ -405,6 +406,7 @@ def _crossing(c: Crossing, t0: float) -> CrossingRow:
         sweep_rate_mps2=_round(c.sweep_rate_mps2, 3),
         n_samples=c.n_samples,
         method=c.method,
+        slope_corrected=c.slope_corrected,
     )
 
 

@@ -3,7 +3,9 @@ the crossings found once it is known."""
 
 import json
 from pathlib import Path
+from typing import Any
 
+import can
 import pytest
 from rich.console import Console
 
@@ -40,3 +42,34 @@ def test_a_sloping_pad_reads_within_one_percent_with_the_truth_inside(
     assert max(errors) < 0.06 and sum(errors) / len(errors) < 0.03  # the sweeps' lag is still in each
     assert abs(result["paired"]["c2n"] / truth - 1) < 0.015
     assert result["paired"]["n"] == len(corrected)
+
+
+def test_the_slope_is_taken_out_alike_frame_by_frame_and_in_blocks(tmp_path: Path) -> None:
+    """`c2n live` takes frames one by one, `c2n analyze` of an MF4 in blocks: the crossings the
+    slope is taken out of, and every number, are the same."""
+    from app.config import load_config
+    from app.pipeline import Pipeline
+    from app.sinks import summary
+    from app.sources.logs import LogSource
+
+    log = tmp_path / "slope.mf4"
+    argv = ["simulate", "--session", "standard", "--effect", "road_cross_slope", "--effect-size", "2"]
+    assert main([*argv, "--seed", "5", "--out", str(log)], Console(record=True)) == 0
+
+    def analysed(blocks: bool) -> dict[str, Any]:
+        pipeline = Pipeline(load_config())
+        source = LogSource([log], triage=pipeline.decoder if blocks else None)
+        for item in source.items(blocks=blocks):
+            if isinstance(item, can.Message):
+                pipeline.process(item)
+            else:
+                pipeline.process_block(item)
+        pipeline.finish()
+        result = summary.build(pipeline.snapshot(), pipeline.config, [str(log)]).to_json()
+        result.pop("duration_s")
+        return result
+
+    by_frame, in_blocks = analysed(False), analysed(True)
+    corrected = [c for c in by_frame["crossings"] if c["slope_corrected"]]
+    assert len(corrected) >= 8
+    assert json.dumps(in_blocks, sort_keys=True) == json.dumps(by_frame, sort_keys=True)

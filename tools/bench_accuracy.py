@@ -4,7 +4,8 @@ Cases (issue 3): (a) linear tyres, realistic noise; (b) the sensor head yawed 0.
 Formula tyres (μ = 1) with runs up to the 4 m/s² gate; (d) the vehicle speed 0.2 s late; (e) a
 planar slope of 1–3 % falling in a random direction, on the standard session (three radii both
 ways) of the two-track model (its scenario is "standard", whatever --scenarios says); (f) the same
-sessions level, its control. Each
+sessions level, its control; (g) as (c) with runs to 7 m/s² (radii 42 and 84 m; the steady gate
+keeps samples to 4 m/s²). Each
 session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad), S-Motion-like noise
 (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°), written as CAN frames
 and run through the `c2n analyze` pipeline.
@@ -36,6 +37,7 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "d": ("speed 0.2 s late", {"sensor": {"speed_latency_s": 0.2}}),
     "e": ("slope 1–3 %, any direction", {}),
     "f": ("level (the control of e)", {}),
+    "g": ("Magic Formula μ=1, to 7 m/s²", {"tyre": "magic", "mu": 1.0, "ay_max_mps2": 7.0}),
 }
 STANDARD = "ef"  # the cases on the two-track standard session
 

@@ -126,6 +126,25 @@ def test_a_slope_s_gravity_along_the_heading_moves_load_as_braking_does() -> Non
     assert abs(sim.beta[-1] - level.beta[-1]) > 1e-4  # the shift is not lost in the tolerance
 
 
+def test_a_force_that_follows_the_turn_follows_the_body_s_lean_across_a_slope() -> None:
+    """Driving straight (no yaw rate) across a pad whose gravity pulls g_y sideways: the body
+    leans with the specific force a_y − g_y = −g_y, so the force that follows the turn pushes
+    G·f·tanh(−g_y/TURN_AY) — the same drive as a slope that much steeper and no such force."""
+    from app.gap.model import TURN_AY_MPS2, G
+
+    config = load_config()
+    p = BicycleParams.from_config(config)
+    drive = prepare(p, steady_drive(12.0, 0.0, seconds=20.0))
+    pull, force = 0.3, 0.025
+    leaning = run(drive, config.d_m, Mods(slope_cos_mps2=pull, turn_force_g=force))
+    extra = G * force * math.tanh(-pull / TURN_AY_MPS2)
+    steeper = run(drive, config.d_m, Mods(slope_cos_mps2=pull + extra))
+    assert np.allclose(leaning.beta, steeper.beta, rtol=0, atol=1e-15)
+    assert abs(leaning.beta[-1] - run(drive, config.d_m, Mods(slope_cos_mps2=pull)).beta[-1]) > 1e-4
+    level = run(drive, config.d_m, Mods(turn_force_g=force))  # nothing to lean with
+    assert np.allclose(level.beta, run(drive, config.d_m).beta, rtol=0, atol=1e-15)
+
+
 def test_the_roll_rate_moves_the_sensor_by_its_height_above_the_roll_axis() -> None:
     """A head h above the roll axis, rolling at p: its lateral velocity is v_s − p·h, so the
     sideslip it reads is atan((v_s − p·h)/u); h = sensor height − roll-axis height from the config."""

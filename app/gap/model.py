@@ -155,6 +155,7 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
     speed_reading = (1.0 + mods.speed_scale) * _shift(w.u_optical, t, -late) / math.cos(mods.misalignment_rad)
     n = len(t)
     c1, c2, lateral = w.c1_nominal, w.c2_nominal, np.zeros(n)
+    specific = ay  # what the body feels sideways, and rolls with: a_y less a slope's gravity
     if mods.slope_sin_mps2 or mods.slope_cos_mps2:
         heading = np.cumsum(np.nan_to_num(r_meas)) * w.dt
         lateral = mods.slope_sin_mps2 * np.sin(heading) + mods.slope_cos_mps2 * np.cos(heading)
@@ -163,6 +164,7 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
         g_x = mods.slope_cos_mps2 * np.sin(heading) - mods.slope_sin_mps2 * np.cos(heading)
         rearward = -w.transfer_kg_s2 * g_x
         c1, c2 = c1 - p.c1n * rearward, c2 + p.c2n * rearward
+        specific = ay - lateral
     c1, c2 = c1 * mods.c1n_factor, c2 * mods.c2n_factor
     if mods.softening1_per_mps4 or mods.softening2_per_mps4:
         ay2 = ay * ay
@@ -170,7 +172,9 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
         c2 = c2 * np.clip(1.0 - mods.softening2_per_mps4 * ay2, 0.2, 2.0)
     delta2 = mods.roll_steer_rad_per_mps2 * ay + mods.ply_rad if mods.roll_steer_rad_per_mps2 else None
     if mods.turn_force_g:
-        lateral = lateral + G * mods.turn_force_g * np.tanh(ay / TURN_AY_MPS2)
+        # a force that follows the body's lean (camber thrust as it rolls): on a slope the body
+        # leans with the lateral specific force, so also on a straight across the slope
+        lateral = lateral + G * mods.turn_force_g * np.tanh(specific / TURN_AY_MPS2)
     v_cg, yaw = step_lateral(
         w.u,
         np.ascontiguousarray(c1, dtype=np.float64),

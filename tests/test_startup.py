@@ -121,3 +121,49 @@ def test_a_command_that_needs_a_missing_extra_says_which_in_one_line(
     err = capsys.readouterr().err
     assert (code, err) == (1, f"c2n: error: {line}\n")
     assert not (tmp_path / "sim.mf4").exists() and not (tmp_path / "gap.html").exists()
+
+
+_LIVE_CHILD = """
+import json, os, sys, threading, time
+from app.cli import main
+import app.cli.live as live
+own = live.import_python_can
+
+def then_send():  # frames on the bus once c2n live has imported python-can its way
+    own()
+    import can
+    import app.pipeline
+    def first(self, record):
+        before = sorted(sys.modules)
+        import asammdf  # still there for whatever needs it later
+        print(json.dumps({"before": before, "asammdf": asammdf.__version__}), flush=True)
+        os._exit(0)
+    app.pipeline.Pipeline.take = first
+    def send():
+        with can.Bus(interface="virtual", channel=sys.argv[1]) as bus:
+            while True:
+                bus.send(can.Message(arbitration_id=0x7E5, is_extended_id=False, data=bytes(8)))
+                time.sleep(0.002)
+    threading.Thread(target=send, daemon=True).start()
+
+live.import_python_can = then_send
+main(["live", "-i", "virtual", "-c", sys.argv[1], "--no-record", "--duration", "30"])
+"""
+
+
+def test_live_reaches_its_first_frame_without_python_can_s_mf4_libraries(tmp_path: Path) -> None:
+    """python-can imports asammdf and pandas for its MF4 classes, half of `c2n live`'s start: the
+    live session, which records .log/.asc/.blf, imports python-can without them; asammdf itself
+    still imports afterwards."""
+    child = subprocess.run(
+        [sys.executable, "-c", _LIVE_CHILD, f"startup-{tmp_path.name}"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+    )
+    seen = json.loads(child.stdout.strip().splitlines()[-1])
+    loaded = {name.partition(".")[0] for name in seen["before"]}
+    assert {"can", "cantools", "numba"} <= loaded  # the bus, the DBCs and the filter are up
+    assert not loaded & {"asammdf", "pandas"}
+    assert seen["asammdf"]  # and importable after: not blocked for good

@@ -326,24 +326,30 @@ def startup(argv: list[str], runs: int) -> list[tuple[float, float]]:
 # the time from the launch to the first frame the pipeline takes (the numba cache warm).
 _FIRST_FRAME = """
 import os, sys, threading, time
-import can
 channel = sys.argv[1]
 
 def send():
+    import can  # as c2n live imported it
     with can.Bus(interface="virtual", channel=channel) as bus:
         frame = can.Message(arbitration_id=0x7E5, is_extended_id=False, data=bytes(8))
         while True:
             bus.send(frame)
             time.sleep(0.002)
 
-threading.Thread(target=send, daemon=True).start()
-import app.pipeline
-take = app.pipeline.Pipeline.take
-def first(self, record):
-    print(time.time(), flush=True)
-    os._exit(0)
-app.pipeline.Pipeline.take = first
 from app.cli import main
+import app.cli.live as live
+own = live.import_python_can
+
+def then_send():  # the sender starts once c2n live has imported python-can its way
+    own()
+    import app.pipeline
+    def first(self, record):
+        print(time.time(), flush=True)
+        os._exit(0)
+    app.pipeline.Pipeline.take = first
+    threading.Thread(target=send, daemon=True).start()
+
+live.import_python_can = then_send
 main(["live", "-i", "virtual", "-c", channel, "--no-record", "--duration", "30"])
 """
 

@@ -33,9 +33,10 @@ on a 2 % slope, left out, they move C2n by several per cent. The slope's gravity
 g·s·cos(D − ψ), also moves load between the axles as braking does, which changes how much the rear
 tyres give per m/s² of a_y: two terms a_y·sin ψ and a_y·cos ψ. All four are kept where the slope
 is found (its two terms' Wald χ² beyond the 95 % point, and at least ``SLOPE_MIN_PCT``), and left
-out where it is not: on a level
-pad they only add variance (one radius both ways, one drive in four: the four spare terms let the
-a_y³ term pass for softening and C2n read 7 % high). On 1–3 % slopes falling in any direction
+out where it is not: on a level pad they only add variance (one radius both ways, one drive in
+four: the four spare terms let the a_y³ term pass for softening and C2n read 7 % high). The slope
+found is also taken out of the crossings (``tilt``, for the detector). On 1–3 % slopes falling in
+any direction
 they took the worst C2n error of ten sessions from 2.3 % to 0.5 % and the intervals' coverage from
 3 to 10 of 10 (tools/bench_accuracy.py, case e). The heading is the integrated yaw rate.
 

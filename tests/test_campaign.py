@@ -256,3 +256,27 @@ def test_an_interrupted_campaign_keeps_what_is_done_and_goes_on_from_there(campa
     assert copy["c2n"] == original["c2n"] and copy["key"] == original["key"]
     known = sum(row["key"] in cached for row in rows)  # s001's copy among them: the same content
     assert known == len(cached) + 1 and f"({known} known from an earlier run" in text
+
+
+def test_a_campaign_killed_outright_leaves_no_worker_behind(campaign: Path) -> None:
+    """kill -9 of `c2n campaign` mid-run: its workers (a fork server's children, not its own)
+    end with it instead of living on, each with the pipeline in memory."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import psutil  # with distributed, in the test install
+
+    out = campaign.parent / "killed"
+    argv = [sys.executable, "-m", "app", "campaign", str(campaign), "--workers", "2", "--out", str(out)]
+    child = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not list((out / "cache").glob("*-*.json")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    workers = psutil.Process(child.pid).children(recursive=True)
+    assert len(workers) >= 2  # the pool is up (fork server, workers)
+    child.send_signal(signal.SIGKILL)
+    child.wait(timeout=30)
+    _, alive = psutil.wait_procs(workers, timeout=20)
+    assert alive == []

@@ -12,6 +12,7 @@ import json
 import multiprocessing
 import os
 import signal
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
@@ -60,14 +61,24 @@ def local_workers(n: int) -> Iterator[cf.Executor]:
         server = multiprocessing.get_context("forkserver")
         server.set_forkserver_preload(PRELOAD)
         context = server
-    with cf.ProcessPoolExecutor(max_workers=n, mp_context=context, initializer=_leave_ctrl_c) as pool:
+    with cf.ProcessPoolExecutor(max_workers=n, mp_context=context, initializer=_start_worker) as pool:
         yield pool
 
 
-def _leave_ctrl_c() -> None:
+def _start_worker() -> None:
     """A worker leaves Ctrl-C (sent to the whole terminal's process group) to the campaign, which
-    keeps what is done and stops the rest; a worker killed by it would break the pool."""
+    keeps what is done and stops the rest; a worker killed by it would break the pool. And it
+    ends when the campaign does, however that ends: a fork server's children are not the
+    campaign's, and would live on after a kill -9 of it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    parent = multiprocessing.parent_process()
+    if parent is not None:
+        threading.Thread(target=_end_with, args=(parent,), daemon=True).start()
+
+
+def _end_with(parent: multiprocessing.process.BaseProcess) -> None:
+    parent.join()  # its sentinel: returns when the campaign's process has gone
+    os._exit(1)
 
 
 @contextmanager

@@ -41,8 +41,8 @@ class _Run:
     y: list[float] = field(default_factory=list)
     ay: list[float] = field(default_factory=list)
     ud: list[float] = field(default_factory=list)  # du/dt
-    tilt: list[tuple[float, float, float, float]] = field(default_factory=list)  # what a slope's
-    # sideslip does to y per unit of each of the regression's slope terms (v/r only)
+    psi: list[float] = field(default_factory=list)  # heading (the integrated yaw rate)
+    r: list[float] = field(default_factory=list)  # yaw rate (v/r only: what a slope's terms need)
     trend: int = 0  # +1 speed rising, −1 falling, 0 not yet known
     u_first: float = math.nan
     u_extreme: float = math.nan
@@ -69,7 +69,7 @@ class _Run:
 
     def restart_at_extreme(self) -> None:
         """Keep only the samples since the speed's turning point; the trend flips."""
-        for samples in (self.t, self.u, self.y, self.ay, self.ud, self.tilt):
+        for samples in (self.t, self.u, self.y, self.ay, self.ud, self.psi, self.r):
             del samples[: self.i_extreme]
         self.trend = -self.trend
         self.crossed = False
@@ -91,14 +91,16 @@ class _Run:
         ay: float,
         ud: float,
         keep_within: float,
-        tilt: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+        psi: float = 0.0,
+        r: float = math.nan,
     ) -> None:
         self.t.append(t)
         self.u.append(u)
         self.y.append(y)
         self.ay.append(ay)
         self.ud.append(ud)
-        self.tilt.append(tilt)
+        self.psi.append(psi)
+        self.r.append(r)
         self.appended += 1
         if self.appended % _TRIM_EVERY == 0 or len(self.t) > _MAX_RUN_SAMPLES:
             self._trim(u, keep_within)
@@ -115,7 +117,8 @@ class _Run:
         self.y = [self.y[i] for i in keep]
         self.ay = [self.ay[i] for i in keep]
         self.ud = [self.ud[i] for i in keep]
-        self.tilt = [self.tilt[i] for i in keep]
+        self.psi = [self.psi[i] for i in keep]
+        self.r = [self.r[i] for i in keep]
         self.u_extreme = self.u[0] if self.u else math.nan
         self.i_extreme = 0
         for i, value in enumerate(self.u):
@@ -179,12 +182,8 @@ class CrossingDetector:
             run.restart_at_extreme()
         hw = self.settings.fit_half_width_mps
         ay = abs(estimate.ay_mps2) if estimate.ay_mps2 is not None else math.nan
-        basis = (0.0, 0.0, 0.0, 0.0)
-        if kind == "v/r" and estimate.r_radps:  # β = v/u, y = v/r = β·u/r; a_y = u·r as the regression's
-            sin, cos, per = math.sin(heading), math.cos(heading), u / estimate.r_radps
-            a = u * estimate.r_radps
-            basis = (sin * per, cos * per, a * sin * per, a * cos * per)
-        run.append(t, u, y, ay, estimate.u_dot_mps2, 3 * hw, basis)
+        r = estimate.r_radps if estimate.r_radps is not None else math.nan
+        run.append(t, u, y, ay, estimate.u_dot_mps2, 3 * hw, heading, r)
         events.extend(self._watch_sign(run, key, t, u, estimate))
         if run.pending is not None and abs(u - run.pending.u) >= hw:
             events.append(self._fit(run, run.take_pending(), key))
@@ -245,7 +244,7 @@ class CrossingDetector:
         t, u, y, ay, ud = (np.asarray(a) for a in (run.t, run.u, run.y, run.ay, run.ud))
         corrected = self.tilt is not None and run.kind == "v/r"
         if corrected:
-            y = y - np.asarray(run.tilt).reshape(-1, 4) @ np.asarray(self.tilt)
+            y = y - self._slope_part(u, np.asarray(run.psi), np.asarray(run.r))
         hw = self.settings.fit_half_width_mps
         outcome: _Window | str = "no samples"
         for width in (hw, 1.5 * hw, 2.0 * hw, 3.0 * hw):  # sparse data (step steers) need a wider window
@@ -288,6 +287,14 @@ class CrossingDetector:
             method="v/r" if run.kind == "v/r" else "beta",
             slope_corrected=corrected,
         )
+
+    def _slope_part(self, u: np.ndarray, psi: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """What the regression's slope (``tilt``: the sideslip a · (sin ψ, cos ψ, a_y·sin ψ,
+        a_y·cos ψ), a_y = u·r) adds to y = v/r = β·u/r at each sample."""
+        a, b, c, d = self.tilt or (0.0, 0.0, 0.0, 0.0)
+        sin, cos = np.sin(psi), np.cos(psi)
+        part: np.ndarray = (a * sin + b * cos + u * r * (c * sin + d * cos)) * u / r
+        return part
 
     def _fit_window(self, u: np.ndarray, y: np.ndarray, u_flag: float, width: float) -> "_Window | str":
         """Fit y against u² within ±width of the crossing: a first pass around the flag (which

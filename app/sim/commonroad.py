@@ -201,7 +201,7 @@ def simulate_commonroad(
 
         last = k == len(scenario.segments) - 1
         inside = (grid >= t0 - 1e-9) & ((grid < t1 - 1e-9) | last)
-        sample = grid[inside]
+        sample = np.clip(grid[inside], t0, t1)  # a grid point a rounding error before t0 is at t0
         ends = bool(len(sample)) and sample[-1] >= t1 - 1e-9
         t_eval = sample if ends else np.append(sample, t1)  # the segment's end: where the next starts
         solution = solve_ivp(

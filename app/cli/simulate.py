@@ -1,8 +1,11 @@
 """``c2n simulate``: a simulated test drive written as a CAN log, with its truth beside it.
 
-``--scenario`` drives the bicycle model; ``--session standard`` drives the standard test session on
-the two-track model with one unmodelled effect (``--effect``); ``--pack N`` writes N such sessions,
-each with a random effect, as a blind pack whose truth is sealed in DIR/sealed/.
+``--scenario`` drives the bicycle model; ``--session standard|track|circles`` drives a test session
+on the two-track model (or CommonRoad's, ``--model``) with one unmodelled effect (``--effect``):
+the standard session (speed sweeps through u0 on three radii, step steers), laps of a circuit
+(quasi-steady corners above u0, no sweep through it) or circles at one speed (d and C2n cannot be
+told apart); ``--pack N`` writes N standard sessions, each with a random effect, as a blind pack
+whose truth is sealed in DIR/sealed/.
 """
 
 import argparse
@@ -22,7 +25,11 @@ if TYPE_CHECKING:
     from app.sim.pack import CaseResult
     from app.sim.standard import StandardPlan
 
-SESSIONS = ("standard",)
+SESSIONS = {
+    "standard": "speed swept through u0 on three radii both ways, step steers (~9 min)",
+    "track": "laps of a circuit: corners at 1.2–2.4·u0 and 1–4.4 m/s², no sweep through u0 (~9 min)",
+    "circles": "three radii both ways at one speed (1.25·u0): d and C2n cannot be told apart (~5 min)",
+}
 # options of the bicycle-model path, with their defaults: sessions take effects instead
 _SCENARIO_ONLY = {
     "tyre": "linear",
@@ -54,7 +61,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "--scenario", choices=sorted(SCENARIOS), help="bicycle-model manoeuvre (default: constant_radius)"
     )
     parser.add_argument(
-        "--session", choices=SESSIONS, help="the standard test session on the two-track model"
+        "--session",
+        choices=tuple(SESSIONS),
+        help="a test session on --model's generator: "
+        + "; ".join(f"{name}: {what}" for name, what in SESSIONS.items()).replace("%", "%%"),
     )
     parser.add_argument(
         "--pack",
@@ -245,6 +255,8 @@ def _check_session_options(args: argparse.Namespace) -> None:
         raise C2nError("--effect-size needs --effect NAME")
     if args.effect_size is not None and args.pack is not None:
         raise C2nError("--effect-size is for one --session; a pack draws its sizes from the effect's range")
+    if args.pack is not None and args.session not in (None, "standard"):
+        raise C2nError(f"--pack writes standard sessions: leave out --session {args.session}")
 
 
 def _plan(args: argparse.Namespace) -> "StandardPlan":
@@ -256,6 +268,7 @@ def _plan(args: argparse.Namespace) -> "StandardPlan":
 def _run_session(args: argparse.Namespace, console: Console) -> int:
     from app.sim.imperfections import NO_IMPERFECTIONS, of_session
     from app.sim.session import describe, write_drive
+    from app.sim.sessions import CIRCLES_PLAN, QUICK_CIRCLES_PLAN, QUICK_TRACK_PLAN, TRACK_PLAN
     from app.sim.standard import StandardOptions, simulate_standard
 
     config = load_config(args.config)
@@ -276,6 +289,9 @@ def _run_session(args: argparse.Namespace, console: Console) -> int:
         sensor=sensor,
         imperfections=imperfections,
         model=args.model,
+        session=args.session,
+        track_plan=QUICK_TRACK_PLAN if args.quick else TRACK_PLAN,
+        circles_plan=QUICK_CIRCLES_PLAN if args.quick else CIRCLES_PLAN,
     )
     out = args.out or Path(f"sim-{args.session}-seed{args.seed}.blf")
     with console.status(f"simulating the {args.session} session on the {args.model} model…"):

@@ -37,6 +37,26 @@ class Scenario:
 
 
 @dataclass(frozen=True)
+class Part:
+    """One manoeuvre of a session and when it runs."""
+
+    kind: str  # "straight", "sweep", "step_steer" (standard); "corner" (track); "circle" (circles)
+    start_s: float
+    end_s: float
+    direction: int = 0  # +1 left, −1 right, 0 straight
+    radius_m: float | None = None
+    speed_mps: float | None = None
+
+
+@dataclass(frozen=True)
+class Session:
+    """A test session as the driver plans it: what to drive, and its manoeuvres with their times."""
+
+    scenario: Scenario
+    parts: tuple[Part, ...]
+
+
+@dataclass(frozen=True)
 class SweepPlan:
     """What the manoeuvre builders need to know: the speed range and the vehicle."""
 

@@ -12,6 +12,9 @@ to the config's nominal crossing speed u0 = √(C2n·g·d), radii from the top s
    the angle that gives 3 m/s² at the higher speed and held 6 s, 3 s straight.
 
 With the Mondeo config: u0 12.7 m/s, speeds 7.6–16.5 m/s, radii 68/96/137 m, 9.4 minutes of driving.
+
+``StandardOptions.session`` drives this session or one of app/sim/sessions.py's (track laps,
+one-speed circles) on either generator.
 """
 
 import copy
@@ -29,9 +32,17 @@ from app.errors import C2nError
 from app.sim import commonroad
 from app.sim.effects import NO_EFFECT, Effect, apply_to_sensor, apply_to_vehicle
 from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections
-from app.sim.scenarios import Scenario, Segment, Steer
+from app.sim.scenarios import Part, Scenario, Segment, Session, Steer
 from app.sim.sensors import SensorSetup, frames
 from app.sim.session import DBC_DIR, SimulatedDrive
+from app.sim.sessions import (
+    CIRCLES_PLAN,
+    TRACK_PLAN,
+    CirclesPlan,
+    TrackPlan,
+    circles_session,
+    track_session,
+)
 from app.sim.two_track import TwoTrackParams, TwoTrackTrace, simulate_two_track
 from app.sim.vehicle_model import BicycleParams
 
@@ -67,27 +78,9 @@ QUICK_PLAN = StandardPlan(
 )
 
 
-@dataclass(frozen=True)
-class Part:
-    """One manoeuvre of the session and when it runs."""
-
-    kind: str  # "straight", "sweep", "step_steer"
-    start_s: float
-    end_s: float
-    direction: int = 0  # +1 left, −1 right, 0 straight
-    radius_m: float | None = None
-    speed_mps: float | None = None
-
-
-@dataclass(frozen=True)
-class StandardSession:
-    scenario: Scenario
-    parts: tuple[Part, ...]
-
-
 def standard_session(
     u0_mps: float, params: BicycleParams, steering_ratio: float, plan: StandardPlan = STANDARD_PLAN
-) -> StandardSession:
+) -> Session:
     """The session for a car whose expected crossing speed is ``u0_mps`` (radii rounded to metres,
     as a test area marks them)."""
     lo, hi = plan.speed_lo_factor * u0_mps, plan.speed_hi_factor * u0_mps
@@ -136,7 +129,7 @@ def standard_session(
             parts.append(Part("step_steer", begin, clock[0], sign, speed_mps=speed))
             add(3.0, speed, straight)
             previous = speed
-    return StandardSession(Scenario("standard", lo, tuple(segments)), tuple(parts))
+    return Session(Scenario("standard", lo, tuple(segments)), tuple(parts))
 
 
 @dataclass(frozen=True)
@@ -154,11 +147,26 @@ class StandardOptions:
     commonroad_set: str = commonroad.DEFAULT_SET  # its parameter set
     downhill_deg: float | None = None  # a cross slope's fall, from the start heading (left positive);
     # None: to the side the effect's sign says (+: the right)
+    session: Literal["standard", "track", "circles"] = "standard"  # what the driver drives (its plan:
+    # plan, track_plan or circles_plan)
+    track_plan: TrackPlan = TRACK_PLAN
+    circles_plan: CirclesPlan = CIRCLES_PLAN
+
+    @property
+    def session_plan(self) -> StandardPlan | TrackPlan | CirclesPlan:
+        """The plan of the session driven."""
+        plans: dict[str, StandardPlan | TrackPlan | CirclesPlan] = {
+            "standard": self.plan,
+            "track": self.track_plan,
+            "circles": self.circles_plan,
+        }
+        return plans[self.session]
 
 
 def simulate_standard(config: Config, options: StandardOptions = StandardOptions()) -> SimulatedDrive:
-    """The standard session on the options' generator (our two-track, or CommonRoad's multi-body
-    model) with the options' effect, as CAN frames + truth."""
+    """The options' session (the standard one, track laps or one-speed circles) on the options'
+    generator (our two-track, or CommonRoad's multi-body model) with the options' effect, as CAN
+    frames + truth."""
     if options.model == "commonroad":
         return _on_commonroad(config, options)
     imperfect = options.imperfections
@@ -217,17 +225,22 @@ def _on_commonroad(config: Config, options: StandardOptions) -> SimulatedDrive:
     return _drive(config, options, session, trace, car.cn_per_rad, car.cn_per_rad, "commonroad", extra)
 
 
-def _session(config: Config, options: StandardOptions, bicycle: BicycleParams, c2n: float) -> StandardSession:
-    """The session as the driver plans it: from the config's C2n (or ``plan_c2n``), not the car's."""
+def _session(config: Config, options: StandardOptions, bicycle: BicycleParams, c2n: float) -> Session:
+    """The options' session as the driver plans it: from the config's C2n (or ``plan_c2n``), not the
+    car's."""
     planning_c2n = options.plan_c2n or config.tyres.c2n_per_rad or c2n
     u0_plan = paper.crossing_speed(planning_c2n, config.d_m, config.vehicle.gravity_mps2)
+    if options.session == "track":
+        return track_session(u0_plan, options.track_plan, options.seed)
+    if options.session == "circles":
+        return circles_session(u0_plan, options.circles_plan, options.seed)
     return standard_session(u0_plan, bicycle, config.vehicle.steering_ratio or 15.0, options.plan)
 
 
 def _drive(
     config: Config,
     options: StandardOptions,
-    session: StandardSession,
+    session: Session,
     trace: TwoTrackTrace,
     c1n: float,
     c2n: float,
@@ -245,7 +258,7 @@ def _drive(
     ford = load_dbc(DBC_DIR / "vehicle_ford.dbc").database
     messages = frames(trace, setup, kistler, ford, np.random.default_rng(options.seed))
     truth: dict[str, Any] = {
-        "session": "standard",
+        "session": options.session,
         "model": model,
         "effect": {"name": options.effect.name, "size": options.effect.size, "unit": options.effect.unit},
         "c2n": c2n,
@@ -261,7 +274,7 @@ def _drive(
         "max_ay_mps2": float(np.max(np.abs(trace.ay))),
         "max_roll_deg": math.degrees(float(np.max(np.abs(trace.roll)))),
         "sensor": asdict(setup),
-        "plan": asdict(options.plan),
+        "plan": asdict(options.session_plan),
         "parts": [asdict(part) for part in session.parts],
     } | extra
     return SimulatedDrive(messages, truth, trace)

@@ -5,26 +5,35 @@ Formula tyres (μ = 1) with runs up to the 4 m/s² gate; (d) the vehicle speed 0
 planar slope of 1–3 % falling in a random direction, on the standard session (three radii both
 ways) of the two-track model (its scenario is "standard", whatever --scenarios says); (f) the same
 sessions level, its control; (g) as (c) with runs to 7 m/s² (radii 42 and 84 m; the steady gate
-keeps samples to 4 m/s²). Each
-session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad), S-Motion-like noise
-(σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°), written as CAN frames
-and run through the `c2n analyze` pipeline.
+keeps samples to 4 m/s²); (h) one-speed circles on the two-track model (three radii both ways at
+1.25·u0: every sample has a_y = u²·κ at one speed, so d and C2n cannot be told apart — a refusal is
+the right answer); (i) track laps on the two-track model (quasi-steady corners at 1.2–2.4·u0 and
+1–4.4 m/s², no sweep through u0); for h and i the driver plans the speeds from the true C2n, so
+they stand where the session means them to against the true u0; (j) the standard session on
+CommonRoad's multi-body model (config/commonroad_vehicle2.toml; the true C2n its tyres' 21.92 1/rad
+scaled by 0.8–1.2, the driver planning from the config's). Each
+session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad, also for e–i), S-Motion-
+like noise (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°), written as
+CAN frames and run through the `c2n analyze` pipeline. Each row also says the headline's most
+common method, in how many sessions, and how many sessions had no headline at all.
 
     python tools/bench_accuracy.py                       # cases a–d on the two-radius session
     python tools/bench_accuracy.py --cases a --scenarios constant_radius,constant_steer,step_steer
     python tools/bench_accuracy.py --cases e,f --sessions 10      # sloping pads, and level
+    python tools/bench_accuracy.py --cases h,i,j --sessions 10    # circles, track laps, CommonRoad
 """
 
 import argparse
 import math
 import statistics
 import time
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-from app.config import load_config
+from app.config import COMMONROAD_CONFIG, load_config
 from app.pipeline import Pipeline
 from app.sim.effects import Effect
 from app.sim.session import DriveOptions, simulate_drive
@@ -38,8 +47,11 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "e": ("slope 1–3 %, any direction", {}),
     "f": ("level (the control of e)", {}),
     "g": ("Magic Formula μ=1, to 7 m/s²", {"tyre": "magic", "mu": 1.0, "ay_max_mps2": 7.0}),
+    "h": ("one-speed circles", {}),
+    "i": ("track laps", {}),
+    "j": ("CommonRoad, C2n ×0.8–1.2", {}),
 }
-STANDARD = "ef"  # the cases on the two-track standard session
+SESSIONS = {"e": "standard", "f": "standard", "h": "circles", "i": "track", "j": "standard (CR)"}
 
 
 def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
@@ -58,6 +70,22 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
         truth = float(drive.truth["c2n"])
     elif case == "f":
         drive = simulate_standard(config, StandardOptions(seed, c2n=truth, sensor=sensor))
+        truth = float(drive.truth["c2n"])
+    elif case in ("h", "i"):
+        kind: Literal["circles", "track"] = "circles" if case == "h" else "track"
+        drive = simulate_standard(
+            config, StandardOptions(seed, c2n=truth, sensor=sensor, plan_c2n=truth, session=kind)
+        )
+        truth = float(drive.truth["c2n"])
+    elif case == "j":
+        config = load_config(COMMONROAD_CONFIG)
+        nominal = config.tyres.c2n_per_rad
+        if nominal is None:
+            raise SystemExit(f"{COMMONROAD_CONFIG}: case j needs the car's [tyres] c2n_per_rad")
+        scaled = nominal * float(np.random.default_rng(10_000 + seed).uniform(0.8, 1.2))
+        drive = simulate_standard(
+            config, StandardOptions(seed, c2n=scaled, sensor=sensor, model="commonroad")
+        )
         truth = float(drive.truth["c2n"])
     else:
         drive = simulate_drive(
@@ -113,6 +141,16 @@ def _share(flags: list[bool | None]) -> str:
     return f"{sum(present) / len(present):6.2f}" if present else f"{'—':>6}"
 
 
+def _methods(methods: list[str | None]) -> str:
+    """The headline's most common method, in how many sessions, and how many had no headline."""
+    found = Counter(m for m in methods if m is not None)
+    none = f"none {methods.count(None)}"
+    if not found:
+        return f"{'—':<16} {none}"
+    method, count = found.most_common(1)[0]
+    return f"{method:<16} {count:>3}/{len(methods):<3} {none}"
+
+
 def _median(values: list[float | None], fmt: str) -> str:
     present = [v for v in values if v is not None]
     return format(statistics.median(present), fmt) if present else "—"
@@ -139,19 +177,19 @@ def main() -> None:
     )
     header = (
         f"{'case':<34} {'scenario':<16} {'headline':>17} {'cover':>6} {'soft':>5}  "
-        f"{'paired crossings':>17} {'cover':>6}  {'single crossings':>17}"
+        f"{'paired crossings':>17} {'cover':>6}  {'single crossings':>17}  headline's method"
     )
     print(header)
     for case in cases:
         for scenario in scenarios:
             rows = [r for r in results if r["case"] == case and r["scenario"] == scenario]
             singles = [e for r in rows for e in r["crossings"]]
-            drive = "standard" if case in STANDARD else scenario
+            drive = SESSIONS.get(case, scenario)
             print(
                 f"({case}) {CASES[case][0]:<30} {drive:<16} {_stats([r['headline'] for r in rows])} "
                 f"{_share([r['headline_covers'] for r in rows])} {sum(r['softening'] for r in rows):>5}  "
                 f"{_stats([r['paired'] for r in rows])} {_share([r['paired_covers'] for r in rows])}  "
-                f"{_stats(singles)}"
+                f"{_stats(singles)}  {_methods([r['method'] for r in rows])}"
             )
     for case in cases:
         rows = [r for r in results if r["case"] == case]
@@ -165,7 +203,8 @@ def main() -> None:
             f"{yaw}°, ψ0 {psi0}°, lag {_median([r['lag_s'] for r in rows], '.3f')} s (medians)"
         )
     covered = [r["headline_covers"] for r in results if r["headline_covers"] is not None]
-    print(f"headline interval coverage over all {len(covered)} sessions: {sum(covered) / len(covered):.3f}")
+    share = f"{sum(covered) / len(covered):.3f}" if covered else "—"
+    print(f"headline interval coverage over all {len(covered)} sessions with a headline: {share}")
     speed = statistics.median(r["frames_per_s"] for r in results)
     print(
         f"pipeline {speed:,.0f} frames/s (median per session); {time.perf_counter() - started:.0f} s in all"

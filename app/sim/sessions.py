@@ -6,14 +6,15 @@ speed and lateral acceleration, so both scale with the car.
 - **Track laps**: ordinary driving on a closed circuit of 8 corners (6 left, 2 right; the corners
   turn the car through 360° a lap) at 1.2–2.4·u0 and 1–4.4 m/s², with straights between them
   (acceleration 1–2.5 m/s², braking 2–4 m/s², one longer straight). Within a corner the speed
-  changes slowly (2 % of braking in to the apex, 5 % of accelerating out); each lap's corner speeds
-  scatter by up to ±2.5 % with the seed, as a driver's laps do. Cornering is quasi-steady but the
-  speed never sweeps through u0: no corner has a sideslip crossing.
-  With the Mondeo config: radii 55–233 m, 6 laps, 9.7 minutes of driving.
+  changes slowly (from 1.02 of the corner's speed down to 0.98 at the apex, up to 1.03 out); each
+  lap's corner speeds scatter by up to ±2.5 % with the seed, as a driver's laps do. Cornering is
+  quasi-steady but the speed never sweeps through u0: no corner has a sideslip crossing.
+  With the Mondeo config: radii 55–233 m, corners of 4–10 s, 6 laps, 9.3 minutes of driving
+  (CommonRoad's car, u0 15.4 m/s: 81–344 m, 5–12 s, 10.7 minutes).
 - **One-speed circles**: circles on 3 radii (2, 3 and 4 m/s² at the speed), each left then right,
   all at one speed (1.25·u0, the driver's foot within ±0.5 %), straights between. Every sample has
   a_y = u²·κ at that one speed: the degenerate design in which d and C2n cannot be told apart.
-  With the Mondeo config: radii 63–126 m, 5 minutes of driving.
+  With the Mondeo config: radii 63/84/127 m at 15.9 m/s, 5 minutes of driving.
 """
 
 import math

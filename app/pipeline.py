@@ -17,6 +17,7 @@ import numpy as np
 from app.config import OPTICAL_ROLES, Config
 from app.decode.decoder import Decoder
 from app.detect.crossings import CrossingDetector
+from app.detect.quasi_steady import QuasiSteadyGate
 from app.detect.steady_state import DIRECTIONS, STEADY, SteadyStateGate
 from app.estimate.compiled import CompiledMotionFilter, estimate_of
 from app.records import Crossing, CrossingRejected, Estimate, Event, Record, SteadyState
@@ -32,6 +33,7 @@ _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)
 _LATERAL = {"beta": ("beta",), "vy": ("vy",), "auto": ("beta", "vy")}  # what sideslip_source allows
 _R = Estimate._fields.index("r_radps")  # the yaw rate's column of the filter's estimates
+_V_MEAS = Estimate._fields.index("v_meas_mps")  # the measured lateral velocity's
 _REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
 
 
@@ -49,6 +51,7 @@ class SessionState:
     combined: Combined | None = None  # inverse-variance mean of the crossings
     paired: Paired | None = None  # crossings with misalignment and lag removed
     regression: RegressionFit | None = None  # every steady sample: the headline C2n
+    quasi: RegressionFit | None = None  # every quasi-steady sample, while no sweep crossed zero
 
 
 class Pipeline:
@@ -64,6 +67,8 @@ class Pipeline:
         self.gate = SteadyStateGate(config.detector)
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
         self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m)
+        self.quasi_gate = QuasiSteadyGate(config.detector)
+        self.quasi = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m, transient=True)
         self.heading = Heading()
         self.profile = SideslipProfile()
         self.state = SessionState()
@@ -83,6 +88,8 @@ class Pipeline:
             combined=state.combined,
             paired=state.paired,
             regression=state.regression,
+            quasi=state.quasi,
+            cornering=self.quasi_gate.cornering,
             pending=tuple(Pending(direction, t, u) for direction, t, u in self.detector.pending),
             frames=self.decoder.counts.copy(),
             status=MappingProxyType(dict(self.decoder.status.values)),
@@ -130,12 +137,18 @@ class Pipeline:
             return record
         heading = self.heading.step(record.t, estimate.r_radps)
         steady = self.gate.step(record.t, estimate, state.latest.get("steer"), state.sensor_problem)
+        quasi = self.quasi_gate.step(record.t, estimate, state.sensor_problem is None)
         events = self.detector.step(record.t, estimate, steady, heading)
         self._collect(events)
         if steady.steady and estimate.v_meas_mps is not None:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
             if estimate.r_radps is not None:
                 self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps, heading)
+        if quasi and estimate.v_meas_mps is not None:
+            e, v = estimate, estimate.v_meas_mps
+            r, r_dot = e.r_radps, e.r_dot_radps2
+            assert r is not None and r_dot is not None  # the gate saw them
+            self.quasi.add(record.t, e.u_mps, r, v, heading, r_dot, e.u_dot_mps2, e.v_dot_mps2)
         if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
             self._last_fit = record.t
             self._refit()
@@ -182,10 +195,13 @@ class Pipeline:
         if not len(rows):
             return []
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
+        quasi = self.quasi_gate.steps(t[rows], out, problems[rows] < 0) & ~np.isnan(out[:, _V_MEAS])
+        quasi_fields = iter(out[quasi].tolist())
+        quasi_flags = quasi.tolist()
         headings = self.heading.steps(t[rows], out[:, _R]).tolist()
         times = t[rows].tolist()
         steady_fields = iter(out[np.equal(kinds, STEADY)].tolist())  # the rows the detector sees
-        detector, regression, profile = self.detector, self.regression, self.profile
+        detector, regression, profile, quasi_fit = self.detector, self.regression, self.profile, self.quasi
         events: list[Event] = []
         own: tuple[Event, ...] = ()  # the last record's
         for k, now in enumerate(times):
@@ -204,6 +220,9 @@ class Pipeline:
                     if estimate.r_radps is not None:
                         u, r, v = estimate.u_mps, estimate.r_radps, estimate.v_meas_mps
                         regression.add(now, u, r, v, headings[k])
+            if quasi_flags[k]:
+                u, u_dot, _, v_dot, r, r_dot, *_, v = next(quasi_fields)[:11]
+                quasi_fit.add(now, u, r, v, headings[k], r_dot, u_dot, v_dot)
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
                 self._refit()
@@ -253,9 +272,24 @@ class Pipeline:
         self._refit()
         return events
 
+    def new_log(self) -> None:
+        """The frames from here on are another drive of the same car (``c2n analyze --pool``):
+        the filter, the heading and the gates start afresh; the regressions give the drive its
+        own ψ0 (the head mounted again) and keep every sample."""
+        self.finish()
+        self.filter.restart()
+        self.heading = Heading()
+        self.gate = SteadyStateGate(self.config.detector)
+        self.quasi_gate.new_log()
+        self.regression.new_log()
+        self.quasi.new_log()
+        self._last_fit = -float("inf")
+
     def _refit(self) -> None:
-        """The regression over every sample so far; a slope it found goes to the detector."""
+        """The regression over every sample so far; a slope it found goes to the detector. The
+        quasi-steady samples' regression too while no sweep has crossed zero."""
         sloped = self.detector.tilt is not None
+        self.state.quasi = self.quasi.fit() if not self.state.crossings else None
         fit = self.state.regression = self.regression.fit()
         self.detector.tilt = fit.tilt if fit is not None else None
         if self.state.crossings and sloped != (self.detector.tilt is not None):

@@ -173,6 +173,11 @@ def test_a_pipeline_fed_blocks_ends_as_one_fed_frame_by_frame(size: int) -> None
         theirs.sensor_problem,
     )
     assert pipeline.filter.counts == reference.filter.counts and pipeline.filter.counts.time_jumps > 0
+    quasi = pipeline.quasi.fit()
+    assert quasi is not None and quasi == reference.quasi.fit(), "the quasi-steady samples are the same"
+    tally, their_tally = pipeline.quasi_gate.cornering, reference.quasi_gate.cornering
+    assert tally.usable_s > 0 and tally.turning_s == pytest.approx(their_tally.turning_s, abs=1e-6)
+    assert tally.usable_s == pytest.approx(their_tally.usable_s, abs=1e-6)
     for a, b in zip(pipeline.filter.state(), reference.filter.state(), strict=True):
         np.testing.assert_array_equal(a, b)
     ours_json, theirs_json = (

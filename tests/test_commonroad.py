@@ -175,3 +175,24 @@ def test_the_gap_on_the_commonroad_car_calibrates_its_turn_force(
         named = next(c for c in result.candidates if c.named)
         assert named.params["d_error_m"] == pytest.approx(-0.2, abs=0.05)
         assert named.shrink_heldout > 0.4 and named.at_bound == ()
+
+
+def test_on_the_commonroad_car_c2n_is_its_rear_axle_s_with_the_turn_force_taken_out() -> None:
+    """The standard session on CommonRoad's car on a test day: its tyre formula's step that flips
+    with the roll is found as a turn force (the gap calibrates the same, about 2.5 %), and C2n
+    is the car's rear axle's — what the car's own state says (app/sim/axle.py), its roll camber
+    making it 5–12 % stiffer than the tyres' |p_ky1| — within 1 %, the interval holding it."""
+    from app.sim.imperfections import of_session
+    from tests.simulated import run_pipeline
+
+    config = load_config(COMMONROAD_CONFIG)
+    options = StandardOptions(seed=29, model="commonroad", imperfections=of_session(29))
+    drive = simulate_standard(config, options)
+    axle, tyre = drive.truth["c2n_axle"], drive.truth["c2n"]
+    assert 1.05 < axle / tyre < 1.12
+    snapshot = run_pipeline(config, drive).snapshot()
+    fit = snapshot.regression
+    assert fit is not None and fit.turn_force_pct is not None and 1.5 < fit.turn_force_pct < 4.0
+    headline = snapshot.headline
+    assert headline is not None and headline.c2n == pytest.approx(axle, rel=0.01)
+    assert headline.ci95[0] <= axle <= headline.ci95[1]

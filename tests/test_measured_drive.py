@@ -299,15 +299,40 @@ def test_c2n_analyze_gives_a_result_or_one_clear_sentence(log: Path, tmp_path: P
         assert summary["warnings"], "a drive without a result says why"
 
 
-def test_c2n_gap_runs_to_a_verdict(config: Config, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def whole_log(config: Config, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """All 550 s of the laps."""
+    log = tmp_path_factory.mktemp("revs") / "laps.blf"
+    write_drive(measured_drive(config, real_path(FOLDER), MeasuredOptions(seed=SEED)), log)
+    return log
+
+
+def test_race_laps_beyond_the_linear_range_are_refused_with_what_the_cornering_was(
+    whole_log: Path, tmp_path: Path
+) -> None:
+    """No sweep through u0, and the corners taken at 5–8 m/s²: no C2n, and the refusal counts the
+    cornering by what kept it out and says what to drive."""
+    out = tmp_path / "summary.json"
+    code, stdout, stderr = _run("analyze", str(whole_log), "--config", str(CONFIG), "--json", str(out))
+    assert code == 0, stderr
+    summary = json.loads(out.read_text())
+    assert summary["c2n"] is None and summary["quasi_steady"] is None
+    cornering = summary["cornering"]
+    assert cornering["turning_s"] > 300 and cornering["ay_high_s"] > 0.8 * cornering["turning_s"]
+    parts = cornering["ay_high_s"] + cornering["transient_s"] + cornering["usable_s"]
+    assert parts == pytest.approx(cornering["turning_s"], abs=0.3)
+    (line,) = [line for line in stdout.splitlines() if line.startswith("C2n:")]
+    assert f"of {cornering['turning_s']:.0f} s cornering, {cornering['ay_high_s']:.0f} s beyond" in line
+    assert "drive steady circles at 2–4 m/s²" in line
+
+
+def test_c2n_gap_runs_to_a_verdict(config: Config, whole_log: Path, tmp_path: Path) -> None:
     """The whole drive: race laps are beyond the linear model the gap compares with (a minute has
     too little driving in its linear range to diagnose). Whatever the verdict, no named effect and
     no calibrated nuisance it rests on sits on a physical bound unannounced, and every calibrated
     value comes with its interval."""
-    log = tmp_path / "laps.blf"
-    write_drive(measured_drive(config, real_path(FOLDER), MeasuredOptions(seed=SEED)), log)
     out = tmp_path / "gap.json"
-    code, stdout, stderr = _run("gap", str(log), "--config", str(CONFIG), "--json", str(out))
+    code, stdout, stderr = _run("gap", str(whole_log), "--config", str(CONFIG), "--json", str(out))
     assert code == 0, stderr
     assert "Traceback" not in stdout + stderr
     assert stdout.startswith("gap: ")

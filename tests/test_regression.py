@@ -291,3 +291,40 @@ def test_the_summary_says_d_was_held_and_what_to_drive() -> None:
     assert fit["c2n_ci95"][0] <= 14.0 <= fit["c2n_ci95"][1]
     said = [w for w in result["warnings"] if "too narrow to fit the sensor's d" in w]
     assert len(said) == 1 and f"the config's {config.d_m:g} m" in said[0] and "sweep the speed" in said[0]
+
+
+def test_a_force_that_follows_the_turn_is_fitted_and_taken_out_of_c2n() -> None:
+    """A rear force of 2.5 % of the axle's weight towards each turn's inside (a tyre model's
+    camber step: CommonRoad's car): a sideslip step δ·sign(κ) with δ = 0.025/C2n. Left in, d·κ
+    and the a_y³ term take it on three radii and C2n reads high; fitted, it comes out exactly."""
+    c2n, step = 14.0, 0.025 / 14.0
+    radii = (60.0, -60.0, 90.0, -90.0, 130.0, -130.0)
+    samples = [
+        (t, u, r, v + u * step * math.copysign(1.0, r))
+        for t, u, r, v in sweep_samples(c2n, 1.1, math.radians(0.2), radii)
+    ]
+    fit = fitted(samples)
+    assert fit is not None and fit.turn_force_pct == pytest.approx(2.5, rel=1e-6)
+    assert fit.turn_step_rad == pytest.approx(step, rel=1e-6)
+    assert fit.c2n == pytest.approx(c2n, rel=1e-8) and fit.d_m == pytest.approx(1.1, rel=1e-8)
+    assert fit.turn_force_ci95_pct is not None and fit.turn_force_ci95_pct[0] > 2.0
+
+
+def test_no_turn_force_is_fitted_where_there_is_none() -> None:
+    rng = np.random.default_rng(11)
+    radii = (60.0, -60.0, 90.0, -90.0, 130.0, -130.0)
+    samples = [(t, u, r, v + rng.normal(0, 0.01)) for t, u, r, v in sweep_samples(14.0, 1.1, 0.0, radii)]
+    fit = fitted(samples)
+    assert fit is not None and fit.turn_force_pct is None and fit.turn_step_rad is None
+    assert fit.c2n == pytest.approx(14.0, rel=0.003)
+
+
+def test_one_radius_each_way_cannot_tell_a_turn_force_from_d() -> None:
+    """sign(κ) is d·κ's double when |κ| is one: the term is not tried, d takes the step."""
+    samples = [
+        (t, u, r, v + u * 0.002 * math.copysign(1.0, r))
+        for t, u, r, v in sweep_samples(14.0, 1.1, 0.0, (80.0, -80.0))
+    ]
+    fit = fitted(samples)
+    assert fit is not None and fit.turn_force_pct is None
+    assert fit.d_m == pytest.approx(1.1 + 0.002 * 80.0, rel=1e-6)

@@ -149,3 +149,12 @@ def test_a_pack_of_track_sessions_is_refused(tmp_path: Path, capsys: pytest.Capt
     assert main(argv, Console(record=True)) == 1
     assert "--pack writes standard sessions" in capsys.readouterr().err
     assert not (tmp_path / "pack").exists()
+
+
+def test_the_rear_axle_s_own_c2n_is_read_from_sweeps_only(config: Config, track: SimulatedDrive) -> None:
+    """The truth a driving test should find, from the car's state: on the two-track model it is
+    the tyres' C2n (load transfer softens it only beyond zero a_y); track corners, 1–4.4 m/s², do
+    not reach low enough to say it."""
+    standard = simulate_standard(config, StandardOptions(seed=5))
+    assert standard.truth["c2n_axle"] == pytest.approx(standard.truth["c2n"], rel=0.005)
+    assert track.truth["c2n_axle"] is None

@@ -1,26 +1,30 @@
 """Accuracy of C2n over seeded simulated sessions: medians, worst cases and interval coverage.
 
-Cases (issue 3): (a) linear tyres, realistic noise; (b) the sensor head yawed 0.3°; (c) Magic-
-Formula tyres (μ = 1) with runs up to the 4 m/s² gate; (d) the vehicle speed 0.2 s late; (e) a
-planar slope of 1–3 % falling in a random direction, on the standard session (three radii both
-ways) of the two-track model (its scenario is "standard", whatever --scenarios says); (f) the same
+Cases (issue 3): (a) linear tyres, realistic noise; (b) the sensor head yawed 0.3°; (c)
+Magic-Formula tyres (μ = 1) with runs up to the 4 m/s² gate; (d) the vehicle speed 0.2 s late; (e) a
+planar slope of 1–3 % falling in a random direction, on the standard session (three radii both ways)
+of the two-track model (its scenario is "standard", whatever --scenarios says); (f) the same
 sessions level, its control; (g) as (c) with runs to 7 m/s² (radii 42 and 84 m; the steady gate
 keeps samples to 4 m/s²); (h) one-speed circles on the two-track model (three radii both ways at
-1.25·u0: every sample has a_y = u²·κ at one speed, so d and C2n cannot be told apart — a refusal is
-the right answer); (i) track laps on the two-track model (quasi-steady corners at 1.2–2.4·u0 and
-1–4.4 m/s², no sweep through u0); for h and i the driver plans the speeds from the true C2n, so
-they stand where the session means them to against the true u0; (j) the standard session on
-CommonRoad's multi-body model (config/commonroad_vehicle2.toml; the true C2n its tyres' 21.92 1/rad
-scaled by 0.8–1.2, the driver planning from the config's). Each
-session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad, also for e–i), S-Motion-
-like noise (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°), written as
-CAN frames and run through the `c2n analyze` pipeline. Each row also says the headline's most
-common method, in how many sessions, and how many sessions had no headline at all.
+1.25·u0: every sample has a_y = u²·κ at one speed, so d and C2n cannot be told apart — d is held at
+the tape's value, or the run refused); (i) track laps on the two-track model (quasi-steady corners
+at 1.2–2.4·u0 and 1–4.4 m/s², no sweep through u0); for h and i the driver plans the speeds from the
+true C2n, so they stand where the session means them to against the true u0; (j) the standard
+session on CommonRoad's multi-body model (config/commonroad_vehicle2.toml; the true C2n its tyres'
+21.92 1/rad scaled by 0.8–1.2); (k) track laps on CommonRoad's car. For j and k the truth is the
+car's rear axle read from its own state on the same car's standard sweeps (app/sim/axle.py: its roll
+camber makes it 8–10 % stiffer than the tyres' p_ky1, which the bench also compares with). Cases h–k
+have a test day's nuisances: gyro biases and scale, a steering offset and ratio error, tyres a few %
+off the nominal (the truth is the car's), mixed sensor rates, and the head yawed by up to 0.3°. Each
+session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad, also for e–i),
+S-Motion-like noise (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°),
+written as CAN frames and run through the `c2n analyze` pipeline. Each row also says the headline's
+most common method, in how many sessions, and how many sessions had no headline at all.
 
     python tools/bench_accuracy.py                       # cases a–d on the two-radius session
     python tools/bench_accuracy.py --cases a --scenarios constant_radius,constant_steer,step_steer
     python tools/bench_accuracy.py --cases e,f --sessions 10      # sloping pads, and level
-    python tools/bench_accuracy.py --cases h,i,j --sessions 10    # circles, track laps, CommonRoad
+    python tools/bench_accuracy.py --cases h,i,j,k --sessions 10  # circles, track laps, CommonRoad
 """
 
 import argparse
@@ -29,6 +33,7 @@ import statistics
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from typing import Any, Literal
 
 import numpy as np
@@ -36,6 +41,7 @@ import numpy as np
 from app.config import COMMONROAD_CONFIG, load_config
 from app.pipeline import Pipeline
 from app.sim.effects import Effect
+from app.sim.imperfections import draw_imperfections
 from app.sim.session import DriveOptions, simulate_drive
 from app.sim.standard import StandardOptions, simulate_standard
 
@@ -50,8 +56,16 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "h": ("one-speed circles", {}),
     "i": ("track laps", {}),
     "j": ("CommonRoad, C2n ×0.8–1.2", {}),
+    "k": ("track laps on CommonRoad", {}),
 }
-SESSIONS = {"e": "standard", "f": "standard", "h": "circles", "i": "track", "j": "standard (CR)"}
+SESSIONS = {
+    "e": "standard",
+    "f": "standard",
+    "h": "circles",
+    "i": "track",
+    "j": "standard (CR)",
+    "k": "track (CR)",
+}
 
 
 def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
@@ -74,19 +88,30 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
     elif case in ("h", "i"):
         kind: Literal["circles", "track"] = "circles" if case == "h" else "track"
         drive = simulate_standard(
-            config, StandardOptions(seed, c2n=truth, sensor=sensor, plan_c2n=truth, session=kind)
+            config,
+            StandardOptions(
+                seed,
+                c2n=truth,
+                sensor=sensor | _head(seed),
+                plan_c2n=truth,
+                session=kind,
+                imperfections=draw_imperfections(np.random.default_rng(30_000 + seed)),
+            ),
         )
         truth = float(drive.truth["c2n"])
-    elif case == "j":
+    elif case in ("j", "k"):
         config = load_config(COMMONROAD_CONFIG)
         nominal = config.tyres.c2n_per_rad
         if nominal is None:
-            raise SystemExit(f"{COMMONROAD_CONFIG}: case j needs the car's [tyres] c2n_per_rad")
+            raise SystemExit(f"{COMMONROAD_CONFIG}: cases j, k need the car's [tyres] c2n_per_rad")
         scaled = nominal * float(np.random.default_rng(10_000 + seed).uniform(0.8, 1.2))
-        drive = simulate_standard(
-            config, StandardOptions(seed, c2n=scaled, sensor=sensor, model="commonroad")
-        )
-        truth = float(drive.truth["c2n"])
+        car = StandardOptions(seed, c2n=scaled, model="commonroad", plan_c2n=scaled)
+        day = draw_imperfections(np.random.default_rng(30_000 + seed))
+        on_the_day = replace(car, sensor=sensor | _head(seed), imperfections=day)
+        drive = simulate_standard(config, on_the_day if case == "j" else replace(on_the_day, session="track"))
+        # the car's rear axle, not its tyres' p_ky1 (app/sim/axle.py): read on the same car's sweeps
+        sweeps = drive if case == "j" else simulate_standard(config, car)
+        truth = float(sweeps.truth["c2n_axle"])
     else:
         drive = simulate_drive(
             config, DriveOptions(scenario=scenario, seed=seed, c2n=truth, sensor=sensor, **options)
@@ -125,8 +150,15 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
         "left": error(statistics.mean(lefts)) if lefts else None,
         "right": error(statistics.mean(rights)) if rights else None,
         "crossings": [error(c.c2n) for c in state.crossings],
+        "against_tyre": 100.0 * (head.c2n / drive.truth["c2n"] - 1.0) if head else None,  # its parameter
+        "turn_force_pct": fit.turn_force_pct if fit else None,
         "frames_per_s": len(drive.messages) / elapsed,
     }
+
+
+def _head(seed: int) -> dict[str, float]:
+    """A test day's sensor head for cases h–j: yawed by up to 0.3° either way."""
+    return {"yaw_misalignment_deg": float(np.random.default_rng(40_000 + seed).uniform(-0.3, 0.3))}
 
 
 def _stats(values: list[float | None]) -> str:
@@ -193,6 +225,12 @@ def main() -> None:
             )
     for case in cases:
         rows = [r for r in results if r["case"] == case]
+        if case in ("j", "k"):
+            print(
+                f"({case}) against the tyres' p_ky1 instead of the car's rear axle: "
+                f"{_median([r['against_tyre'] for r in rows], '+.2f')} % (median); turn force found "
+                f"{_median([r['turn_force_pct'] for r in rows], '+.2f')} % of the axle's weight (median)"
+            )
         left, right = _median([r["left"] for r in rows], "+.2f"), _median([r["right"] for r in rows], "+.2f")
         yaw, psi0 = (
             _median([r["misalignment_deg"] for r in rows], "+.3f"),

@@ -99,7 +99,7 @@ def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
     row = flatten(result.to_json())
     row["error"] = printable(f"{raw}: {missing}") if missing else None
     if not missing and result.c2n is None:
-        why = snapshot.sign_problem or "no usable sideslip sign change or steady samples"
+        why = snapshot.refusal
         row["error"] = printable(f"{raw}: no C2n — {why}")
     return row, snapshot.frames.total
 

@@ -19,8 +19,15 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument(
         "--json", type=Path, metavar="OUT", help="write the summary JSON here (- : standard output)"
     )
-    parser.add_argument(
+    how = parser.add_mutually_exclusive_group()
+    how.add_argument(
         "--merge", action="store_true", help="the logs are channels of one drive: merge them by timestamp"
+    )
+    how.add_argument(
+        "--pool",
+        action="store_true",
+        help="the logs are separate drives of one car: one C2n from all, each drive its own sensor "
+        "offset ψ0 (the head mounted again) — e.g. track laps and circles on different days",
     )
     parser.set_defaults(run=run)
     return parser
@@ -33,24 +40,35 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sinks import summary
     from app.sinks.event_printer import EventPrinter, print_result
     from app.sinks.progress import ReadProgress
-    from app.sources.logs import LogSource
+    from app.sources.logs import LogReport, LogSource, distinct
 
     config = load_config(args.config)
     pipeline = Pipeline(config)
-    source = LogSource(args.logs, merge=args.merge, triage=pipeline.decoder)
-    progress = ReadProgress(source, ", ".join(p.name for p in args.logs))
-    frames = source.items(blocks=True)  # an MF4's frames as FrameBlocks: Pipeline.process_block
-    run_pipeline(
-        frames,
-        pipeline,
-        [EventPrinter(console)],
-        display=progress,
-        console=console,
-        transient=True,
-        blocks=True,
-    )
+    drives: list[list[Path]] = [args.logs]
+    notes: list[LogReport] = []
+    if args.pool:  # one drive at a time, each recording once
+        kept, notes = distinct(args.logs)
+        drives = [[log] for log in kept]
+    for number, logs in enumerate(drives):
+        if number:
+            pipeline.new_log()
+        source = LogSource(logs, merge=args.merge, triage=pipeline.decoder)
+        progress = ReadProgress(source, ", ".join(p.name for p in logs))
+        frames = source.items(blocks=True)  # an MF4's frames as FrameBlocks: Pipeline.process_block
+        completed = run_pipeline(
+            frames,
+            pipeline,
+            [EventPrinter(console)],
+            display=progress,
+            console=console,
+            transient=True,
+            blocks=True,
+        )
+        notes += source.notes
+        if not completed:  # Ctrl-C: the result of what was read
+            break
     snapshot = pipeline.snapshot()
-    result = summary.build(snapshot, config, [str(p) for p in args.logs], source.notes)
+    result = summary.build(snapshot, config, [str(p) for p in args.logs], notes)
     if args.json:
         summary.write(args.json, result)
     print_result(console, snapshot)

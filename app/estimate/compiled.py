@@ -109,6 +109,10 @@ class CompiledMotionFilter:
         )
         return None if out is None else estimate_of(out)
 
+    def restart(self) -> None:
+        """The next record starts the filter afresh: another drive follows."""
+        _reset(self._state)
+
     def steps(self, t: Array, values: Mapping[str, Array]) -> tuple[Array, Array]:
         """``step`` over many records in one compiled loop: ``values`` role -> column (NaN where
         a record has none). Returns which records gave an estimate, and the estimates' fields

@@ -30,6 +30,7 @@ from app.config import Config
 from app.dbc import load_dbc
 from app.errors import C2nError
 from app.sim import commonroad
+from app.sim.axle import axle_c2n
 from app.sim.effects import NO_EFFECT, Effect, apply_to_sensor, apply_to_vehicle
 from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections
 from app.sim.scenarios import Part, Scenario, Segment, Session, Steer
@@ -262,6 +263,7 @@ def _drive(
         "model": model,
         "effect": {"name": options.effect.name, "size": options.effect.size, "unit": options.effect.unit},
         "c2n": c2n,
+        "c2n_axle": axle_c2n(trace, session.parts, g),  # the car's own rear axle (app/sim/axle.py)
         "c1n": c1n,
         "d_m": setup.d_m,
         "config_d_m": config.d_m,

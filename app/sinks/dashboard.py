@@ -282,15 +282,16 @@ class Dashboard(Display):
         table = columns(rows)
         result = Text(result_line(snapshot), style="bold")
         lines: list[RenderableType] = [table, result]
-        fit = snapshot.regression
+        fit = snapshot.fit
         if fit is not None:
             psi0 = f"ψ0 {math.degrees(fit.psi0_rad):+.3f}°" if fit.psi0_rad is not None else "ψ0 —"
             model = "softening tyre model" if fit.model == "softening" else "linear"
             if not fit.softening_resolved:
                 model += " (softening not ruled out: interval widened)"
+            name = "quasi-steady" if fit is snapshot.quasi else "regression"
             lines.append(
                 Text(
-                    f"regression: d {fit.d_m:.3f} m [{fit.d_ci95[0]:.3f}, {fit.d_ci95[1]:.3f}] "
+                    f"{name}: d {fit.d_m:.3f} m [{fit.d_ci95[0]:.3f}, {fit.d_ci95[1]:.3f}] "
                     f"(config {snapshot.d_m:g}), {psi0}, {model}, "
                     f"a_y {fit.ay_range[0]:.1f}–{fit.ay_range[1]:.1f} m/s²"
                 )

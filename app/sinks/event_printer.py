@@ -33,12 +33,19 @@ def result_line(snapshot: Snapshot) -> str:
     """The run's result: the headline C2n and how it was found, and the crossings beside it."""
     headline, u0 = snapshot.headline, snapshot.u0_mps
     if headline is None:
-        why = snapshot.sign_problem or "no usable sideslip sign change or steady samples"
-        return f"C2n: no result ({why})"
+        return f"C2n: no result ({snapshot.refusal})"
     lo, hi = headline.ci95
     how = headline.method
-    fit = snapshot.regression
-    if fit is not None:
+    fit = snapshot.fit
+    if fit is not None and headline.method == "quasi-steady":
+        how = (
+            f"quasi-steady cornering: {fit.seconds:.0f} s, {fit.n_samples:,} samples at "
+            f"{fit.speed_range[0]:.1f}–{fit.speed_range[1]:.1f} m/s, a_y {fit.ay_range[0]:.1f}–"
+            f"{fit.ay_range[1]:.1f} m/s²"
+        )
+        if fit.logs > 1:
+            how += f", {fit.logs} drives pooled"
+    elif fit is not None:
         how = f"regression over {fit.n_samples:,} steady samples"
         if fit.model == "softening":
             how += ", extrapolated to zero a_y"
@@ -58,7 +65,7 @@ def fit_line(snapshot: Snapshot) -> str | None:
     """What the fits found besides C2n, with their 95 % intervals: the regression's sensor
     position d and the head's misalignment ψ0, and the pairing's misalignment and lag."""
     parts = []
-    fit = snapshot.regression
+    fit = snapshot.fit
     if fit is not None and snapshot.sign_problem is None:
         lo, hi = fit.d_ci95
         parts.append(f"d = {fit.d_m:.3f} m [{lo:.3f}, {hi:.3f}] (config {snapshot.d_m:g})")

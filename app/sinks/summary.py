@@ -7,7 +7,7 @@ says. ``build`` makes it from a Snapshot; ``to_json`` gives the file's content.
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, astuple, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -76,6 +76,21 @@ class RegressionRow:
     slope_downhill_deg: float | None  # where it falls: degrees from the start heading, left positive
     d_fixed: bool  # True: the samples could not place d beside C2n; d is the config's
     speed_range_mps: Interval
+    turn_force_pct: float | None  # a rear force following the turn's direction, % of the axle's weight
+    turn_force_ci95_pct: Interval | None
+    seconds: float  # of driving the samples cover
+    logs: int  # drives pooled (c2n analyze --pool), each with its own ψ0; psi0_deg is the first's
+    transient_terms: bool  # quasi-steady: the yaw inertia's and braking's terms were fitted
+
+
+@dataclass(frozen=True)
+class CorneringRow:
+    """Seconds of cornering (a turn, above the speed limit, the sensor well) and what they were."""
+
+    turning_s: float
+    ay_high_s: float  # beyond the tyres' linear range
+    transient_s: float  # speed or steering changing too fast for quasi-steady, or settling
+    usable_s: float  # quasi-steady
 
 
 @dataclass(frozen=True)
@@ -143,6 +158,8 @@ class Summary:
     u0_mps: float | None = None
     crossings: tuple[CrossingRow, ...] = ()
     regression: RegressionRow | None = None
+    quasi_steady: RegressionRow | None = None  # the quasi-steady samples' fit, where no sweep crossed zero
+    cornering: CorneringRow | None = None
     paired: PairedRow | None = None
     frames: Frames = Frames()
     warnings: tuple[str, ...] = ()
@@ -181,6 +198,10 @@ def build(
         u0_mps=_round(u0) if u0 is not None else None,
         crossings=tuple(_crossing(c, t0) for c in snapshot.crossings),
         regression=_regression(snapshot.regression),
+        quasi_steady=_regression(snapshot.quasi),
+        cornering=CorneringRow(*(round(x, 1) for x in astuple(snapshot.cornering)))
+        if snapshot.t_first is not None
+        else None,
         paired=_paired(snapshot.paired),
         frames=Frames(**counts.as_dict()),
         warnings=tuple(warnings(snapshot, config, reports)),
@@ -279,7 +300,7 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"the optical data stopped {f.resets - f.time_jumps} times for over "
             f"{config.filter.gap_reset_s:g} s: the filter restarted"
         )
-    fit = snapshot.regression
+    fit = snapshot.fit
     if fit is not None and not snapshot.sign_problem and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
         low, high = fit.d_ci95
         out.append(
@@ -287,7 +308,12 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
             "with d; the regression's does not)"
         )
-    if fit is not None and fit.d_fixed:
+    if fit is not None and fit.d_fixed and fit is snapshot.quasi:
+        out.append(
+            f"quasi-steady cornering cannot place the sensor's d beside C2n as a sweep does: d is the "
+            f"config's {config.d_m:g} m (its interval counts 1 cm of tape) — measure it with a tape"
+        )
+    elif fit is not None and fit.d_fixed:
         low, high = fit.speed_range
         out.append(
             f"the steady samples span {low:.1f}–{high:.1f} m/s only: too narrow to fit the sensor's d beside "
@@ -309,6 +335,14 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     slope = _slope_warning(fit)
     if slope is not None:
         out.append(slope)
+    if fit is not None and fit.turn_force_pct is not None and fit.turn_force_ci95_pct is not None:
+        low, high = fit.turn_force_ci95_pct
+        out.append(
+            f"the rear tyres make a force that follows the turn's direction, not its size: "
+            f"{fit.turn_force_pct:+.2f} % [{low:+.2f}, {high:+.2f}] of the axle's weight (towards the "
+            "turn's inside; a tyre's camber step, friction in the suspension): the regression takes it out "
+            "of C2n; each crossing carries it (it moves the sign change as a sensor d·κ further ahead would)"
+        )
     if snapshot.replay_hint:
         out.append(snapshot.replay_hint)
     beyond = _crossing_beyond_gate(snapshot, config)
@@ -324,7 +358,14 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     rejected = snapshot.rejections
     if rejected:
         out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
-    if snapshot.t_first is not None and not snapshot.crossings and beyond is None:
+    quasi = snapshot.headline is not None and snapshot.headline.method == "quasi-steady"
+    if quasi:
+        out.append(
+            "no sweep crossed the sideslip's sign change: C2n is the quasi-steady estimate from cornering "
+            "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force); "
+            "sweep the speed through u0 on a circle to measure it the method's own way"
+        )
+    elif snapshot.t_first is not None and not snapshot.crossings and beyond is None:
         out.append(
             "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
         )
@@ -439,6 +480,11 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         slope_downhill_deg=_maybe(fit.slope_downhill_deg, 0),
         d_fixed=fit.d_fixed,
         speed_range_mps=_pair(fit.speed_range, digits=3),
+        turn_force_pct=_maybe(fit.turn_force_pct, 2),
+        turn_force_ci95_pct=_pair(fit.turn_force_ci95_pct, digits=2) if fit.turn_force_ci95_pct else None,
+        seconds=round(fit.seconds, 1),
+        logs=fit.logs,
+        transient_terms=fit.transient_terms,
     )
 
 

@@ -345,7 +345,7 @@ def _fingerprint(path: Path) -> tuple[int, bytes]:
     return size, digest.digest()
 
 
-def _distinct(paths: Sequence[Path]) -> tuple[list[Path], list[LogReport]]:
+def distinct(paths: Sequence[Path]) -> tuple[list[Path], list[LogReport]]:
     """The logs with each recording once (the same path, a link to it, or a copy), and a report
     for each one given again."""
     kept: list[Path] = []
@@ -370,7 +370,7 @@ class LogSource:
     def __init__(self, paths: Sequence[Path], merge: bool = False, triage: Triage | None = None) -> None:
         for path in paths:  # fail before any work on a missing, unknown or unreadable file
             check_readable(path)
-        self.paths, self.repeated = _distinct(paths)
+        self.paths, self.repeated = distinct(paths)
         self.merge = merge
         self.triage = triage
         self.reports = [LogReport(p) for p in self.paths]

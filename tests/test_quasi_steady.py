@@ -1,0 +1,248 @@
+"""C2n from ordinary driving: the quasi-steady gate, and the regression's terms for it, in closed form.
+
+In quasi-steady cornering the rear tyres make m2·a_y less the rear's share of the yaw acceleration,
+and braking moves load off them; the sideslip at the sensor is then
+
+    β = ψ0 + d·κ − a_y/(g·C2n) + k_r·ṙ + k_x·a_y·u̇
+
+which these tests generate exactly, corner by corner, and the regression must take apart.
+"""
+
+import json
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rich.console import Console
+
+from app.cli import main
+from app.config import Config, DetectorSettings
+from app.detect.quasi_steady import SETTLE_S, QuasiSteadyGate
+from app.pipeline import Pipeline
+from app.records import Estimate
+from app.results.regression import SampleRegression
+from app.sim.imperfections import draw_imperfections
+from app.sim.session import SimulatedDrive, truth_path
+from app.sim.standard import StandardOptions, simulate_standard
+from app.sinks import summary
+from app.sinks.event_printer import result_line
+
+G = 9.81
+C2N, D = 14.0, 1.1
+K_R, K_X = 0.004, 0.0006  # [rad·s²], [rad·s²/m²]: the yaw inertia's and the load transfer's
+# (I_z/(m·a·g·C2n) ≈ 0.004 s² for a saloon; braking at 1 m/s², a_y 3 m/s²: 0.1° from the rear)
+
+# corners of a lap: radius (signed: + left), entry speed, speed change over the corner (most taken
+# braking gently, as a driver does)
+CORNERS = (
+    (60.0, 11.0, -1.0),
+    (-120.0, 17.0, -1.5),
+    (200.0, 22.0, -2.0),
+    (-45.0, 9.5, 0.5),
+    (90.0, 15.0, -0.8),
+)
+
+
+def corners(psi0: float, laps: int = 2, hz: float = 50.0, t0: float = 0.0) -> Iterator[tuple[float, ...]]:
+    """(t, u, r, v, r_dot, u_dot) through each corner: the speed changing steadily, the yaw rate
+    following it and a slow weave of the radius (so ṙ is not just u̇/R)."""
+    t = t0
+    for lap in range(laps):
+        for radius, entry, change in CORNERS:
+            duration = 8.0 + lap
+            u_dot = change / duration
+            for k in range(int(duration * hz)):
+                s = k / hz
+                u = entry + u_dot * s
+                weave = 0.04 * math.sin(0.9 * s)  # of the curvature, relative
+                r = u / radius * (1.0 + weave)
+                r_dot = u_dot / radius * (1.0 + weave) + u / radius * 0.036 * math.cos(0.9 * s)
+                ay = u * r
+                beta = psi0 + D * r / u - ay / (G * C2N) + K_R * r_dot + K_X * ay * u_dot
+                yield t, u, r, u * beta, r_dot, u_dot
+                t += 1.0 / hz
+            t += 6.0  # the straight to the next corner
+
+
+def fit_of(*drives: list[tuple[float, ...]], transient: bool = True, pooled: bool = True):
+    regression = SampleRegression(G, transient=transient)
+    for number, drive in enumerate(drives):
+        if number and pooled:
+            regression.new_log()
+        for t, u, r, v, r_dot, u_dot in drive:
+            regression.add(t, u, r, v, 0.0, r_dot, u_dot)
+    return regression.fit()
+
+
+def test_the_yaw_inertia_s_and_the_load_transfer_s_terms_are_taken_apart_exactly() -> None:
+    fit = fit_of(list(corners(math.radians(0.25))))
+    assert fit is not None and fit.transient_terms and fit.model == "linear"
+    assert fit.c2n == pytest.approx(C2N, rel=1e-8)
+    assert fit.d_m == pytest.approx(D, rel=1e-8)
+    assert fit.psi0_rad == pytest.approx(math.radians(0.25), abs=1e-10)
+    assert fit.seconds == pytest.approx(2 * sum(8.0 + lap for lap in range(2)) / 2 * len(CORNERS), rel=0.01)
+
+
+def test_without_them_the_same_corners_read_c2n_wrong() -> None:
+    fit = fit_of(list(corners(math.radians(0.25))), transient=False)
+    assert fit is not None and not fit.transient_terms
+    assert abs(fit.c2n / C2N - 1.0) > 0.005
+
+
+def test_drives_pooled_each_keep_their_own_offset() -> None:
+    """The head mounted again between two drives: ψ0 differs; pooled, each drive has its own."""
+    first = list(corners(math.radians(0.3)))
+    second = list(corners(math.radians(-0.2), t0=first[-1][0] + 100.0))
+    fit = fit_of(first, second)
+    assert fit is not None and fit.logs == 2
+    assert fit.c2n == pytest.approx(C2N, rel=1e-8) and fit.d_m == pytest.approx(D, rel=1e-8)
+    assert fit.psi0_rad == pytest.approx(math.radians(0.3), abs=1e-10)  # the first drive's
+    one_offset = fit_of(first, second, pooled=False)
+    assert one_offset is not None and one_offset.logs == 1
+    assert one_offset.c2n_se > 100 * fit.c2n_se  # the offsets' step is misfit: C2n lost in it
+
+
+def test_a_drive_whose_clock_starts_again_is_a_new_run_not_a_continuation() -> None:
+    """Time going back (a second log from 0) is no 0.2 s step of the same run."""
+    regression = SampleRegression(G)
+    regression.add(100.0, 10.0, 0.2, 0.1)
+    regression.add(0.0, 10.0, 0.2, 0.1)
+    assert regression.fit() is None and regression._run_id == 2  # two runs, one sample each
+
+
+SETTINGS = DetectorSettings()
+
+
+def estimate(u: float, r: float, u_dot: float = 0.0, r_dot: float = 0.0, v_dot: float = 0.0) -> Estimate:
+    return Estimate(u, u_dot, 0.0, v_dot, r, r_dot, 0.0, 0.001, u * r, 1.0)
+
+
+def test_the_gate_keeps_slow_corners_after_settling_and_drops_what_is_not() -> None:
+    gate = QuasiSteadyGate(SETTINGS)
+    turn = estimate(15.0, 0.2, u_dot=-1.5, r_dot=0.1)  # a_y 3 m/s², braking gently, tightening
+    kept = [gate.step(0.01 * k, turn, True) for k in range(100)]
+    assert not any(kept[: round(SETTLE_S / 0.01)]) and all(kept[round(SETTLE_S / 0.01) + 1 :])
+    assert not gate.step(1.0, estimate(15.0, 0.3), True)  # a_y 4.5: beyond the linear range
+    assert not gate.step(1.01, estimate(15.0, 0.2, u_dot=-3.0), True)  # braking hard
+    assert not gate.step(1.02, estimate(15.0, 0.2, r_dot=0.5), True)  # a turn-in
+    assert not gate.step(1.03, estimate(15.0, 0.2), True)  # settling again
+    assert not gate.step(2.0, estimate(15.0, 0.2), False)  # the sensor reports trouble
+    tally = gate.cornering
+    assert tally.turning_s == pytest.approx(1.03, abs=1e-9)  # the sensor's trouble is no cornering
+    assert tally.usable_s + tally.transient_s + tally.ay_high_s == pytest.approx(tally.turning_s)
+    assert tally.ay_high_s == pytest.approx(0.01)
+
+
+def test_the_gate_over_arrays_decides_as_sample_by_sample() -> None:
+    rng = np.random.default_rng(3)
+    n = 3000
+    t = np.cumsum(rng.uniform(0.005, 0.02, n))
+    t[1500:] -= 5.0  # time going back once
+    rows = np.column_stack(
+        [
+            rng.uniform(2.0, 20.0, n),  # u
+            rng.choice([0.0, 1.0, 2.5], n, p=[0.6, 0.3, 0.1]) * rng.choice([-1, 1], n),  # u̇
+            np.zeros(n),
+            rng.choice([0.0, 0.3, 0.8], n, p=[0.8, 0.15, 0.05]),  # v̇
+            np.where(rng.random(n) < 0.05, np.nan, rng.uniform(-0.25, 0.25, n)),  # r, sometimes unseen
+            rng.choice([0.0, 0.2, 0.4], n, p=[0.7, 0.2, 0.1]),  # ṙ
+        ]
+    )
+    rows = np.repeat(rows, 20, axis=0)[:n]  # spells long enough to settle
+    estimates = np.column_stack(
+        [rows, np.zeros(n), np.full(n, 0.001), rows[:, 0] * rows[:, 4], np.ones(n), np.zeros((n, 2))]
+    )
+    ok = rng.random(n) > 0.02
+    one = QuasiSteadyGate(SETTINGS)
+    expected = []
+    for k in range(n):
+        fields = estimates[k].tolist()
+        e = Estimate(*(None if math.isnan(x) else x for x in fields[:10]))  # type: ignore[arg-type]
+        expected.append(one.step(float(t[k]), e, bool(ok[k])))
+    blocks = QuasiSteadyGate(SETTINGS)
+    got = np.concatenate(
+        [blocks.steps(t[a : a + 700], estimates[a : a + 700], ok[a : a + 700]) for a in range(0, n, 700)]
+    )
+    assert got.tolist() == expected and 100 < sum(expected) < n - 100
+    assert blocks.cornering.usable_s == pytest.approx(one.cornering.usable_s, abs=1e-9)
+    assert blocks.cornering.turning_s == pytest.approx(one.cornering.turning_s, abs=1e-9)
+
+
+# -- track laps through the pipeline and the command --------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def track_day(config: Config) -> SimulatedDrive:
+    """Track laps on a test day: biased gyros, a steering offset, tyres a few % off, the head
+    yawed 0.2°; no sweep through u0."""
+    day = draw_imperfections(np.random.default_rng(7))
+    options = StandardOptions(7, session="track", imperfections=day, sensor={"yaw_misalignment_deg": 0.2})
+    return simulate_standard(config, options)
+
+
+def test_track_laps_give_c2n_from_their_quasi_steady_corners(
+    config: Config, track_day: SimulatedDrive
+) -> None:
+    pipeline = Pipeline(config)
+    for message in track_day.messages:
+        pipeline.process(message)
+    pipeline.finish()
+    snapshot = pipeline.snapshot()
+    truth = track_day.truth["c2n"]
+    headline = snapshot.headline
+    assert not snapshot.crossings and headline is not None and headline.method == "quasi-steady"
+    assert headline.c2n == pytest.approx(truth, rel=0.01)
+    assert headline.ci95[0] <= truth <= headline.ci95[1]
+    fit = snapshot.quasi
+    assert fit is not None and fit.transient_terms and fit.psi0_rad is not None
+    assert math.degrees(fit.psi0_rad) == pytest.approx(-0.2, abs=0.05)
+    result = summary.build(snapshot, config, ["track"]).to_json()
+    assert result["c2n_method"] == "quasi-steady" and result["quasi_steady"]["seconds"] > 120
+    cornering = result["cornering"]
+    assert cornering["usable_s"] > 120 and cornering["ay_high_s"] > 0  # some corners beyond 4 m/s²
+    assert any("not the method's own" in w or "quasi-steady estimate" in w for w in result["warnings"])
+    assert "quasi-steady cornering" in result_line(snapshot)
+
+
+def _log(tmp_path: Path, seed: int, yaw_deg: float) -> Path:
+    out = tmp_path / f"laps{seed}.blf"
+    argv = ["simulate", "--session", "track", "--quick", "--seed", str(seed)]
+    argv += ["--effect", "sensor_yaw_misalignment", "--effect-size", str(yaw_deg)]
+    assert main([*argv, "--out", str(out)], Console(record=True)) == 0
+    return out
+
+
+def test_drives_pooled_give_one_c2n_with_an_offset_each(tmp_path: Path, config: Config) -> None:
+    first, second = _log(tmp_path, 1, 0.3), _log(tmp_path, 2, -0.2)
+    out = tmp_path / "pooled.json"
+    assert main(["analyze", "--pool", str(first), str(second), "--json", str(out)], Console(record=True)) == 0
+    pooled = json.loads(out.read_text())
+    fit = pooled["quasi_steady"]
+    assert pooled["c2n_method"] == "quasi-steady" and fit["logs"] == 2
+    assert fit["psi0_deg"] == pytest.approx(-0.3, abs=0.05)  # the first drive's head
+    truth = json.loads(truth_path(first).read_text())["c2n"]
+    assert pooled["c2n_ci95"][0] <= truth <= pooled["c2n_ci95"][1]
+    together = tmp_path / "together.json"  # as one drive: one offset for both, the heading run on
+    assert main(["analyze", str(first), str(second), "--json", str(together)], Console(record=True)) == 0
+    one = json.loads(together.read_text())
+    assert one["quasi_steady"]["logs"] == 1
+    width = pooled["c2n_ci95"][1] - pooled["c2n_ci95"][0]
+    assert one["c2n_ci95"][1] - one["c2n_ci95"][0] > 1.5 * width or not (
+        one["c2n_ci95"][0] <= truth <= one["c2n_ci95"][1]
+    )
+
+
+def test_a_drive_given_twice_is_pooled_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = _log(tmp_path, 1, 0.0)
+    out = tmp_path / "twice.json"
+    assert main(["analyze", "--pool", str(log), str(log), "--json", str(out)], Console(record=True)) == 0
+    result = json.loads(out.read_text())
+    assert result["quasi_steady"]["logs"] == 1
+    assert any("the same recording" in w and "read once" in w for w in result["warnings"])
+
+
+def test_pool_and_merge_exclude_each_other(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze", "--pool", "--merge", "a.blf", "b.blf"]) == 2
+    assert "not allowed with argument" in capsys.readouterr().err

@@ -89,8 +89,8 @@ class Snapshot:
     def headline(self) -> Headline | None:
         """The C2n to report; a stiffness that is not positive is not one (see ``sign_problem``)."""
         fit = self.fit
-        if fit is not None and fit is self.quasi and _positive(fit.c2n):
-            return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady")
+        if fit is not None and fit is self.quasi:  # no sweep crossed zero
+            return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady") if not self.sign_problem else None
         if self.regression is not None and _positive(self.regression.c2n):
             return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
         if self.paired is not None and _positive(self.paired.c2n):
@@ -107,7 +107,7 @@ class Snapshot:
         slow transients (corners taken braking gently: C2n 0.5–1.1 % low on four simulated track
         days, the truth outside each interval; −0.06 to −0.41 % and inside with the quasi-steady
         model's terms)."""
-        if self.quasi is None or self.crossings or not _positive(self.quasi.c2n):
+        if self.quasi is None or self.crossings:
             return self.regression
         return self.quasi
 
@@ -136,12 +136,23 @@ class Snapshot:
         round (the yaw rate, or the sideslip) turns both of β = ψ0 + d·κ − a_y/(g·C2n)'s terms
         over: the fit then puts the sensor behind the rear axle and C2n below zero."""
         fit = self.fit
-        if fit is None or _positive(fit.c2n):
+        if fit is None:
             return None
-        if fit.d_m < 0:
+        d, where = fit.d_m, f"{-fit.d_m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
+        # d held at the tape's hides the roles' signs: the samples' own d shows them — the steady
+        # samples' where there are any (the quasi-steady ones' transitions can place d anywhere:
+        # circles at one speed, 4 m behind), and only where speeds apart place it (d_free_m)
+        witness = self.regression if fit is self.quasi and self.regression is not None else fit
+        if witness.d_fixed and witness.d_free_m is not None and witness.d_free_m < 0:
+            d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
+        elif not witness.d_fixed and witness.d_m < 0:
+            d, where = witness.d_m, f"{-witness.d_m:.2f} m behind the rear axle"
+        if _positive(fit.c2n) and d >= 0:
+            return None
+        if d < 0:
             return (
                 f"the sideslip and the yaw rate disagree in sign (the regression puts the sensor "
-                f"{-fit.d_m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}): a role is the wrong "
+                f"{where}): a role is the wrong "
                 "way round — check `scale` of the roles yaw_rate (+ turning left) and vy/beta (+ to the left)"
             )
         return (

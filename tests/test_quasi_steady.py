@@ -224,6 +224,10 @@ def test_drives_pooled_give_one_c2n_with_an_offset_each(tmp_path: Path, config: 
     assert fit["psi0_deg"] == pytest.approx(-0.3, abs=0.05)  # the first drive's head
     truth = json.loads(truth_path(first).read_text())["c2n"]
     assert pooled["c2n_ci95"][0] <= truth <= pooled["c2n_ci95"][1]
+    # laid end to end, 10 s apart: each on its own clock from 0, they would overlap
+    durations = [json.loads(truth_path(log).read_text())["duration_s"] for log in (first, second)]
+    assert pooled["duration_s"] == pytest.approx(sum(durations) + 10.0, abs=1.0)
+    assert not any("faster than a sensor sends them" in w for w in pooled["warnings"])
     together = tmp_path / "together.json"  # as one drive: one offset for both, the heading run on
     assert main(["analyze", str(first), str(second), "--json", str(together)], Console(record=True)) == 0
     one = json.loads(together.read_text())
@@ -243,6 +247,34 @@ def test_a_drive_given_twice_is_pooled_once(tmp_path: Path, capsys: pytest.Captu
     assert any("the same recording" in w and "read once" in w for w in result["warnings"])
 
 
+def test_a_missing_drive_stops_the_pool_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = _log(tmp_path, 1, 0.0)
+    assert main(["analyze", "--pool", str(log), str(tmp_path / "gone.blf")], Console(record=True)) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "gone.blf" in err and "Traceback" not in err
+
+
 def test_pool_and_merge_exclude_each_other(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["analyze", "--pool", "--merge", "a.blf", "b.blf"]) == 2
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_track_laps_with_the_yaw_rate_the_wrong_way_round_give_no_c2n_but_the_reason(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """d held at the tape's value would hide the sign (a positive C2n, 50 % off): the samples' own
+    d, behind the axle, says what is wrong."""
+    repo = Path(__file__).resolve().parents[1]
+    text = (repo / "config" / "mondeo.toml").read_text().replace("../dbc/", f"{repo / 'dbc'}/")
+    yaw = 'yaw_rate = "AngVelHor.AngVelZ_hor"'
+    assert yaw in text
+    config = tmp_path / "flipped.toml"
+    config.write_text(text.replace(yaw, 'yaw_rate = {signal = "AngVelHor.AngVelZ_hor", scale = -1.0}'))
+    out = tmp_path / "flipped.json"
+    argv = ["analyze", str(_log(tmp_path, 1, 0.0)), "--config", str(config), "--json", str(out)]
+    assert main(argv, Console(record=True)) == 0
+    result = json.loads(out.read_text())
+    assert result["c2n"] is None and result["u0_mps"] is None
+    assert result["warnings"][0].startswith("the sideslip and the yaw rate disagree in sign")

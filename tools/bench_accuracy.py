@@ -130,7 +130,7 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
     def covers(interval: tuple[float, float] | None) -> bool | None:
         return None if interval is None else interval[0] <= truth <= interval[1]
 
-    head, fit, paired = state.headline, state.regression, state.paired
+    head, fit, paired = state.headline, state.fit, state.paired  # fit: the headline's regression
     lefts = [c.c2n for c in state.crossings if c.direction == "left"]
     rights = [c.c2n for c in state.crossings if c.direction == "right"]
     return {

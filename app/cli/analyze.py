@@ -1,13 +1,17 @@
 """``c2n analyze LOG...``: the live pipeline over log files, as fast as it can."""
 
 import argparse
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 
 from app.cli.common import add_config, error_console
 from app.config import load_config
 from app.errors import NoResultError, printable
+
+_POOL_GAP_S = 10.0  # between drives pooled: no filter, gate or regression run spans it
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -40,21 +44,25 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sinks import summary
     from app.sinks.event_printer import EventPrinter, print_result
     from app.sinks.progress import ReadProgress
-    from app.sources.logs import LogReport, LogSource, distinct
+    from app.sources.logs import LogReport, LogSource, check_readable, distinct, starting_at
 
     config = load_config(args.config)
     pipeline = Pipeline(config)
     drives: list[list[Path]] = [args.logs]
     notes: list[LogReport] = []
     if args.pool:  # one drive at a time, each recording once
+        for log in args.logs:  # fail before any work on a file that cannot be read
+            check_readable(log)
         kept, notes = distinct(args.logs)
         drives = [[log] for log in kept]
     for number, logs in enumerate(drives):
-        if number:
-            pipeline.new_log()
         source = LogSource(logs, merge=args.merge, triage=pipeline.decoder)
         progress = ReadProgress(source, ", ".join(p.name for p in logs))
-        frames = source.items(blocks=True)  # an MF4's frames as FrameBlocks: Pipeline.process_block
+        frames: Iterator[Any] = source.items(blocks=True)  # an MF4's as FrameBlocks: process_block
+        end = pipeline.state.t_last
+        if number and end is not None:  # the drives laid end to end, _POOL_GAP_S apart
+            pipeline.new_log()
+            frames = starting_at(frames, end + _POOL_GAP_S)
         completed = run_pipeline(
             frames,
             pipeline,

@@ -40,6 +40,12 @@ any direction
 they took the worst C2n error of ten sessions from 2.3 % to 0.5 % and the intervals' coverage from
 3 to 10 of 10 (tools/bench_accuracy.py, case e). The heading is the integrated yaw rate.
 
+A force that follows the turn's direction but not its size (a tyre model's camber step, as in
+CommonRoad's Pacejka formula; friction in the suspension) moves the sideslip by δ·sign(κ), the
+same at every radius: left out, d·κ and the a_y³ term take it (CommonRoad's car: C2n 18 % high).
+Where radii and speeds are apart it is tried beside the a_y³ term and kept on the BIC's evidence
+(χ² > ln(blocks)) and at least ``SLOPE_MIN_PCT`` of the axle's weight.
+
 Quasi-steady samples (``transient``: corners of ordinary driving, where no sweep crossed zero) add
 two terms: the rear's share of the yaw acceleration, k_r·ṙ, and braking's load transfer, k_x·a_y·u̇,
 with a_y = u·r + v̇. Their corners each hold one κ at about one speed, so d rests on how corners of
@@ -70,6 +76,7 @@ D_HELD_GAIN = 2.0  # d is held at the tape's value where fitting it would widen 
 SLOPE_MIN_PCT = 0.25  # a slope under this moves C2n by less than the method's own error (a 2 %
 # slope left out: 2.5 %), and is seen on level pads too (0.05–0.16 %: heading-borne misfit)
 _SLOPE_WALD = -2.0 * math.log(0.05)  # χ²(2) at 95 %: a slope found, its load transfer fitted too
+_WIDE_SPEEDS = 1.2  # the fastest sample this many times the slowest: speeds apart, not one speed
 _TURN_SPREAD = 0.05  # of sign(κ) beside ψ0 and d·κ (one radius each way: 0) beyond which it is tried
 
 
@@ -96,6 +103,8 @@ class RegressionFit:
     logs: int = 1  # drives pooled, each with its own ψ0 (psi0_rad: the first one's)
     transient_terms: bool = False  # the yaw inertia's and the speed's load transfer's terms kept
     d_fixed: bool = False  # True: the samples could not place d, which is the tape's (d_ci95 a point)
+    d_free_m: float | None = None  # where d is held: the top of d's interval as the samples alone
+    # place it — below zero, the sensor is behind the axle: a role is the wrong way round
     tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
     # tilt · (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ) [rad]; None where no slope was kept in the fit
     softening_resolved: bool = True  # False: the data cannot tell linear tyres from softening ones
@@ -288,18 +297,21 @@ class SampleRegression:
         if transient:
             base += [8, 9]
         linear = _solve(xtx, xty, run, base, n)
-        d_fixed = False
+        d_fixed, narrow, plain_xty = False, False, xty
         if self.d_tape_m is not None:  # β − d·κ on the other terms, d the tape's
             held_xty = xty - self.d_tape_m * xtx[:, :, 1]
             held_base = [t for t in base if t != 1]
             held = _solve(xtx, held_xty, run, held_base, n)
-            if held is not None and (
-                linear is None
-                or self.transient  # ordinary driving: the tape's d is the better one (module doc)
-                or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(held, xtx, held_xty, run, n)
-            ):
-                d_fixed, xty, base, linear = True, held_xty, held_base, held
-        if not d_fixed and psi0_free and _spread(total, base, [10], n) >= _TURN_SPREAD:
+            if held is not None:  # a design too narrow to place d beside C2n (one speed)?
+                narrow = linear is None or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(
+                    held, xtx, held_xty, run, n
+                )
+            if held is not None and (narrow or self.transient):  # transient: ordinary driving, where
+                d_fixed, xty, base, linear = True, held_xty, held_base, held  # the tape's d is better
+        # a turn force needs radii and speeds apart: at one speed it takes a_y's slope and the a_y³
+        # term's curvature (circles at one speed ±1 %: worst C2n 0.7 → 4.3 %)
+        wide = self._u_max >= _WIDE_SPEEDS * self._u_min
+        if psi0_free and wide and not narrow and _spread(total, base, [10], n) >= _TURN_SPREAD:
             # tried beside the a_y³ term: a softening tyre's curvature, left to a straight line,
             # leans on sign(κ) as well; and kept on the BIC's evidence, χ² > ln(blocks): at 95 %
             # one Magic-Formula drive in 20 to 7 m/s² took a 0.28 % force for one (C2n +1.5 %)
@@ -378,6 +390,7 @@ class SampleRegression:
             logs=logs,
             transient_terms=transient,
             d_fixed=d_fixed,
+            d_free_m=_plain_d(xtx, plain_xty, run, base, n, q) if d_fixed and wide else None,
             tilt=_tilt(chosen),
             turn_force_pct=100.0 * _turn(chosen, self.g) if 10 in terms else None,
             turn_force_ci95_pct=_turn_ci(chosen, self.g, q) if 10 in terms else None,
@@ -395,6 +408,19 @@ class _Solution:
     terms: list[int]
     coef: np.ndarray
     cov: np.ndarray
+
+
+def _plain_d(
+    xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, base: list[int], n: int, q: float
+) -> float | None:
+    """Where d is held: the top of d's 95 % interval as the samples alone place it, in the plain
+    fit (ψ0, d, a_y: no term that a narrow design could make d's double)."""
+    offsets = [t for t in base if t == 0 or t >= _K]
+    fit = _solve(xtx, xty, run, [*offsets, 1, 2], n)
+    if fit is None:
+        return None
+    i = fit.terms.index(1)
+    return float(fit.coef[i]) + q * math.sqrt(max(float(fit.cov[i, i]), 0.0))
 
 
 def _within(xtx: np.ndarray) -> float:

@@ -362,8 +362,10 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     if quasi:
         out.append(
             "no sweep crossed the sideslip's sign change: C2n is the quasi-steady estimate from cornering "
-            "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force); "
-            "sweep the speed through u0 on a circle to measure it the method's own way"
+            "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force); its "
+            "interval counts the samples' noise, not the model's reach (simulated track laps: within 1.6 % "
+            "on one car model, 3 % low on another) — sweep the speed through u0 on a circle to measure it "
+            "the method's own way"
         )
     elif snapshot.t_first is not None and not snapshot.crossings and beyond is None:
         out.append(

@@ -14,7 +14,7 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any, Literal, cast, overload
@@ -360,6 +360,25 @@ def distinct(paths: Sequence[Path]) -> tuple[list[Path], list[LogReport]]:
         else:
             repeated.append(LogReport(path, stopped=f"the same recording as {first}: read once", done=True))
     return kept, repeated
+
+
+def starting_at(
+    items: Iterator[can.Message | FrameBlock | None], start: float
+) -> Iterator[can.Message | FrameBlock | None]:
+    """The frames moved in time so that the first is at ``start``: drives pooled one after
+    another (``c2n analyze --pool``) laid end to end, each recorded on its own clock."""
+    offset: float | None = None
+    for item in items:
+        if isinstance(item, FrameBlock):
+            if offset is None and len(item.t):
+                offset = start - float(item.t[0])
+            yield replace(item, t=item.t + (offset or 0.0))
+            continue
+        if item is not None:
+            if offset is None:
+                offset = start - item.timestamp
+            item.timestamp += offset
+        yield item
 
 
 class LogSource:

@@ -268,8 +268,8 @@ def test_circles_beyond_the_linear_range_are_flagged_not_a_confident_interval(
 ) -> None:
     """Magic-Formula tyres at μ = 0.9 swept on a 30-m circle to a_y ≈ 8 m/s²: u0 lies beyond the
     4 m/s² gate, and the steady samples (2.3–4 m/s²) cannot tell linear from softening tyres. A
-    straight-line fit reads about 6 % low with a ±1.5 % interval; the result must say why it
-    cannot be trusted and carry an interval that holds the truth."""
+    straight-line fit reads about 6 % low with a ±1.5 % interval; the regression must say so and
+    widen its interval, and the result must carry an interval that holds the truth."""
     log = tmp_path / "mf.blf"
     code, _, err = run_cli(
         ["simulate", "--tyre", "magic", "--mu", "0.9", "--ay-max", "10", "--seed", "5", "--out", str(log)]
@@ -282,9 +282,11 @@ def test_circles_beyond_the_linear_range_are_flagged_not_a_confident_interval(
     assert code == 0
     assert fit["model"] == "linear" and not fit["softening_resolved"] and fit["softening_hidden_pct"] > 2
     assert abs(fit["c2n_linear_model"] / truth["c2n"] - 1) > 0.03  # the straight line is wrong ...
+    # no sweep crossed zero (u0 is beyond the gate): the headline is the quasi-steady fit, d held,
+    # whose cornering reached lower a_y and shows the softening; its interval holds the truth
     low, high = summary["c2n_ci95"]
-    assert low <= truth["c2n"] <= high  # ... and the interval says how little the data tell
-    assert "interval widened: the a_y range cannot rule out softening tyres" in out
+    assert summary["c2n_method"] == "quasi-steady" and "quasi-steady cornering" in out
+    assert low <= truth["c2n"] <= high
     beyond = next(w for w in summary["warnings"] if "beyond the tyres' linear range" in w)
     radius = float(beyond.split("radius ≥ ")[1].split(" m")[0])
     assert truth["u0_mps"] ** 2 / radius < 4.0  # eq. 7's u0 on the circle advised is within the gate

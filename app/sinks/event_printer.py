@@ -45,6 +45,8 @@ def result_line(snapshot: Snapshot) -> str:
         )
         if fit.logs > 1:
             how += f", {fit.logs} drives pooled"
+        if not fit.softening_resolved:
+            how += "; interval widened: the a_y range cannot rule out softening tyres"
     elif fit is not None:
         how = f"regression over {fit.n_samples:,} steady samples"
         if fit.model == "softening":

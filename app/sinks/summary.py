@@ -158,13 +158,13 @@ class Summary:
     u0_mps: float | None = None
     crossings: tuple[CrossingRow, ...] = ()
     regression: RegressionRow | None = None
-    quasi_steady: RegressionRow | None = None  # the quasi-steady samples' fit, where no sweep crossed zero
-    cornering: CorneringRow | None = None
     paired: PairedRow | None = None
     frames: Frames = Frames()
     warnings: tuple[str, ...] = ()
     combined: CombinedRow | None = None
     rejected_crossings: tuple[RejectedRow, ...] = ()
+    quasi_steady: RegressionRow | None = None  # the quasi-steady samples' fit, where no sweep crossed zero
+    cornering: CorneringRow | None = None
     d_m: float | None = None
     g_mps2: float | None = None
     duration_s: float | None = None
@@ -363,9 +363,13 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         out.append(
             "no sweep crossed the sideslip's sign change: C2n is the quasi-steady estimate from cornering "
             "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force); its "
-            "interval counts the samples' noise, not the model's reach (simulated track laps: within 1.6 % "
-            "on one car model, 3 % low on another) — sweep the speed through u0 on a circle to measure it "
-            "the method's own way"
+            "interval counts the samples' noise, not the model's reach (simulated track laps: within 1.2 % "
+            "on one car model, 3 % low on another)"
+            + (
+                " — sweep the speed through u0 on a circle to measure it the method's own way"
+                if not beyond
+                else ""
+            )
         )
     elif snapshot.t_first is not None and not snapshot.crossings and beyond is None:
         out.append(

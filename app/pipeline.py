@@ -148,7 +148,7 @@ class Pipeline:
             e, v = estimate, estimate.v_meas_mps
             r, r_dot = e.r_radps, e.r_dot_radps2
             assert r is not None and r_dot is not None  # the gate saw them
-            self.quasi.add(record.t, e.u_mps, r, v, heading, r_dot, e.u_dot_mps2, e.v_dot_mps2)
+            self.quasi.add(record.t, e.u_mps, r, v, heading, r_dot, e.u_dot_mps2)
         if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
             self._last_fit = record.t
             self._refit()
@@ -221,8 +221,8 @@ class Pipeline:
                         u, r, v = estimate.u_mps, estimate.r_radps, estimate.v_meas_mps
                         regression.add(now, u, r, v, headings[k])
             if quasi_flags[k]:
-                u, u_dot, _, v_dot, r, r_dot, *_, v = next(quasi_fields)[:11]
-                quasi_fit.add(now, u, r, v, headings[k], r_dot, u_dot, v_dot)
+                u, u_dot, _, _, r, r_dot, *_, v = next(quasi_fields)[:11]
+                quasi_fit.add(now, u, r, v, headings[k], r_dot, u_dot)
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
                 self._refit()

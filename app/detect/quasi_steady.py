@@ -5,7 +5,7 @@ asks of them, α2 = F_y2/(C2n·m2·g). In steady state F_y2 = m2·a_y. In ordina
 laps, road corners — speed and yaw rate change slowly, and the rear axle's force is still
 m2·a_y less the rear's share of the yaw acceleration, m2·a_y − I_z·ṙ/(m·a): the regression that
 takes these samples fits a term in ṙ and one in a_y·u̇ (braking moves load off the rear axle,
-whose tyres then give more slip per newton), with a_y = u·r + v̇.
+whose tyres then give more slip per newton).
 
 So the gate here keeps the steady gate's hard limits (speed, the linear range of a_y, a turn, a
 sensor reporting well) and lets the rates through up to where a transient is no longer slow

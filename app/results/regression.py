@@ -49,11 +49,12 @@ where d is held: a gyro's bias mimics a small one on track laps).
 
 Quasi-steady samples (``transient``: corners of ordinary driving, where no sweep crossed zero) add
 two terms: the rear's share of the yaw acceleration, k_r·ṙ, and braking's load transfer, k_x·a_y·u̇,
-with a_y = u·r + v̇. Their corners each hold one κ at about one speed, so d rests on how corners of
-different radii and speeds differ, and unmodelled slow dynamics and a gyro's bias move it by
-centimetres (simulated track days: d 1.12–1.16 m for 1.11, C2n 0.4–3.7 % low, the truth outside
-half the intervals). d is held there at the tape's value, its centimetre counted (C2n 0.01–0.84 %
-off, every interval holding the truth).
+with a_y = u·r (u·r + v̇ with the sensor's filtered v̇, which carries the body's roll at the
+sensor's height, read CommonRoad's track laps 2.9 % low, against 1.0 %: median of ten). Their
+corners each hold one κ at about one speed, so d rests on how corners of different radii and speeds
+differ, and unmodelled slow dynamics and a gyro's bias move it by centimetres (simulated track days:
+d 1.12–1.16 m for 1.11, C2n 0.4–3.7 % low, the truth outside half the intervals). d is held there at
+the tape's value, its centimetre counted (C2n 0.01–0.84 % off, every interval holding the truth).
 
 Samples at 50–250 Hz are autocorrelated, so the covariance is Newey–West (Bartlett) over short
 time blocks. Only each block's sufficient statistics are kept (XᵀX, Xᵀy), so memory does not
@@ -182,11 +183,10 @@ class SampleRegression:
         heading: float = 0.0,
         r_dot: float = 0.0,
         u_dot: float = 0.0,
-        v_dot: float = 0.0,
     ) -> None:
         """One steady sample: filtered speed and yaw rate, measured lateral velocity at the sensor,
         and the heading (the yaw rate integrated since the start). Quasi-steady samples give the
-        filtered ṙ, u̇ and v̇ too: a_y is then u·r + v̇."""
+        filtered ṙ and u̇ too."""
         step = t - self._t_last
         if not 0.0 <= step <= _GAP_S:
             self._close_block()
@@ -198,7 +198,7 @@ class SampleRegression:
         if not self._open:
             self._block_start = t
         self._t_last = t
-        ay = u * r + v_dot
+        ay = u * r
         kappa = r / u
         self._ay_min, self._ay_max = min(self._ay_min, abs(ay)), max(self._ay_max, abs(ay))
         self._kappa_min, self._kappa_max = min(self._kappa_min, abs(kappa)), max(self._kappa_max, abs(kappa))

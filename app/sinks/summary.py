@@ -364,7 +364,7 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             "no sweep crossed the sideslip's sign change: C2n is the quasi-steady estimate from cornering "
             "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force); its "
             "interval counts the samples' noise, not the model's reach (simulated track laps: within 1.2 % "
-            "on one car model, 3 % low on another)"
+            "on one car model, 1.4 % on another)"
             + (
                 " — sweep the speed through u0 on a circle to measure it the method's own way"
                 if not beyond

@@ -22,7 +22,7 @@ from app.config import Config, DetectorSettings
 from app.detect.quasi_steady import SETTLE_S, QuasiSteadyGate
 from app.pipeline import Pipeline
 from app.records import Estimate
-from app.results.regression import SampleRegression
+from app.results.regression import RegressionFit, SampleRegression
 from app.sim.imperfections import draw_imperfections
 from app.sim.session import SimulatedDrive, truth_path
 from app.sim.standard import StandardOptions, simulate_standard
@@ -45,12 +45,18 @@ CORNERS = (
 )
 
 
-def corners(psi0: float, laps: int = 2, hz: float = 50.0, t0: float = 0.0) -> Iterator[tuple[float, ...]]:
+def corners(
+    psi0: float,
+    laps: int = 2,
+    hz: float = 50.0,
+    t0: float = 0.0,
+    circuit: tuple[tuple[float, ...], ...] = CORNERS,
+) -> Iterator[tuple[float, ...]]:
     """(t, u, r, v, r_dot, u_dot) through each corner: the speed changing steadily, the yaw rate
     following it and a slow weave of the radius (so ṙ is not just u̇/R)."""
     t = t0
     for lap in range(laps):
-        for radius, entry, change in CORNERS:
+        for radius, entry, change in circuit:
             duration = 8.0 + lap
             u_dot = change / duration
             for k in range(int(duration * hz)):
@@ -102,6 +108,76 @@ def test_drives_pooled_each_keep_their_own_offset() -> None:
     one_offset = fit_of(first, second, pooled=False)
     assert one_offset is not None and one_offset.logs == 1
     assert one_offset.c2n_se > 100 * fit.c2n_se  # the offsets' step is misfit: C2n lost in it
+
+
+# a circuit turning mostly left, as most do: a yaw-rate bias's sideslip, even in the turn's
+# direction, leans on a_y there
+LEFT_HANDED = (
+    (60.0, 11.0, -1.0),
+    (120.0, 17.0, -1.5),
+    (200.0, 22.0, -2.0),
+    (-45.0, 9.5, 0.5),
+    (90.0, 15.0, -0.8),
+)
+
+
+def test_a_yaw_rate_bias_is_fitted_and_taken_out_where_d_is_held() -> None:
+    """The gyro reads b high: κ and a_y carry (r + b). With d held at the tape's value, the fit
+    finds b and gives C2n as without it."""
+    bias = math.radians(0.06)
+
+    def held(b: float) -> RegressionFit:
+        regression = SampleRegression(G, transient=True, d_tape_m=D)
+        for t, u, r, v, r_dot, u_dot in corners(math.radians(0.25), circuit=LEFT_HANDED):
+            regression.add(t, u, r + b, v, 0.0, r_dot, u_dot)
+        fit = regression.fit()
+        assert fit is not None and fit.d_fixed and fit.transient_terms
+        return fit
+
+    clean, biased = held(0.0), held(bias)
+    assert clean.c2n == pytest.approx(C2N, rel=1e-8)
+    assert clean.yaw_bias_degps == pytest.approx(0.0, abs=1e-8)
+    assert biased.c2n == pytest.approx(C2N, rel=2e-4)  # what is left: braking's a_y·u̇ with b in it
+    assert biased.yaw_bias_degps == pytest.approx(0.06, rel=0.01)
+    assert biased.yaw_bias_ci95_degps is not None
+    assert biased.yaw_bias_ci95_degps[0] <= biased.yaw_bias_degps <= biased.yaw_bias_ci95_degps[1]
+
+
+def test_the_yaw_rate_bias_s_interval_holds_it_at_its_stated_rate() -> None:
+    """60 drives of six laps, the optical sensor's noise on v (σ 0.02 m/s at 50 Hz, seeded)."""
+    bias = -0.08
+    laps = list(corners(math.radians(0.25), laps=6, circuit=LEFT_HANDED))
+    held, errors = 0, []
+    for seed in range(60):
+        rng = np.random.default_rng(seed)
+        regression = SampleRegression(G, transient=True, d_tape_m=D)
+        for t, u, r, v, r_dot, u_dot in laps:
+            regression.add(t, u, r + math.radians(bias), v + rng.normal(0.0, 0.02), 0.0, r_dot, u_dot)
+        fit = regression.fit()
+        assert fit is not None and fit.yaw_bias_degps is not None and fit.yaw_bias_ci95_degps is not None
+        held += fit.yaw_bias_ci95_degps[0] <= bias <= fit.yaw_bias_ci95_degps[1]
+        errors.append(fit.yaw_bias_degps - bias)
+    assert 54 <= held <= 60  # 90–100 % of 95 % intervals
+    assert abs(float(np.mean(errors))) < 0.01  # unbiased: the noise's share is ±0.03 °/s a drive
+
+
+def test_the_result_file_and_a_warning_carry_the_yaw_rate_s_bias(config: Config) -> None:
+    """Through the pipeline's quasi-steady regression (d from the config) to the summary, the
+    optical sensor's noise on v."""
+    pipeline = Pipeline(config)
+    bias, rng = math.radians(-0.08), np.random.default_rng(7)
+    for t, u, r, v, r_dot, u_dot in corners(math.radians(0.25), laps=10, circuit=LEFT_HANDED):
+        v += (config.d_m - D) * r + rng.normal(0.0, 0.02)  # the sensor where the config has it
+        pipeline.quasi.add(t, u, r + bias, v, 0.0, r_dot, u_dot)
+    pipeline.finish()
+    result = summary.build(pipeline.snapshot(), config, []).to_json()
+    assert result["c2n_method"] == "quasi-steady" and result["c2n"] == pytest.approx(C2N, rel=0.01)
+    fit = result["quasi_steady"]
+    assert fit["yaw_bias_degps"] == pytest.approx(-0.08, abs=0.03)
+    low, high = fit["yaw_bias_ci95_degps"]
+    assert low <= -0.08 <= high < 0.0
+    said = [w for w in result["warnings"] if "the yaw rate reads" in w]
+    assert len(said) == 1 and f"{fit['yaw_bias_degps']:+.3f} °/s" in said[0] and "standstill" in said[0]
 
 
 def test_a_drive_whose_clock_starts_again_is_a_new_run_not_a_continuation() -> None:

@@ -143,6 +143,22 @@ def test_a_yaw_rate_bias_is_fitted_and_taken_out_where_d_is_held() -> None:
     assert biased.yaw_bias_ci95_degps[0] <= biased.yaw_bias_degps <= biased.yaw_bias_ci95_degps[1]
 
 
+def test_drives_pooled_each_keep_their_own_yaw_rate_bias() -> None:
+    """A gyro's bias changes each time it is switched on: two drives, +0.06 and −0.07 °/s."""
+    regression = SampleRegression(G, transient=True, d_tape_m=D)
+    t0 = 0.0
+    for psi0, bias in ((0.3, 0.06), (-0.2, -0.07)):
+        regression.new_log()
+        for t, u, r, v, r_dot, u_dot in corners(math.radians(psi0), t0=t0, circuit=LEFT_HANDED):
+            regression.add(t, u, r + math.radians(bias), v, 0.0, r_dot, u_dot)
+        t0 = t + 100.0
+    fit = regression.fit()
+    assert fit is not None and fit.logs == 2 and fit.d_fixed
+    assert fit.c2n == pytest.approx(C2N, rel=2e-4)
+    assert fit.yaw_bias_degps == pytest.approx(0.06, rel=0.05)  # the first's (one term shared: their mean)
+    assert fit.psi0_rad == pytest.approx(math.radians(0.3), abs=1e-5)
+
+
 def test_the_yaw_rate_bias_s_interval_holds_it_at_its_stated_rate() -> None:
     """60 drives of six laps, the optical sensor's noise on v (σ 0.02 m/s at 50 Hz, seeded)."""
     bias = -0.08

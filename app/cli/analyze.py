@@ -31,7 +31,8 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "--pool",
         action="store_true",
         help="the logs are separate drives of one car: one C2n from all, each drive its own sensor "
-        "offset ψ0 (the head mounted again) — e.g. track laps and circles on different days",
+        "offset ψ0 (the head mounted again) and yaw-rate bias — e.g. track laps and circles on "
+        "different days",
     )
     parser.set_defaults(run=run)
     return parser

@@ -305,9 +305,9 @@ class SampleRegression:
         spread_k = sum(_within(xtx[log == k]) for k in np.unique(log))
         psi0_free = spread_k >= 0.04 * xtx[:, 1, 1].sum() > 0
         logs = len(np.unique(log))
-        offsets = [0]
-        if logs > 1:  # each drive its own ψ0: the intercept split by drive
-            xtx, xty, offsets = _per_log(xtx, xty, log)
+        offsets, speeds = [0], [(11, 12)]
+        if logs > 1:  # each drive its own ψ0 (and speed columns: its own gyro's bias)
+            xtx, xty, offsets, speeds = _per_log(xtx, xty, log)
         total = xtx.sum(axis=0)
         base = [*offsets, 1, 2] if psi0_free else [1, 2]
         tilted = None  # the fit with a slope's pull, where the headings let one be fitted
@@ -355,10 +355,10 @@ class SampleRegression:
         plain = (xtx, plain_xty, list(base))  # d not held, no yaw-rate bias's term: d_free_m's fit
         yaw_bias = None
         if transient and d_fixed and wide and psi0_free and linear is not None and self.d_tape_m is not None:
-            yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear)
+            yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
             if yaw_bias is not None:
                 xtx, xty, linear = yaw_bias.xtx, yaw_bias.xty, yaw_bias.fit
-                base = [*base, yaw_bias.term]
+                base = [*base, *yaw_bias.terms]
         cubic = _solve(xtx, xty, run, [*base, 3], n)
         if cubic is None or linear is None:
             return None
@@ -401,7 +401,7 @@ class SampleRegression:
         if psi0_free:
             psi0, psi0_se = chosen.coef[0], math.sqrt(chosen.cov[0, 0])
         slope = _slope(chosen if 4 in terms else tilted, c2n, q) if tilted is not None else None
-        bias = _bias(chosen, yaw_bias.term, q) if yaw_bias is not None else None
+        bias = _bias(chosen, yaw_bias.terms[0], q) if yaw_bias is not None else None
         softening = None
         if chosen is cubic:
             softening = -cubic.coef[-1] * self.g * c2n  # α2 = a_y/(g·C2n)·(1 + s·a_y²)
@@ -464,46 +464,57 @@ def _plain_d(
 
 @dataclass(frozen=True)
 class _YawBias:
-    xtx: np.ndarray  # the blocks' statistics with its term appended
+    xtx: np.ndarray  # the blocks' statistics with its terms appended
     xty: np.ndarray
-    term: int  # its index there
-    fit: _Solution  # the linear fit with it
+    terms: list[int]  # their indices there: one per drive (a gyro's bias changes when it is switched on)
+    fit: _Solution  # the linear fit with them
 
 
 def _yaw_bias(
-    xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, base: list[int], n: int, d: float, linear: _Solution
+    xtx: np.ndarray,
+    xty: np.ndarray,
+    run: np.ndarray,
+    base: list[int],
+    n: int,
+    d: float,
+    linear: _Solution,
+    speeds: list[tuple[int, int]],
 ) -> _YawBias | None:
     """A yaw rate that reads b high puts (r + b)/u and u·(r + b) in κ and a_y, which moves the
-    sideslip the fit sees by b·(u/(g·C2n) − d/u): one term, k·u − d/u with k = 1/(g·C2n) from the
-    fit, appended and refitted until k settles (the speeds' own columns u and 1/u combine it)."""
+    sideslip the fit sees by b·(u/(g·C2n) − d/u): one term per drive, k·u − d/u with k = 1/(g·C2n)
+    from the fit, appended and refitted until k settles (``speeds``: each drive's columns u and
+    1/u, which combine it)."""
     k = -float(linear.coef[linear.terms.index(2)])
     fit = linear
     for _ in range(_BIAS_ITERATIONS):
-        wide_xtx, wide_xty, term = _combined(xtx, xty, {11: k, 12: -d})
-        refit = _solve(wide_xtx, wide_xty, run, [*base, term], n)
+        wide_xtx, wide_xty, terms = _combined(xtx, xty, [{u: k, inv_u: -d} for u, inv_u in speeds])
+        refit = _solve(wide_xtx, wide_xty, run, [*base, *terms], n)
         if refit is None:
             return None
         fit, settled = refit, k
         k = -float(fit.coef[fit.terms.index(2)])
         if abs(k - settled) <= 1e-6 * abs(k):
             break
-    return _YawBias(wide_xtx, wide_xty, term, fit)
+    return _YawBias(wide_xtx, wide_xty, terms, fit)
 
 
 def _combined(
-    xtx: np.ndarray, xty: np.ndarray, weights: dict[int, float]
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """The blocks' statistics with one more term appended, Σ weight·term; returns its index too."""
-    k = xtx.shape[1]
-    w = np.zeros(k)
-    for term, weight in weights.items():
-        w[term] = weight
-    cross = xtx @ w
-    wide_xtx = np.zeros((len(xtx), k + 1, k + 1))
+    xtx: np.ndarray, xty: np.ndarray, combinations: list[dict[int, float]]
+) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The blocks' statistics with a term appended for each combination (Σ weight·term); returns
+    their indices too."""
+    k, extra = xtx.shape[1], len(combinations)
+    w = np.zeros((k, extra))
+    for j, combination in enumerate(combinations):
+        for term, weight in combination.items():
+            w[term, j] = weight
+    cross = xtx @ w  # (blocks, k, extra)
+    wide_xtx = np.zeros((len(xtx), k + extra, k + extra))
     wide_xtx[:, :k, :k] = xtx
-    wide_xtx[:, :k, k] = wide_xtx[:, k, :k] = cross
-    wide_xtx[:, k, k] = cross @ w
-    return wide_xtx, np.concatenate([xty, (xty @ w)[:, None]], axis=1), k
+    wide_xtx[:, :k, k:] = cross
+    wide_xtx[:, k:, :k] = cross.transpose(0, 2, 1)
+    wide_xtx[:, k:, k:] = w.T @ cross
+    return wide_xtx, np.concatenate([xty, xty @ w], axis=1), list(range(k, k + extra))
 
 
 def _bias(fit: _Solution, term: int, q: float) -> tuple[float, tuple[float, float]]:
@@ -519,20 +530,29 @@ def _within(xtx: np.ndarray) -> float:
     return float(sum_k2 - sum_k * sum_k / n) if n > 0 else 0.0
 
 
-def _per_log(xtx: np.ndarray, xty: np.ndarray, log: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """The blocks' statistics with the intercept split by drive: drive k's ψ0 is term ``_K + k − 1``
-    (the first drive's stays term 0). Returns them and the ψ0 terms."""
+def _per_log(
+    xtx: np.ndarray, xty: np.ndarray, log: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, list[int], list[tuple[int, int]]]:
+    """The blocks' statistics with the intercept and the speed columns u, 1/u split by drive: drive
+    k ≥ 1 has them as terms ``_K + 3·(k − 1)`` on (the first drive's stay terms 0, 11, 12). Returns
+    them, the ψ0 terms and the speed columns' pairs."""
     logs = np.unique(log)
-    size = _K + len(logs) - 1
+    split = (0, 11, 12)
+    size = _K + len(split) * (len(logs) - 1)
     wide_xtx = np.zeros((len(xtx), size, size))
     wide_xty = np.zeros((len(xty), size))
-    offsets = [0] + [_K + k - 1 for k in range(1, len(logs))]
-    for offset, k in zip(offsets, logs, strict=True):
-        where = np.flatnonzero(log == k)
-        columns = np.array([offset, *range(1, _K)])
+    offsets, speeds = [0], [(11, 12)]
+    for k, drive in enumerate(logs):
+        columns = np.arange(_K)
+        if k:
+            first = _K + len(split) * (k - 1)
+            columns[list(split)] = range(first, first + len(split))
+            offsets.append(first)
+            speeds.append((first + 1, first + 2))
+        where = np.flatnonzero(log == drive)
         wide_xtx[np.ix_(where, columns, columns)] = xtx[where]
         wide_xty[np.ix_(where, columns)] = xty[where]
-    return wide_xtx, wide_xty, offsets
+    return wide_xtx, wide_xty, offsets, speeds
 
 
 def _spread(total: np.ndarray, base: list[int], extra: list[int], n: int) -> float:

@@ -11,6 +11,7 @@ which these tests generate exactly, corner by corner, and the regression must ta
 import json
 import math
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +24,9 @@ from app.detect.quasi_steady import SETTLE_S, QuasiSteadyGate
 from app.pipeline import Pipeline
 from app.records import Estimate
 from app.results.regression import RegressionFit, SampleRegression
-from app.sim.imperfections import draw_imperfections
+from app.sim.imperfections import Imperfections, draw_imperfections
 from app.sim.session import SimulatedDrive, truth_path
+from app.sim.sessions import TrackPlan
 from app.sim.standard import StandardOptions, simulate_standard
 from app.sinks import summary
 from app.sinks.event_printer import result_line
@@ -157,6 +159,24 @@ def test_drives_pooled_each_keep_their_own_yaw_rate_bias() -> None:
     assert fit.c2n == pytest.approx(C2N, rel=2e-4)
     assert fit.yaw_bias_degps == pytest.approx(0.06, rel=0.05)  # the first's (one term shared: their mean)
     assert fit.psi0_rad == pytest.approx(math.radians(0.3), abs=1e-5)
+
+
+def test_a_gyro_s_large_bias_is_not_taken_for_a_turn_force(config: Config) -> None:
+    """Two track laps (6 corners left, 2 right) with the sensor's gyro 1 °/s low: before the bias
+    is fitted, sign(κ) takes part of it (a 0.1 % force, its interval across zero); after, none."""
+    day = Imperfections(gyro_bias_degps=-1.0)
+    options = StandardOptions(3, c2n=16.2, plan_c2n=16.2, session="track", track_plan=TrackPlan(laps=2))
+    drive = simulate_standard(config, replace(options, imperfections=day))
+    pipeline = Pipeline(config)
+    for message in drive.messages:
+        pipeline.process(message)
+    pipeline.finish()
+    fit = pipeline.snapshot().fit
+    assert fit is not None and fit is pipeline.snapshot().quasi
+    assert fit.turn_force_pct is None
+    assert fit.yaw_bias_degps == pytest.approx(-1.0, abs=0.15)
+    assert fit.c2n_ci95[0] <= drive.truth["c2n"] <= fit.c2n_ci95[1]
+    assert fit.c2n == pytest.approx(drive.truth["c2n"], rel=0.015)
 
 
 def test_the_yaw_rate_bias_s_interval_holds_it_at_its_stated_rate() -> None:

@@ -62,7 +62,8 @@ mostly one way it leans on a_y (two-track track laps, 6 corners left and 2 right
 apart, that one term is fitted too (``yaw_bias_degps``), its C2n refitted until it settles: track
 laps 0.50 % / 1.19 % → 0.11 % / 0.92 % (median / worst of 20), the bias found within 0.04 °/s.
 It comes after the turn force's test, which it would otherwise take for its own on a circuit
-turning mostly one way (CommonRoad's track laps: the turn force lost, C2n 16 % off).
+turning mostly one way (CommonRoad's track laps: the turn force lost, C2n 16 % off), and a turn
+force found is kept only if it passes again with the bias out (a gyro 1 °/s low passed for one).
 
 Samples at 50–250 Hz are autocorrelated, so the covariance is Newey–West (Bartlett) over short
 time blocks. Only each block's sufficient statistics are kept (XᵀX, Xᵀy), so memory does not
@@ -287,6 +288,15 @@ class SampleRegression:
         i = held.terms.index(2)
         return math.hypot(se, 1.0 / (self.g * held.coef[i]) - 1.0 / (self.g * longer.coef[i]))
 
+    def _turn_found(self, fit: "_Solution | None", blocks: int, held: bool) -> bool:
+        """A turn force kept on the BIC's evidence, χ² > ln(blocks) (at 95 % one Magic-Formula drive
+        in 20 to 7 m/s² took a 0.28 % force for one, C2n +1.5 %), and large enough to be one."""
+        return (
+            fit is not None
+            and _wald(fit, [10]) > math.log(blocks)
+            and 100.0 * abs(_turn(fit, self.g)) >= (TURN_MIN_HELD_PCT if held else SLOPE_MIN_PCT)
+        )
+
     def fit(self) -> RegressionFit | None:
         """The fit over every sample so far, or None while the data cannot support one."""
         b = self._blocks
@@ -340,22 +350,26 @@ class SampleRegression:
         wide = self._u_max >= _WIDE_SPEEDS * self._u_min
         # a turn force needs radii and speeds apart: at one speed it takes a_y's slope and the a_y³
         # term's curvature (circles at one speed ±1 %: worst C2n 0.7 → 4.3 %)
-        if psi0_free and wide and not narrow and _spread(total, base, [10], n) >= _TURN_SPREAD:
-            # tried beside the a_y³ term: a softening tyre's curvature, left to a straight line,
-            # leans on sign(κ) as well; and kept on the BIC's evidence, χ² > ln(blocks): at 95 %
-            # one Magic-Formula drive in 20 to 7 m/s² took a 0.28 % force for one (C2n +1.5 %)
-            turned = _solve(xtx, xty, run, [*base, 3, 10], n)
-            if (
-                turned is not None
-                and _wald(turned, [10]) > math.log(b)
-                and 100.0 * abs(_turn(turned, self.g)) >= (TURN_MIN_HELD_PCT if d_fixed else SLOPE_MIN_PCT)
-            ):
-                base += [10]  # a force that follows the turn's direction, not its size
-                linear = _solve(xtx, xty, run, base, n)
+        # tried beside the a_y³ term: a softening tyre's curvature, left to a straight line, leans on
+        # sign(κ) as well
+        if (
+            psi0_free
+            and wide
+            and not narrow
+            and _spread(total, base, [10], n) >= _TURN_SPREAD
+            and self._turn_found(_solve(xtx, xty, run, [*base, 3, 10], n), b, d_fixed)
+        ):
+            base += [10]  # a force that follows the turn's direction, not its size
+            linear = _solve(xtx, xty, run, base, n)
         plain = (xtx, plain_xty, list(base))  # d not held, no yaw-rate bias's term: d_free_m's fit
         yaw_bias = None
         if transient and d_fixed and wide and psi0_free and linear is not None and self.d_tape_m is not None:
             yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
+            if yaw_bias is not None and 10 in base:  # the turn force still there with the bias out?
+                turned = _solve(yaw_bias.xtx, yaw_bias.xty, run, [*base, *yaw_bias.terms, 3], n)
+                if not self._turn_found(turned, b, d_fixed):  # a gyro's −1 °/s: 0.05 % [−0.09, 0.20]
+                    base = [t for t in base if t != 10]
+                    yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
             if yaw_bias is not None:
                 xtx, xty, linear = yaw_bias.xtx, yaw_bias.xty, yaw_bias.fit
                 base = [*base, *yaw_bias.terms]

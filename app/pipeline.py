@@ -144,7 +144,7 @@ class Pipeline:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
             if estimate.r_radps is not None:
                 self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps, heading)
-        if quasi and estimate.v_meas_mps is not None:
+        if quasi and estimate.v_meas_mps is not None and not state.crossings:  # after one, no quasi fit
             e, v = estimate, estimate.v_meas_mps
             r, r_dot = e.r_radps, e.r_dot_radps2
             assert r is not None and r_dot is not None  # the gate saw them
@@ -222,7 +222,8 @@ class Pipeline:
                         regression.add(now, u, r, v, headings[k])
             if quasi_flags[k]:
                 u, u_dot, _, _, r, r_dot, *_, v = next(quasi_fields)[:11]
-                quasi_fit.add(now, u, r, v, headings[k], r_dot, u_dot)
+                if not state.crossings:  # after one, there is no quasi-steady fit
+                    quasi_fit.add(now, u, r, v, headings[k], r_dot, u_dot)
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
                 self._refit()

@@ -7,6 +7,7 @@ A bulk reader may hand over frames as a FrameBlock instead (``c2n analyze`` on M
 (tests/test_blocks.py).
 """
 
+import copy
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
@@ -52,6 +53,7 @@ class SessionState:
     paired: Paired | None = None  # crossings with misalignment and lag removed
     regression: RegressionFit | None = None  # every steady sample: the headline C2n
     quasi: RegressionFit | None = None  # every quasi-steady sample, while no sweep crossed zero
+    quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's alone, at the end
 
 
 class Pipeline:
@@ -69,6 +71,7 @@ class Pipeline:
         self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m)
         self.quasi_gate = QuasiSteadyGate(config.detector)
         self.quasi = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m, transient=True)
+        self._drives: list[SampleRegression] = []  # drives pooled: each one's quasi-steady samples alone
         self.heading = Heading()
         self.profile = SideslipProfile()
         self.state = SessionState()
@@ -89,6 +92,7 @@ class Pipeline:
             paired=state.paired,
             regression=state.regression,
             quasi=state.quasi,
+            quasi_drives=state.quasi_drives,
             cornering=self.quasi_gate.cornering,
             pending=tuple(Pending(direction, t, u) for direction, t, u in self.detector.pending),
             frames=self.decoder.counts.copy(),
@@ -149,6 +153,8 @@ class Pipeline:
             r, r_dot = e.r_radps, e.r_dot_radps2
             assert r is not None and r_dot is not None  # the gate saw them
             self.quasi.add(record.t, e.u_mps, r, v, heading, r_dot, e.u_dot_mps2)
+            if self._drives:
+                self._drives[-1].add(record.t, e.u_mps, r, v, heading, r_dot, e.u_dot_mps2)
         if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
             self._last_fit = record.t
             self._refit()
@@ -224,6 +230,8 @@ class Pipeline:
                 u, u_dot, _, _, r, r_dot, *_, v = next(quasi_fields)[:11]
                 if not state.crossings:  # after one, there is no quasi-steady fit
                     quasi_fit.add(now, u, r, v, headings[k], r_dot, u_dot)
+                    if self._drives:
+                        self._drives[-1].add(now, u, r, v, headings[k], r_dot, u_dot)
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
                 self._refit()
@@ -271,6 +279,8 @@ class Pipeline:
         events = self.detector.finish()
         self._collect(events)
         self._refit()
+        if self._drives and self.state.quasi is not None:  # each drive alone: do they agree?
+            self.state.quasi_drives = tuple(drive.fit() for drive in self._drives)
         return events
 
     def new_log(self) -> None:
@@ -283,6 +293,11 @@ class Pipeline:
         self.gate = SteadyStateGate(self.config.detector)
         self.quasi_gate.new_log()
         self.regression.new_log()
+        if not self._drives:  # the first drive's samples: all the pooled regression holds so far
+            self._drives.append(copy.deepcopy(self.quasi))
+        self._drives.append(
+            SampleRegression(self.config.vehicle.gravity_mps2, d_tape_m=self.config.d_m, transient=True)
+        )
         self.quasi.new_log()
         self._last_fit = -float("inf")
 

@@ -5,6 +5,7 @@ summary read it. It is frozen and holds copies, so a sink can neither change the
 change under its feet.
 """
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -74,6 +75,7 @@ class Snapshot:
     g_mps2: float
     profile: ProfileView | None = None  # the steady samples' sideslip against speed, per direction
     quasi: RegressionFit | None = None  # every quasi-steady sample, while no sweep crossed zero
+    quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's samples alone
     cornering: Cornering = NO_CORNERING  # seconds of cornering, by what the quasi-steady gate made of them
 
     @property
@@ -90,7 +92,8 @@ class Snapshot:
         """The C2n to report; a stiffness that is not positive is not one (see ``sign_problem``)."""
         fit = self.fit
         if fit is not None and fit is self.quasi:  # no sweep crossed zero
-            return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady") if not self.sign_problem else None
+            trusted = not self.sign_problem and not self.drives_disagree
+            return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady") if trusted else None
         if self.regression is not None and _positive(self.regression.c2n):
             return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
         if self.paired is not None and _positive(self.paired.c2n):
@@ -116,6 +119,8 @@ class Snapshot:
         """Why there is no C2n: a wrong sign, or the manoeuvre the drive lacked."""
         if self.sign_problem:
             return self.sign_problem
+        if self.drives_disagree:
+            return self.drives_disagree
         c = self.cornering
         if c.turning_s < 1.0:
             return (
@@ -128,6 +133,27 @@ class Snapshot:
             f"speed or steering changing too fast, {c.usable_s:.0f} s quasi-steady — drive steady "
             "circles at 2–4 m/s² with the speed swept slowly through the sign change, or corners held "
             "at 1–4 m/s² at several speeds"
+        )
+
+    @property
+    def drives_disagree(self) -> str | None:
+        """Why drives pooled give no one C2n: two of them, each alone, with 95 % intervals apart —
+        not one car on one set of tyres, whose C2n a pooled fit would bend its terms to split."""
+        if self.fit is None or self.fit is not self.quasi:
+            return None
+        alone = [(k, f) for k, f in enumerate(self.quasi_drives, 1) if f is not None and _positive(f.c2n)]
+        apart = any(
+            a.c2n_ci95[1] < b.c2n_ci95[0] or b.c2n_ci95[1] < a.c2n_ci95[0]
+            for (_, a), (_, b) in itertools.combinations(alone, 2)
+        )
+        if not apart:
+            return None
+        each = "; ".join(
+            f"drive {k} {f.c2n:.3f} [{f.c2n_ci95[0]:.3f}, {f.c2n_ci95[1]:.3f}]" for k, f in alone
+        )
+        return (
+            f"the drives pooled disagree, each alone: {each} — not one car on one set of tyres "
+            "(a tyre change, pressures, temperatures?): analyse them apart"
         )
 
     @property

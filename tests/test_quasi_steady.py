@@ -350,6 +350,27 @@ def test_drives_pooled_give_one_c2n_with_an_offset_each(tmp_path: Path, config: 
     )
 
 
+def test_drives_of_two_tyre_sets_pooled_give_no_c2n_but_each_one_s(tmp_path: Path) -> None:
+    """Track laps on tyres of C2n 13.5 and 16.0 given as one car: a pooled fit would bend its
+    terms to split them (18.3 for 14.2 and 15.4 on two such drives); each alone says why not."""
+    logs = []
+    for seed, c2n in ((1, 13.5), (2, 16.0)):
+        logs.append(tmp_path / f"set{seed}.blf")
+        argv = ["simulate", "--session", "track", "--quick", "--seed", str(seed), "--c2n", str(c2n)]
+        assert main([*argv, "--out", str(logs[-1])], Console(record=True)) == 0
+    out = tmp_path / "pooled.json"
+    console = Console(record=True, width=300)
+    main(["analyze", "--pool", *map(str, logs), "--json", str(out)], console)
+    pooled = json.loads(out.read_text())
+    assert pooled["c2n"] is None and pooled["quasi_steady"]["logs"] == 2
+    said = console.export_text()
+    assert "the drives pooled disagree" in said and "analyse them apart" in said
+    assert not any("yaw rate reads" in w or "soften" in w for w in pooled["warnings"])  # the pooled fit's
+    for k, c2n in ((1, 13.5), (2, 16.0)):  # each drive's own C2n, near its tyres'
+        low, high = (float(x) for x in said.split(f"drive {k} ")[1].split("[")[1].split("]")[0].split(", "))
+        assert low <= c2n <= high
+
+
 def test_a_drive_given_twice_is_pooled_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     log = _log(tmp_path, 1, 0.0)
     out = tmp_path / "twice.json"

@@ -302,7 +302,7 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"the optical data stopped {f.resets - f.time_jumps} times for over "
             f"{config.filter.gap_reset_s:g} s: the filter restarted"
         )
-    fit = snapshot.fit
+    fit = snapshot.fit if not snapshot.drives_disagree else None  # drives apart: no pooled fit to speak of
     if fit is not None and not snapshot.sign_problem and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
         low, high = fit.d_ci95
         out.append(

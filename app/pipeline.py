@@ -286,7 +286,8 @@ class Pipeline:
     def new_log(self) -> None:
         """The frames from here on are another drive of the same car (``c2n analyze --pool``):
         the filter, the heading and the gates start afresh; the regressions give the drive its
-        own ψ0 (the head mounted again) and keep every sample."""
+        own ψ0 (the head mounted again) and keep every sample, and each drive's quasi-steady
+        samples are also fitted alone at the end (``Snapshot.drives_disagree``)."""
         self.finish()
         self.filter.restart()
         self.heading = Heading()

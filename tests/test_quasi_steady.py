@@ -333,6 +333,9 @@ def test_drives_pooled_give_one_c2n_with_an_offset_each(tmp_path: Path, config: 
     pooled = json.loads(out.read_text())
     fit = pooled["quasi_steady"]
     assert pooled["c2n_method"] == "quasi-steady" and fit["logs"] == 2
+    drives = pooled["quasi_steady_drives"]  # each drive alone: agreeing with each other
+    assert len(drives) == 2 and drives[0]["c2n_ci95"][0] <= drives[1]["c2n_ci95"][1]
+    assert drives[1]["c2n_ci95"][0] <= drives[0]["c2n_ci95"][1]
     assert fit["psi0_deg"] == pytest.approx(-0.3, abs=0.05)  # the first drive's head
     truth = json.loads(truth_path(first).read_text())["c2n"]
     assert pooled["c2n_ci95"][0] <= truth <= pooled["c2n_ci95"][1]
@@ -366,9 +369,11 @@ def test_drives_of_two_tyre_sets_pooled_give_no_c2n_but_each_one_s(tmp_path: Pat
     said = console.export_text()
     assert "the drives pooled disagree" in said and "analyse them apart" in said
     assert not any("yaw rate reads" in w or "soften" in w for w in pooled["warnings"])  # the pooled fit's
-    for k, c2n in ((1, 13.5), (2, 16.0)):  # each drive's own C2n, near its tyres'
+    for k, c2n in ((1, 13.5), (2, 16.0)):  # each drive's own C2n, near its tyres', in the file too
         low, high = (float(x) for x in said.split(f"drive {k} ")[1].split("[")[1].split("]")[0].split(", "))
         assert low <= c2n <= high
+        alone = pooled["quasi_steady_drives"][k - 1]
+        assert alone["logs"] == 1 and alone["c2n_ci95"] == pytest.approx([low, high], abs=1e-3)
 
 
 def test_a_drive_given_twice_is_pooled_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

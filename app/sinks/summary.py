@@ -167,6 +167,7 @@ class Summary:
     rejected_crossings: tuple[RejectedRow, ...] = ()
     quasi_steady: RegressionRow | None = None  # the quasi-steady samples' fit, where no sweep crossed zero
     cornering: CorneringRow | None = None
+    quasi_steady_drives: tuple[RegressionRow | None, ...] = ()  # drives pooled: each one's fit alone
     d_m: float | None = None
     g_mps2: float | None = None
     duration_s: float | None = None
@@ -204,6 +205,9 @@ def build(
         cornering=CorneringRow(*(round(x, 1) for x in astuple(snapshot.cornering)))
         if snapshot.t_first is not None
         else None,
+        quasi_steady_drives=tuple(_regression(fit) for fit in snapshot.quasi_drives)
+        if snapshot.quasi is not None
+        else (),
         paired=_paired(snapshot.paired),
         frames=Frames(**counts.as_dict()),
         warnings=tuple(warnings(snapshot, config, reports)),

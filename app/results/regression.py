@@ -105,7 +105,7 @@ TURN_MIN_HELD_PCT = 1.0  # where d is held (ordinary driving) a gyro's bias, who
 # differs between left and right corners taken at different speeds, passes for a turn force: a
 # test day's 0.06 °/s read 0.6 % on track laps (C2n −3.4 %); CommonRoad's camber step is 2–3 %
 _WIDE_SPEEDS = 1.2  # the fastest sample this many times the slowest: speeds apart, not one speed
-_BIAS_ITERATIONS = 5  # refits of a yaw-rate bias's term, its C2n taken from the fit before (two settle it)
+_BIAS_ITERATIONS = 5  # refits of a yaw-rate bias's term, its C2n from the fit before (3 settle it to 1e-6)
 _TURN_SPREAD = 0.05  # of sign(κ) beside ψ0 and d·κ (one radius each way: 0) beyond which it is tried
 
 

@@ -19,6 +19,7 @@ from app.config import OPTICAL_ROLES, Config
 from app.decode.decoder import Decoder
 from app.detect.crossings import CrossingDetector
 from app.detect.quasi_steady import QuasiSteadyGate
+from app.detect.signs import SignVotes
 from app.detect.steady_state import DIRECTIONS, STEADY, SteadyStateGate
 from app.estimate.compiled import CompiledMotionFilter, estimate_of
 from app.records import Crossing, CrossingRejected, Estimate, Event, Record, SteadyState
@@ -33,6 +34,7 @@ from app.sources.blocks import FrameBlock, RecordBlock
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)
 _LATERAL = {"beta": ("beta",), "vy": ("vy",), "auto": ("beta", "vy")}  # what sideslip_source allows
+_U = Estimate._fields.index("u_mps")
 _R = Estimate._fields.index("r_radps")  # the yaw rate's column of the filter's estimates
 _V_MEAS = Estimate._fields.index("v_meas_mps")  # the measured lateral velocity's
 _REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
@@ -54,6 +56,7 @@ class SessionState:
     regression: RegressionFit | None = None  # every steady sample: the headline C2n
     quasi: RegressionFit | None = None  # every quasi-steady sample, while no sweep crossed zero
     quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's alone, at the end
+    signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
 
 
 class Pipeline:
@@ -94,6 +97,7 @@ class Pipeline:
             quasi=state.quasi,
             quasi_drives=state.quasi_drives,
             cornering=self.quasi_gate.cornering,
+            signs=state.signs.copy(),
             pending=tuple(Pending(direction, t, u) for direction, t, u in self.detector.pending),
             frames=self.decoder.counts.copy(),
             status=MappingProxyType(dict(self.decoder.status.values)),
@@ -144,6 +148,10 @@ class Pipeline:
         quasi = self.quasi_gate.step(record.t, estimate, state.sensor_problem is None)
         events = self.detector.step(record.t, estimate, steady, heading)
         self._collect(events)
+        voting = steady.steady or (quasi and estimate.v_meas_mps is not None)
+        if voting and estimate.r_radps is not None:
+            latest = state.latest
+            state.signs.add(estimate.u_mps, estimate.r_radps, latest.get("ay"), latest.get("steer"))
         if steady.steady and estimate.v_meas_mps is not None:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
             if estimate.r_radps is not None:
@@ -187,6 +195,7 @@ class Pipeline:
             state.t_first = float(t[0])
         state.t_last = float(t[-1])
         steer = _held(block.values.get("steer"), state.latest.get("steer"), n)
+        ay = _held(block.values.get("ay"), state.latest.get("ay"), n)
         for role, column in block.values.items():
             given = np.flatnonzero(~np.isnan(column))
             if len(given):
@@ -202,6 +211,8 @@ class Pipeline:
             return []
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
         quasi = self.quasi_gate.steps(t[rows], out, problems[rows] < 0) & ~np.isnan(out[:, _V_MEAS])
+        voting = (np.equal(kinds, STEADY) | quasi) & ~np.isnan(out[:, _R])
+        state.signs.add_many(out[voting, _U], out[voting, _R], ay[rows[voting]], steer[rows[voting]])
         quasi_fields = iter(out[quasi].tolist())
         quasi_flags = quasi.tolist()
         headings = self.heading.steps(t[rows], out[:, _R]).tolist()

@@ -8,10 +8,11 @@ change under its feet.
 import itertools
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from app.decode.counts import FrameCounts
 from app.detect.quasi_steady import NO_CORNERING, Cornering
+from app.detect.signs import SignVotes, against_words, odd_sign, steer_against, yaw_rate_flipped
 from app.estimate.model import FilterCounts
 from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.combine import Combined
@@ -25,6 +26,13 @@ _HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
 
 def _positive(c2n: float) -> bool:
     return math.isfinite(c2n) and c2n > 0.0
+
+
+_YAW_ONE = "the yaw rate is the wrong way round — check `scale` of the role yaw_rate (+ turning left)"
+_YAW_OR_AY = (
+    "one of the two is the wrong way round (no steering to tell which) — check `scale` of the roles "
+    "yaw_rate (+ turning left) and ay (+ to the left)"
+)
 
 
 @dataclass(frozen=True)
@@ -77,6 +85,7 @@ class Snapshot:
     quasi: RegressionFit | None = None  # every quasi-steady sample, while no sweep crossed zero
     quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's samples alone
     cornering: Cornering = NO_CORNERING  # seconds of cornering, by what the quasi-steady gate made of them
+    signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
 
     @property
     def t0(self) -> float:
@@ -160,7 +169,9 @@ class Snapshot:
     def sign_problem(self) -> str | None:
         """Why the regression's C2n is not a result, when it is not positive. A role the wrong way
         round (the yaw rate, or the sideslip) turns both of β = ψ0 + d·κ − a_y/(g·C2n)'s terms
-        over: the fit then puts the sensor behind the rear axle and C2n below zero."""
+        over: the fit then puts the sensor behind the rear axle and C2n below zero; the car's a_y
+        and steering (``signs``) say which of the two it is. Where d is held (circles at one
+        speed), nothing in the fit shows a flipped yaw rate: the votes alone do."""
         fit = self.fit
         if fit is None:
             return None
@@ -173,18 +184,59 @@ class Snapshot:
             d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
         elif not witness.d_fixed and witness.d_m < 0:
             d, where = witness.d_m, f"{-witness.d_m:.2f} m behind the rear axle"
+        flipped = yaw_rate_flipped(self.signs)
         if _positive(fit.c2n) and d >= 0:
-            return None
+            if self.d_witnessed or not flipped:
+                return None
+            # circles at one speed: no d of their own, but the car's a_y and steering show the yaw's sign
+            one = _YAW_ONE if steer_against(self.signs) else _YAW_OR_AY
+            return f"the yaw rate turns against {against_words(self.signs)}: {one}"
         if d < 0:
+            which = (
+                "a role is the wrong way round — check `scale` of the roles yaw_rate (+ turning left) "
+                "and vy/beta (+ to the left)"
+            )
+            if flipped and steer_against(self.signs):
+                which = (
+                    f"the yaw rate is the one (it turns against {against_words(self.signs)}) — check "
+                    "`scale` of the role yaw_rate (+ turning left)"
+                )
+            elif flipped is False and odd_sign(self.signs) is None:  # a_y, and the steering if any, with it
+                which = (
+                    "the sideslip is the wrong way round (the yaw rate turns with the lateral "
+                    "acceleration) — check `scale` of the roles vy and beta (+ to the left)"
+                )
             return (
                 f"the sideslip and the yaw rate disagree in sign (the regression puts the sensor "
-                f"{where}): a role is the wrong "
-                "way round — check `scale` of the roles yaw_rate (+ turning left) and vy/beta (+ to the left)"
+                f"{where}): {which}"
             )
         return (
             f"the regression's C2n is {fit.c2n:.2f}, not positive: the steady samples do not show the "
             "sideslip falling with speed on a circle — not a result"
         )
+
+    @property
+    def d_witnessed(self) -> bool:
+        """Do the samples place d themselves (speeds apart), so that its sign shows the roles'?"""
+        fit = self.fit
+        witness = self.regression if fit is self.quasi and self.regression is not None else fit
+        return witness is not None and (not witness.d_fixed or witness.d_free_m is not None)
+
+    @property
+    def odd_sign(self) -> str | None:
+        """A role the wrong way round that leaves C2n as it is: a_y or the steering against the
+        other two; or the yaw rate against both where the sideslip turns with it (the fit's d
+        ahead of the axle: the two flips cancel in C2n)."""
+        if self.sign_problem:
+            return None
+        odd = odd_sign(self.signs)
+        if odd is None and self.d_witnessed and yaw_rate_flipped(self.signs):
+            odd = (
+                f"the yaw rate turns against {against_words(self.signs)} while the sideslip turns "
+                "with it (the fit puts the sensor ahead of the axle), so C2n stands: the role ay, or "
+                "both yaw_rate and vy/beta, are the wrong way round — check their `scale`"
+            )
+        return odd
 
     @property
     def replay_hint(self) -> str | None:

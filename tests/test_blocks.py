@@ -173,6 +173,7 @@ def test_a_pipeline_fed_blocks_ends_as_one_fed_frame_by_frame(size: int) -> None
         theirs.sensor_problem,
     )
     assert pipeline.filter.counts == reference.filter.counts and pipeline.filter.counts.time_jumps > 0
+    assert ours.signs == theirs.signs and ours.signs.ay_with > 0 and ours.signs.steer_with > 0
     quasi = pipeline.quasi.fit()
     assert quasi is not None and quasi == reference.quasi.fit(), "the quasi-steady samples are the same"
     tally, their_tally = pipeline.quasi_gate.cornering, reference.quasi_gate.cornering

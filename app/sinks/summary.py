@@ -272,6 +272,8 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     out: list[str] = []
     if snapshot.sign_problem:
         out.append(snapshot.sign_problem)
+    if snapshot.odd_sign:
+        out.append(snapshot.odd_sign)
     for report in reports:
         if report.stopped:
             out.append(f"{report.path}: {report.stopped}")
@@ -306,7 +308,8 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"the optical data stopped {f.resets - f.time_jumps} times for over "
             f"{config.filter.gap_reset_s:g} s: the filter restarted"
         )
-    fit = snapshot.fit if not snapshot.drives_disagree else None  # drives apart: no pooled fit to speak of
+    # drives apart: no pooled fit to speak of; a role the wrong way round: no fit's terms to trust
+    fit = snapshot.fit if not snapshot.drives_disagree and not snapshot.sign_problem else None
     if fit is not None and not snapshot.sign_problem and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
         low, high = fit.d_ci95
         out.append(
@@ -352,9 +355,12 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     bias = _yaw_bias_warning(fit)
     if bias is not None:
         out.append(bias)
+    flipped = _sideslip_flip_warning(snapshot, fit, config)
+    if flipped is not None:
+        out.append(flipped)
     if snapshot.replay_hint:
         out.append(snapshot.replay_hint)
-    beyond = _crossing_beyond_gate(snapshot, config)
+    beyond = _crossing_beyond_gate(snapshot, config) if flipped is None else None  # its u0 is the reading's
     if beyond is not None:
         out.append(beyond)
     paired = snapshot.paired
@@ -405,6 +411,30 @@ def _slope_warning(fit: RegressionFit | None) -> str | None:
         f"(falling {abs(towards):.0f}° {side} of the start heading): the regression takes it out of C2n; "
         "each crossing happens at one heading and carries it — pair left and right circles, or find a "
         "level pad"
+    )
+
+
+NOMINAL_OFF = 0.3  # C2n this far from the config's nominal: not the tyres of a test day
+
+
+def _sideslip_flip_warning(snapshot: Snapshot, fit: RegressionFit | None, config: Config) -> str | None:
+    """Circles at one speed cannot show a sideslip the wrong way round: nothing in them places d,
+    and with β turned over they read 1/(g·(2d/u² − 1/(g·C2n))) for C2n. Where the config's nominal
+    C2n is far from the reading and near what the other sign gives, say so."""
+    nominal = config.tyres.c2n_per_rad
+    if fit is None or not nominal or snapshot.d_witnessed or not fit.c2n > 0:
+        return None
+    u = 0.5 * (fit.speed_range[0] + fit.speed_range[1])
+    g = config.vehicle.gravity_mps2
+    turned = 2.0 * fit.d_m / u**2 - 1.0 / (g * fit.c2n)
+    other = 1.0 / (g * turned) if turned > 0 else math.nan
+    off = abs(fit.c2n / nominal - 1.0)
+    if not (off > NOMINAL_OFF and abs(other / nominal - 1.0) < off / 3.0):
+        return None
+    return (
+        f"C2n {fit.c2n:.2f} is {100 * off:.0f} % off the config's nominal {nominal:g}; with the sideslip "
+        f"the other way round these samples at one speed would read {other:.2f}: check `scale` of the "
+        "roles vy and beta (+ to the left) — one speed cannot tell, a sweep through u0 can"
     )
 
 

@@ -1,0 +1,112 @@
+"""Do the yaw rate, the lateral acceleration and the steering agree in sign while cornering?
+
+A role the wrong way round in the config (`scale = -1` missing or extra) shows in the fit where
+the speeds are apart: the sensor lands behind the rear axle (``Snapshot.sign_problem``). Where
+they are not — circles at one speed, d held at the tape's value — a flipped yaw rate moves C2n
+to 1/(g·(2d/u² − 1/(g·C2n))) and nothing in the sideslip shows it (circles at 1.25·u0: 55.7 for
+14.9). The car's own sensors can: in a steady corner the lateral acceleration points into the
+turn, as u·r does, and so does the steering wheel of a car that understeers. So each steady or
+quasi-steady sample votes, and the votes name the role that is the odd one out.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MIN_AY_MPS2 = 1.0  # |u·r|: a corner, not a straight with a gyro's noise on it
+MIN_STEER_RAD = 0.05  # |steering-wheel angle| (≈ 3°): beyond a steering offset
+MIN_VOTES = 200  # samples (2 s of a 100 Hz sensor) before the votes count
+AGAINST_SHARE = 0.8  # of the votes against: a sign the wrong way round, not a noisy sensor
+
+
+@dataclass
+class SignVotes:
+    """Cornering samples whose measured lateral acceleration and steering agree in sign with the
+    yaw rate, and those against it (nothing counted where a role is missing)."""
+
+    ay_with: int = 0
+    ay_against: int = 0
+    steer_with: int = 0
+    steer_against: int = 0
+
+    def add(self, u: float, r: float, ay: float | None, steer: float | None) -> None:
+        """One steady sample: filtered speed and yaw rate, the latest measured a_y and steering."""
+        if abs(u * r) < MIN_AY_MPS2:
+            return
+        if ay is not None and ay == ay:  # NaN: none
+            if (ay > 0) == (r > 0):
+                self.ay_with += 1
+            else:
+                self.ay_against += 1
+        if steer is not None and abs(steer) >= MIN_STEER_RAD:
+            if (steer > 0) == (r > 0):
+                self.steer_with += 1
+            else:
+                self.steer_against += 1
+
+    def add_many(self, u: np.ndarray, r: np.ndarray, ay: np.ndarray, steer: np.ndarray) -> None:
+        """``add`` over arrays (NaN where a role has no value yet)."""
+        turning = np.abs(u * r) >= MIN_AY_MPS2
+        left = r > 0
+        given = turning & ~np.isnan(ay)
+        with_ = int(np.count_nonzero(given & ((ay > 0) == left)))
+        self.ay_with += with_
+        self.ay_against += int(np.count_nonzero(given)) - with_
+        given = turning & (np.abs(steer) >= MIN_STEER_RAD)  # NaN compares False
+        with_ = int(np.count_nonzero(given & ((steer > 0) == left)))
+        self.steer_with += with_
+        self.steer_against += int(np.count_nonzero(given)) - with_
+
+    def copy(self) -> "SignVotes":
+        return SignVotes(self.ay_with, self.ay_against, self.steer_with, self.steer_against)
+
+
+def _against(against: int, with_: int) -> bool | None:
+    """Do the votes say the sign is against the yaw rate's (True), with it (False), or nothing?"""
+    votes = against + with_
+    if votes < MIN_VOTES:
+        return None
+    if against >= AGAINST_SHARE * votes:
+        return True
+    return False if with_ >= AGAINST_SHARE * votes else None
+
+
+def yaw_rate_flipped(votes: SignVotes) -> bool | None:
+    """Is the yaw rate the wrong way round? True where it turns against the lateral acceleration
+    and the steering does not side with it; False where it turns with a_y, or where the steering
+    does (then a_y is the odd one out); None where the votes are too few or split."""
+    ay = _against(votes.ay_against, votes.ay_with)
+    if not ay:
+        return ay
+    return _against(votes.steer_against, votes.steer_with) is not False
+
+
+def steer_against(votes: SignVotes) -> bool:
+    """Does the steering turn against the yaw rate (the car's wheel the other way)?"""
+    return _against(votes.steer_against, votes.steer_with) is True
+
+
+def against_words(votes: SignVotes) -> str:
+    """What the yaw rate turns against, and how often: "the lateral acceleration and the steering
+    in 100 % of the cornering"."""
+    share = 100.0 * votes.ay_against / max(votes.ay_against + votes.ay_with, 1)
+    steer = _against(votes.steer_against, votes.steer_with)
+    return f"the lateral acceleration{' and the steering' if steer else ''} in {share:.0f} % of the cornering"
+
+
+def odd_sign(votes: SignVotes) -> str | None:
+    """A warning for a role the wrong way round that does not touch C2n: the lateral acceleration
+    against the yaw rate and the steering, or the steering against the yaw rate and a_y."""
+    ay = _against(votes.ay_against, votes.ay_with)
+    steer = _against(votes.steer_against, votes.steer_with)
+    if ay and steer is False:
+        return (
+            "the lateral acceleration points out of the turn the yaw rate and the steering show: "
+            "check `scale` of the role ay (+ to the left)"
+        )
+    if steer and ay is False:
+        return (
+            "the steering turns against the yaw rate and the lateral acceleration: check `scale` "
+            "of the role steer (+ to the left)"
+        )
+    return None

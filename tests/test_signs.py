@@ -1,0 +1,130 @@
+"""Do the yaw rate, the lateral acceleration and the steering agree in sign? Circles at one speed
+hold d at the tape's value, so a flipped yaw rate moved C2n without a trace in the fit (55.7 for
+14.9, no warning): the car's own a_y and steering now vote, and the odd one out is named."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.detect.signs import MIN_VOTES, SignVotes, odd_sign, yaw_rate_flipped
+from tests.test_reliability_inputs import FLIPPED_SIDESLIP, FLIPPED_YAW, config_with, run_cli
+
+STEER = 'steer = "SteeringPinion_Data.StePinComp_An_Est"'
+AY = 'ay = "Accel_Data_FD1.VehLat2_A_Actl"'
+FLIPPED_AY = (AY, 'ay = {signal = "Accel_Data_FD1.VehLat2_A_Actl", scale = -1.0}')
+FLIPPED_STEER = (STEER, 'steer = {signal = "SteeringPinion_Data.StePinComp_An_Est", scale = -1.0}')
+NO_STEER = (STEER, "")
+
+
+def test_votes_over_arrays_are_the_votes_sample_by_sample() -> None:
+    rng = np.random.default_rng(7)
+    n = 5000
+    u = rng.uniform(1.0, 30.0, n)
+    r = rng.normal(0.0, 0.15, n)
+    ay = np.where(rng.random(n) < 0.1, np.nan, u * r * rng.choice([1.0, -1.0], n, p=[0.7, 0.3]))
+    steer = np.where(rng.random(n) < 0.1, np.nan, rng.normal(0.0, 0.2, n))
+    one, many = SignVotes(), SignVotes()
+    for k in range(n):
+        one.add(u[k], r[k], None if np.isnan(ay[k]) else ay[k], None if np.isnan(steer[k]) else steer[k])
+    many.add_many(u, r, ay, steer)
+    assert one == many
+    assert one.ay_against > 0 and one.ay_with > one.ay_against and one.steer_with > 0
+    assert one.ay_with + one.ay_against < n  # straights and missing values do not vote
+
+
+def test_the_odd_one_out_is_named() -> None:
+    n = MIN_VOTES
+    assert yaw_rate_flipped(SignVotes(0, n, 0, n)) is True  # a_y and steering against it
+    assert yaw_rate_flipped(SignVotes(0, n)) is True  # a_y against, no steering to tell: not trusted
+    assert yaw_rate_flipped(SignVotes(0, n, n, 0)) is False  # the steering sides with it: a_y is odd
+    assert "role ay" in (odd_sign(SignVotes(0, n, n, 0)) or "")
+    assert "role steer" in (odd_sign(SignVotes(n, 0, 0, n)) or "")
+    assert yaw_rate_flipped(SignVotes(n, 0, n, 0)) is False and odd_sign(SignVotes(n, 0, n, 0)) is None
+    assert yaw_rate_flipped(SignVotes(0, n - 1, 0, n - 1)) is None  # too few votes
+    assert yaw_rate_flipped(SignVotes(n, n, n, n)) is None  # split: a noisy sensor, not a sign
+
+
+@pytest.fixture(scope="module")
+def circles(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Circles at 1.25·u0 on three radii both ways (two-track, C2n 14.87): no sweep, d held."""
+    out = tmp_path_factory.mktemp("signs") / "circles.blf"
+    code, _, err = run_cli(["simulate", "--session", "circles", "--seed", "3", "--out", str(out)])
+    assert code == 0, err
+    return out
+
+
+def analyse(log: Path, tmp_path: Path, *flips: tuple[str, str]) -> tuple[str, dict]:
+    config = config_with(tmp_path, *flips)
+    result = tmp_path / "result.json"
+    code, out, err = run_cli(["analyze", str(log), "--config", str(config), "--json", str(result)])
+    assert code == 0 and "Traceback" not in err, err
+    return out, json.loads(result.read_text())
+
+
+def test_circles_at_one_speed_with_the_yaw_rate_flipped_give_no_c2n_but_the_role(
+    circles: Path, tmp_path: Path
+) -> None:
+    out, result = analyse(circles, tmp_path, FLIPPED_YAW)
+    assert result["c2n"] is None  # the fit alone read 55.7 for 14.87, and said nothing
+    assert "C2n: no result (the yaw rate turns against the lateral acceleration and the steering" in out
+    assert "the yaw rate is the wrong way round — check `scale` of the role yaw_rate" in out
+    assert result["warnings"][0].startswith("the yaw rate turns against")
+    assert not any("soften" in w or "d is the config's" in w for w in result["warnings"])  # no fit's terms
+
+
+def test_without_steering_a_yaw_rate_against_a_y_names_both(circles: Path, tmp_path: Path) -> None:
+    out, result = analyse(circles, tmp_path, FLIPPED_YAW, NO_STEER)
+    assert result["c2n"] is None
+    assert "check `scale` of the roles yaw_rate (+ turning left) and ay (+ to the left)" in out
+
+
+@pytest.mark.parametrize(("flip", "role"), [(FLIPPED_AY, "role ay"), (FLIPPED_STEER, "role steer")])
+def test_a_y_or_steering_flipped_leave_c2n_and_say_so(
+    circles: Path, tmp_path: Path, flip: tuple[str, str], role: str
+) -> None:
+    _, plain = analyse(circles, tmp_path)
+    assert plain["c2n"] == pytest.approx(14.87, rel=0.02)
+    assert not any("wrong way round" in w or "check `scale`" in w for w in plain["warnings"])
+    _, result = analyse(circles, tmp_path, flip)
+    assert result["c2n"] == plain["c2n"]
+    assert sum(role in w for w in result["warnings"]) == 1
+
+
+def test_circles_at_one_speed_with_the_sideslip_flipped_are_held_against_the_nominal(
+    circles: Path, tmp_path: Path
+) -> None:
+    """Nothing in circles at one speed shows a flipped sideslip (the votes are the car's a_y,
+    steering and yaw rate, which agree): the reading, 3.7 times the config's nominal, is kept,
+    and what the other sign would read is said."""
+    _, result = analyse(circles, tmp_path, *FLIPPED_SIDESLIP)
+    assert result["c2n"] > 3.0 * 14.87
+    [warning] = [w for w in result["warnings"] if "with the sideslip the other way round" in w]
+    assert "check `scale` of the roles vy and beta" in warning
+    other = float(warning.split("would read ")[1].split(":")[0])
+    assert other == pytest.approx(14.87, rel=0.03)
+    assert not any("drive a circle of radius" in w for w in result["warnings"])  # advice from the reading
+
+
+@pytest.mark.parametrize(
+    ("flips", "named"),
+    [
+        ((FLIPPED_YAW,), "the yaw rate is the one (it turns against the lateral acceleration and the"),
+        (FLIPPED_SIDESLIP, "the sideslip is the wrong way round (the yaw rate turns with the lateral"),
+    ],
+    ids=["yaw rate", "vy and beta"],
+)
+def test_on_sweeps_the_votes_say_which_role_put_the_sensor_behind_the_axle(
+    drive_log: Path, tmp_path: Path, flips: tuple[tuple[str, str], ...], named: str
+) -> None:
+    out, result = analyse(drive_log, tmp_path, *flips)
+    assert result["c2n"] is None and named in out
+    assert not any("soften" in w or "slopes" in w for w in result["warnings"])  # the flipped fit's terms
+
+
+def test_yaw_rate_and_sideslip_both_flipped_cancel_and_are_named(drive_log: Path, tmp_path: Path) -> None:
+    _, plain = analyse(drive_log, tmp_path)
+    _, result = analyse(drive_log, tmp_path, FLIPPED_YAW, *FLIPPED_SIDESLIP)
+    assert result["c2n"] == pytest.approx(plain["c2n"], rel=1e-9) and result["c2n"] is not None
+    assert any("so C2n stands" in w and "both yaw_rate and vy/beta" in w for w in result["warnings"])

@@ -107,6 +107,7 @@ def odd_sign(votes: SignVotes) -> str | None:
     if steer and ay is False:
         return (
             "the steering turns against the yaw rate and the lateral acceleration: check `scale` "
-            "of the role steer (+ to the left)"
+            "of the role steer (+ to the left) — or of yaw_rate and ay both, if one unit mounted "
+            "upside down gives the two"
         )
     return None

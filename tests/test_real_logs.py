@@ -211,6 +211,42 @@ def test_rav4_real_values_not_dropped_by_placeholder_range(rav4: Analysis) -> No
     assert not dropped, dropped
 
 
+def test_rav4_roles_turn_together(tmp_path: Path) -> None:
+    """The signs the config gives the RAV4's roles, checked on the drive itself (highway bends,
+    |u·r| to 0.8 m/s²): YAW_RATE turns with the GNSS heading (global_pose) and with STEER_ANGLE;
+    KINEMATICS.ACCEL_Y turned against both until the config said `scale = -1` — what
+    app/detect/signs.py reports where a drive corners harder."""
+    import numpy as np
+
+    from app.config import load_config
+    from app.decode.decoder import Decoder
+
+    decoder = Decoder(load_config(config_from_template("comma2k19_rav4.toml", tmp_path)))
+    latest: dict[str, float] = {}
+    rows = []
+    with can.LogReader(real_path(*RAV4_LOG)) as reader:
+        for message in reader:
+            record = decoder.decode(message)
+            if record is None:
+                continue
+            latest.update(record.signals)
+            if "yaw_rate" in record.signals and {"speed", "ay", "steer"} <= latest.keys():
+                rows.append((record.t, latest["speed"], latest["yaw_rate"], latest["ay"], latest["steer"]))
+    t, u, r, ay, steer = np.array(rows).T
+    turning = np.abs(u * r) >= 0.5
+    assert turning.sum() >= 20
+    assert np.mean(np.sign(ay[turning]) == np.sign(r[turning])) >= 0.8
+    assert np.mean(np.sign(steer[turning]) == np.sign(r[turning])) >= 0.8
+    pose = real_path("comma2k19-rav4-segment", "global_pose")
+    times, velocity = np.load(pose / "frame_times"), np.load(pose / "frame_velocities")
+    x, y, z = np.load(pose / "frame_positions").mean(axis=0)
+    lon, lat = np.arctan2(y, x), np.arctan2(z, np.hypot(x, y))
+    east = velocity @ np.array([-np.sin(lon), np.cos(lon), 0.0])
+    north = velocity @ np.array([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)])
+    heading_rate = np.interp(t, times, np.gradient(np.unwrap(np.arctan2(north, east)), times))  # + left
+    assert np.corrcoef(heading_rate, r)[0, 1] > 0.3 and np.corrcoef(heading_rate, ay)[0, 1] > 0.3
+
+
 @pytest.mark.parametrize("suffix", [".asc", ".blf"])
 def test_rav4_converted_log_counts_like_candump(rav4: Analysis, tmp_path: Path, suffix: str) -> None:
     """The candump rewritten by python-can as ASC / BLF gives the same frame counts per id."""

@@ -44,6 +44,7 @@ def test_the_odd_one_out_is_named() -> None:
     assert yaw_rate_flipped(SignVotes(n, 0, n, 0)) is False and odd_sign(SignVotes(n, 0, n, 0)) is None
     assert yaw_rate_flipped(SignVotes(0, n - 1, 0, n - 1)) is None  # too few votes
     assert yaw_rate_flipped(SignVotes(n, n, n, n)) is None  # split: a noisy sensor, not a sign
+    assert "is the role ay the car's lateral axis" in (odd_sign(SignVotes(n, n, n, 0)) or "")
 
 
 @pytest.fixture(scope="module")

@@ -96,13 +96,22 @@ def against_words(votes: SignVotes) -> str:
 
 def odd_sign(votes: SignVotes) -> str | None:
     """A warning for a role the wrong way round that does not touch C2n: the lateral acceleration
-    against the yaw rate and the steering, or the steering against the yaw rate and a_y."""
+    against the yaw rate and the steering, or the steering against the yaw rate and a_y; or a_y
+    that follows no sign (a logger's accelerometer on another axis: a real CANedge drive's IMU
+    agrees with u·r in 49 % of its corners)."""
     ay = _against(votes.ay_against, votes.ay_with)
     steer = _against(votes.steer_against, votes.steer_with)
     if ay and steer is False:
         return (
             "the lateral acceleration points out of the turn the yaw rate and the steering show: "
             "check `scale` of the role ay (+ to the left)"
+        )
+    votes_ay = votes.ay_with + votes.ay_against
+    if ay is None and votes_ay >= MIN_VOTES:  # neither with it nor against: another axis?
+        return (
+            f"the lateral acceleration agrees in sign with the yaw rate in only "
+            f"{100.0 * votes.ay_with / votes_ay:.0f} % of the cornering: is the role ay the car's lateral "
+            "axis (a logger's accelerometer mounted turned)?"
         )
     if steer and ay is False:
         return (

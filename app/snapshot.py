@@ -98,11 +98,13 @@ class Snapshot:
 
     @property
     def headline(self) -> Headline | None:
-        """The C2n to report; a stiffness that is not positive is not one (see ``sign_problem``)."""
+        """The C2n to report; a stiffness that is not positive is not one, nor one whose roles'
+        signs disagree (see ``sign_problem``)."""
+        if self.sign_problem:
+            return None
         fit = self.fit
         if fit is not None and fit is self.quasi:  # no sweep crossed zero
-            trusted = not self.sign_problem and not self.drives_disagree
-            return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady") if trusted else None
+            return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady") if not self.drives_disagree else None
         if self.regression is not None and _positive(self.regression.c2n):
             return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
         if self.paired is not None and _positive(self.paired.c2n):

@@ -8,6 +8,7 @@ A bulk reader may hand over frames as a FrameBlock instead (``c2n analyze`` on M
 """
 
 import copy
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
@@ -148,10 +149,14 @@ class Pipeline:
         quasi = self.quasi_gate.step(record.t, estimate, state.sensor_problem is None)
         events = self.detector.step(record.t, estimate, steady, heading)
         self._collect(events)
-        voting = steady.steady or (quasi and estimate.v_meas_mps is not None)
-        if voting and estimate.r_radps is not None:
+        if (  # a sample the regressions could take votes, one per VOTE_EVERY_S
+            (steady.steady or quasi)
+            and record.t >= state.signs.next_t
+            and estimate.r_radps is not None
+            and estimate.v_meas_mps is not None
+        ):
             latest = state.latest
-            state.signs.add(estimate.u_mps, estimate.r_radps, latest.get("ay"), latest.get("steer"))
+            state.signs.add(record.t, estimate.u_mps, estimate.r_radps, latest.get("ay"), latest.get("steer"))
         if steady.steady and estimate.v_meas_mps is not None:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
             if estimate.r_radps is not None:
@@ -211,8 +216,6 @@ class Pipeline:
             return []
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
         quasi = self.quasi_gate.steps(t[rows], out, problems[rows] < 0) & ~np.isnan(out[:, _V_MEAS])
-        voting = (np.equal(kinds, STEADY) | quasi) & ~np.isnan(out[:, _R])
-        state.signs.add_many(out[voting, _U], out[voting, _R], ay[rows[voting]], steer[rows[voting]])
         quasi_fields = iter(out[quasi].tolist())
         quasi_flags = quasi.tolist()
         headings = self.heading.steps(t[rows], out[:, _R]).tolist()
@@ -221,8 +224,15 @@ class Pipeline:
         detector, regression, profile, quasi_fit = self.detector, self.regression, self.profile, self.quasi
         events: list[Event] = []
         own: tuple[Event, ...] = ()  # the last record's
+        signs = state.signs
         for k, now in enumerate(times):
             steady = kinds[k] == STEADY
+            if (
+                now >= signs.next_t
+                and (steady or quasi_flags[k])
+                and not math.isnan(out[k, _R] + out[k, _V_MEAS])
+            ):
+                signs.add(now, float(out[k, _U]), float(out[k, _R]), ay[rows[k]], steer[rows[k]])
             if steady or detector.running:
                 estimate = estimate_of(next(steady_fields) if steady else out[k].tolist())
                 new = detector.step(

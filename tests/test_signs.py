@@ -5,7 +5,6 @@ hold d at the tape's value, so a flipped yaw rate moved C2n without a trace in t
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from app.detect.signs import MIN_VOTES, SignVotes, odd_sign, yaw_rate_flipped
@@ -18,20 +17,18 @@ FLIPPED_STEER = (STEER, 'steer = {signal = "SteeringPinion_Data.StePinComp_An_Es
 NO_STEER = (STEER, "")
 
 
-def test_votes_over_arrays_are_the_votes_sample_by_sample() -> None:
-    rng = np.random.default_rng(7)
-    n = 5000
-    u = rng.uniform(1.0, 30.0, n)
-    r = rng.normal(0.0, 0.15, n)
-    ay = np.where(rng.random(n) < 0.1, np.nan, u * r * rng.choice([1.0, -1.0], n, p=[0.7, 0.3]))
-    steer = np.where(rng.random(n) < 0.1, np.nan, rng.normal(0.0, 0.2, n))
-    one, many = SignVotes(), SignVotes()
-    for k in range(n):
-        one.add(u[k], r[k], None if np.isnan(ay[k]) else ay[k], None if np.isnan(steer[k]) else steer[k])
-    many.add_many(u, r, ay, steer)
-    assert one == many
-    assert one.ay_against > 0 and one.ay_with > one.ay_against and one.steer_with > 0
-    assert one.ay_with + one.ay_against < n  # straights and missing values do not vote
+def test_one_sample_votes_per_tenth_of_a_second_and_only_in_a_corner() -> None:
+    votes = SignVotes()
+    for k in range(100):  # 1 s at 100 Hz, turning left, a_y and steering with the yaw rate
+        t = 0.01 * k
+        if t >= votes.next_t:
+            votes.add(t, 20.0, 0.1, 2.0, 0.3)
+    assert (votes.ay_with, votes.ay_against, votes.steer_with, votes.steer_against) == (10, 0, 10, 0)
+    assert 1.0 <= votes.next_t <= 1.02  # the last vote at 0.9 s, or a sample after it
+    votes.add(2.0, 20.0, 0.01, -2.0, -0.3)  # |u·r| 0.2 m/s²: not a corner
+    votes.add(3.0, 20.0, -0.1, float("nan"), 0.01)  # a_y missing, the wheel inside its offset
+    votes.add(4.0, 20.0, -0.1, 2.0, None)  # right turn, a_y to the left: against
+    assert (votes.ay_with, votes.ay_against, votes.steer_with, votes.steer_against) == (10, 1, 10, 0)
 
 
 def test_the_odd_one_out_is_named() -> None:

@@ -9,28 +9,32 @@ turn, as u·r does, and so does the steering wheel of a car that understeers. So
 quasi-steady sample votes, and the votes name the role that is the odd one out.
 """
 
-from dataclasses import dataclass
-
-import numpy as np
+import math
+from dataclasses import dataclass, replace
 
 MIN_AY_MPS2 = 1.0  # |u·r|: a corner, not a straight with a gyro's noise on it
 MIN_STEER_RAD = 0.05  # |steering-wheel angle| (≈ 3°): beyond a steering offset
-MIN_VOTES = 200  # samples (2 s of a 100 Hz sensor) before the votes count
+VOTE_EVERY_S = 0.1  # one sample votes per 0.1 s: a comparison per frame, not a call (live: 4 % of the loop)
+MIN_VOTES = 200  # votes (20 s of cornering) before they count
 AGAINST_SHARE = 0.8  # of the votes against: a sign the wrong way round, not a noisy sensor
 
 
 @dataclass
 class SignVotes:
     """Cornering samples whose measured lateral acceleration and steering agree in sign with the
-    yaw rate, and those against it (nothing counted where a role is missing)."""
+    yaw rate, and those against it (nothing counted where a role is missing). Callers offer a
+    sample only from ``next_t`` on."""
 
     ay_with: int = 0
     ay_against: int = 0
     steer_with: int = 0
     steer_against: int = 0
+    next_t: float = -math.inf
 
-    def add(self, u: float, r: float, ay: float | None, steer: float | None) -> None:
-        """One steady sample: filtered speed and yaw rate, the latest measured a_y and steering."""
+    def add(self, t: float, u: float, r: float, ay: float | None, steer: float | None) -> None:
+        """One steady sample at t: filtered speed and yaw rate, the latest measured a_y and steering
+        (None or NaN: none)."""
+        self.next_t = t + VOTE_EVERY_S
         if abs(u * r) < MIN_AY_MPS2:
             return
         if ay is not None and ay == ay:  # NaN: none
@@ -38,27 +42,14 @@ class SignVotes:
                 self.ay_with += 1
             else:
                 self.ay_against += 1
-        if steer is not None and abs(steer) >= MIN_STEER_RAD:
+        if steer is not None and abs(steer) >= MIN_STEER_RAD:  # NaN compares False
             if (steer > 0) == (r > 0):
                 self.steer_with += 1
             else:
                 self.steer_against += 1
 
-    def add_many(self, u: np.ndarray, r: np.ndarray, ay: np.ndarray, steer: np.ndarray) -> None:
-        """``add`` over arrays (NaN where a role has no value yet)."""
-        turning = np.abs(u * r) >= MIN_AY_MPS2
-        left = r > 0
-        given = turning & ~np.isnan(ay)
-        with_ = int(np.count_nonzero(given & ((ay > 0) == left)))
-        self.ay_with += with_
-        self.ay_against += int(np.count_nonzero(given)) - with_
-        given = turning & (np.abs(steer) >= MIN_STEER_RAD)  # NaN compares False
-        with_ = int(np.count_nonzero(given & ((steer > 0) == left)))
-        self.steer_with += with_
-        self.steer_against += int(np.count_nonzero(given)) - with_
-
     def copy(self) -> "SignVotes":
-        return SignVotes(self.ay_with, self.ay_against, self.steer_with, self.steer_against)
+        return replace(self)
 
 
 def _against(against: int, with_: int) -> bool | None:

@@ -5,8 +5,8 @@ the speeds are apart: the sensor lands behind the rear axle (``Snapshot.sign_pro
 they are not — circles at one speed, d held at the tape's value — a flipped yaw rate moves C2n
 to 1/(g·(2d/u² − 1/(g·C2n))) and nothing in the sideslip shows it (circles at 1.25·u0: 55.7 for
 14.9). The car's own sensors can: in a steady corner the lateral acceleration points into the
-turn, as u·r does, and so does the steering wheel of a car that understeers. So each steady or
-quasi-steady sample votes, and the votes name the role that is the odd one out.
+turn, as u·r does, and so does the steering wheel of a car that understeers. So the steady and
+quasi-steady samples vote (one per ``VOTE_EVERY_S``), and the votes name the odd one out.
 """
 
 import math
@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 MIN_AY_MPS2 = 1.0  # |u·r|: a corner, not a straight with a gyro's noise on it
 MIN_STEER_RAD = 0.05  # |steering-wheel angle| (≈ 3°): beyond a steering offset
-VOTE_EVERY_S = 0.1  # one sample votes per 0.1 s: a comparison per frame, not a call (live: 4 % of the loop)
+VOTE_EVERY_S = 0.1  # one sample votes per 0.1 s: a comparison per frame, not a call per steady frame
 MIN_VOTES = 200  # votes (20 s of cornering) before they count
 AGAINST_SHARE = 0.8  # of the votes against: a sign the wrong way round, not a noisy sensor
 

@@ -178,10 +178,8 @@ class Snapshot:
         if fit is None:
             return None
         d, where = fit.d_m, f"{-fit.d_m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
-        # d held at the tape's hides the roles' signs: the samples' own d shows them — the steady
-        # samples' where there are any (the quasi-steady ones' transitions can place d anywhere:
-        # circles at one speed, 4 m behind), and only where speeds apart place it (d_free_m)
-        witness = self.regression if fit is self.quasi and self.regression is not None else fit
+        witness = self._witness
+        assert witness is not None  # there is a fit
         if witness.d_fixed and witness.d_free_m is not None and witness.d_free_m < 0:
             d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
         elif not witness.d_fixed and witness.d_m < 0:
@@ -218,10 +216,17 @@ class Snapshot:
         )
 
     @property
-    def d_witnessed(self) -> bool:
-        """Do the samples place d themselves (speeds apart), so that its sign shows the roles'?"""
+    def _witness(self) -> RegressionFit | None:
+        """The fit whose own d shows the roles' signs (d held at the tape's hides them): the steady
+        samples' where there are any (the quasi-steady ones' transitions can place d anywhere:
+        circles at one speed, 4 m behind), else the result's."""
         fit = self.fit
-        witness = self.regression if fit is self.quasi and self.regression is not None else fit
+        return self.regression if fit is self.quasi and self.regression is not None else fit
+
+    @property
+    def d_witnessed(self) -> bool:
+        """Do the samples place d themselves (speeds apart: ``d_free_m`` where d is held)?"""
+        witness = self._witness
         return witness is not None and (not witness.d_fixed or witness.d_free_m is not None)
 
     @property

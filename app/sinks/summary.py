@@ -310,7 +310,7 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         )
     # drives apart: no pooled fit to speak of; a role the wrong way round: no fit's terms to trust
     fit = snapshot.fit if not snapshot.drives_disagree and not snapshot.sign_problem else None
-    if fit is not None and not snapshot.sign_problem and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
+    if fit is not None and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
         low, high = fit.d_ci95
         out.append(
             f"the fitted sensor position d = {fit.d_m:.3f} m [{low:.3f}, {high:.3f}] disagrees with the "

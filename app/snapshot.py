@@ -201,6 +201,11 @@ class Snapshot:
                     f"the yaw rate is the one (it turns against {against_words(self.signs)}) — check "
                     "`scale` of the role yaw_rate (+ turning left)"
                 )
+            elif flipped:  # one flip explains it; two (a_y and the sideslip) would too
+                which = (
+                    f"most likely the yaw rate (it turns against {against_words(self.signs)}; else both "
+                    "ay and vy/beta are) — check `scale` of the role yaw_rate (+ turning left)"
+                )
             elif flipped is False and odd_sign(self.signs) is None:  # a_y, and the steering if any, with it
                 which = (
                     "the sideslip is the wrong way round (the yaw rate turns with the lateral "

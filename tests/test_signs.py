@@ -78,6 +78,14 @@ def test_without_steering_a_yaw_rate_against_a_y_names_both(circles: Path, tmp_p
     assert "check `scale` of the roles yaw_rate (+ turning left) and ay (+ to the left)" in out
 
 
+def test_without_steering_on_sweeps_the_yaw_rate_is_the_likely_one(drive_log: Path, tmp_path: Path) -> None:
+    """The sensor behind the axle and a_y against the yaw rate: one flip (the yaw rate) explains
+    both; the sideslip alone would leave a_y with it."""
+    out, result = analyse(drive_log, tmp_path, FLIPPED_YAW, NO_STEER)
+    assert result["c2n"] is None
+    assert "most likely the yaw rate (it turns against the lateral acceleration in 100 %" in out
+
+
 @pytest.mark.parametrize(("flip", "role"), [(FLIPPED_AY, "role ay"), (FLIPPED_STEER, "role steer")])
 def test_a_y_or_steering_flipped_leave_c2n_and_say_so(
     circles: Path, tmp_path: Path, flip: tuple[str, str], role: str

@@ -28,7 +28,10 @@ def _positive(c2n: float) -> bool:
     return math.isfinite(c2n) and c2n > 0.0
 
 
-_YAW_ONE = "the yaw rate is the wrong way round — check `scale` of the role yaw_rate (+ turning left)"
+_YAW_ONE = (  # a_y and the steering share a vehicle bus, and with it its axes
+    "the yaw rate is the wrong way round, or ay and steer both are (a vehicle bus in SAE axes, + to "
+    "the right) — check `scale` of the role yaw_rate (+ turning left), or of ay and steer (+ to the left)"
+)
 _YAW_OR_AY = (
     "one of the two is the wrong way round (no steering to tell which) — check `scale` of the roles "
     "yaw_rate (+ turning left) and ay (+ to the left)"
@@ -243,9 +246,10 @@ class Snapshot:
             return None
         odd = odd_sign(self.signs)
         if odd is None and self.d_witnessed and yaw_rate_flipped(self.signs):
+            roles = "ay and steer (a vehicle bus in SAE axes)" if steer_against(self.signs) else "the role ay"
             odd = (
                 f"the yaw rate turns against {against_words(self.signs)} while the sideslip turns "
-                "with it (the fit puts the sensor ahead of the axle), so C2n stands: the role ay, or "
+                f"with it (the fit puts the sensor ahead of the axle), so C2n stands: {roles}, or "
                 "both yaw_rate and vy/beta, are the wrong way round — check their `scale`"
             )
         return odd

@@ -67,7 +67,8 @@ def test_circles_at_one_speed_with_the_yaw_rate_flipped_give_no_c2n_but_the_role
     out, result = analyse(circles, tmp_path, FLIPPED_YAW)
     assert result["c2n"] is None  # the fit alone read 55.7 for 14.87, and said nothing
     assert "C2n: no result (the yaw rate turns against the lateral acceleration and the steering" in out
-    assert "the yaw rate is the wrong way round — check `scale` of the role yaw_rate" in out
+    assert "the yaw rate is the wrong way round, or ay and steer both are (a vehicle bus in SAE axes" in out
+    assert "check `scale` of the role yaw_rate (+ turning left), or of ay and steer (+ to the left)" in out
     assert result["warnings"][0].startswith("the yaw rate turns against")
     assert not any("soften" in w or "d is the config's" in w for w in result["warnings"])  # no fit's terms
 
@@ -134,3 +135,17 @@ def test_yaw_rate_and_sideslip_both_flipped_cancel_and_are_named(drive_log: Path
     _, result = analyse(drive_log, tmp_path, FLIPPED_YAW, *FLIPPED_SIDESLIP)
     assert result["c2n"] == pytest.approx(plain["c2n"], rel=1e-9) and result["c2n"] is not None
     assert any("so C2n stands" in w and "both yaw_rate and vy/beta" in w for w in result["warnings"])
+
+
+def test_a_vehicle_bus_in_sae_axes_is_named_beside_the_yaw_rate(
+    drive_log: Path, circles: Path, tmp_path: Path
+) -> None:
+    """ay and steer both + to the right (one bus, its axes): on sweeps the sideslip sides with the
+    yaw rate, so C2n stands and the bus is named; at one speed nothing tells the bus from a flipped
+    yaw rate, so there is no C2n and both fixes are named."""
+    _, plain = analyse(drive_log, tmp_path)
+    _, result = analyse(drive_log, tmp_path, FLIPPED_AY, FLIPPED_STEER)
+    assert result["c2n"] == plain["c2n"]
+    assert any("so C2n stands: ay and steer (a vehicle bus in SAE axes)" in w for w in result["warnings"])
+    out, result = analyse(circles, tmp_path, FLIPPED_AY, FLIPPED_STEER)
+    assert result["c2n"] is None and "or ay and steer both are (a vehicle bus in SAE axes" in out

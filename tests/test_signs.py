@@ -66,6 +66,8 @@ def test_circles_at_one_speed_with_the_yaw_rate_flipped_give_no_c2n_but_the_role
 ) -> None:
     out, result = analyse(circles, tmp_path, FLIPPED_YAW)
     assert result["c2n"] is None  # the fit alone read 55.7 for 14.87, and said nothing
+    votes = result["sign_votes"]
+    assert votes["ay_with"] == votes["steer_with"] == 0 and votes["ay_against"] >= 1000
     assert "C2n: no result (the yaw rate turns against the lateral acceleration and the steering" in out
     assert "the yaw rate is the wrong way round, or ay and steer both are (a vehicle bus in SAE axes" in out
     assert "check `scale` of the role yaw_rate (+ turning left), or of ay and steer (+ to the left)" in out

@@ -13,6 +13,7 @@ from typing import Any, Literal
 
 from app import __version__
 from app.config import Config
+from app.detect.signs import SignVotes
 from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results.combine import Combined
 from app.results.pairing import Paired
@@ -96,6 +97,16 @@ class CorneringRow:
 
 
 @dataclass(frozen=True)
+class SignVotesRow:
+    """Cornering samples (one per 0.1 s) whose a_y and steering turn with the yaw rate, and against."""
+
+    ay_with: int
+    ay_against: int
+    steer_with: int
+    steer_against: int
+
+
+@dataclass(frozen=True)
 class PairedRow:
     c2n: float | None
     c2n_ci95: Interval
@@ -168,6 +179,7 @@ class Summary:
     quasi_steady: RegressionRow | None = None  # the quasi-steady samples' fit, where no sweep crossed zero
     cornering: CorneringRow | None = None
     quasi_steady_drives: tuple[RegressionRow | None, ...] = ()  # drives pooled: each one's fit alone
+    sign_votes: SignVotesRow | None = None  # do a_y and the steering turn with the yaw rate?
     d_m: float | None = None
     g_mps2: float | None = None
     duration_s: float | None = None
@@ -208,6 +220,7 @@ def build(
         quasi_steady_drives=tuple(_regression(fit) for fit in snapshot.quasi_drives)
         if snapshot.quasi is not None
         else (),
+        sign_votes=_sign_votes(snapshot.signs),
         paired=_paired(snapshot.paired),
         frames=Frames(**counts.as_dict()),
         warnings=tuple(warnings(snapshot, config, reports)),
@@ -412,6 +425,11 @@ def _slope_warning(fit: RegressionFit | None) -> str | None:
         "each crossing happens at one heading and carries it — pair left and right circles, or find a "
         "level pad"
     )
+
+
+def _sign_votes(votes: SignVotes) -> SignVotesRow | None:
+    row = SignVotesRow(votes.ay_with, votes.ay_against, votes.steer_with, votes.steer_against)
+    return row if any(astuple(row)) else None  # no cornering, or no a_y or steering to vote
 
 
 NOMINAL_OFF = 0.3  # C2n this far from the config's nominal: not the tyres of a test day

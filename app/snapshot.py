@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from app.decode.counts import FrameCounts
 from app.detect.quasi_steady import NO_CORNERING, Cornering
-from app.detect.signs import SignVotes, against_words, odd_sign, steer_against, yaw_rate_flipped
+from app.detect.signs import SignVotes, odd_sign, which_of_the_two, yaw_rate_problem
 from app.estimate.model import FilterCounts
 from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.combine import Combined
@@ -26,16 +26,6 @@ _HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
 
 def _positive(c2n: float) -> bool:
     return math.isfinite(c2n) and c2n > 0.0
-
-
-_YAW_ONE = (  # a_y and the steering share a vehicle bus, and with it its axes
-    "the yaw rate is the wrong way round, or ay and steer both are (a vehicle bus in SAE axes, + to "
-    "the right) — check `scale` of the role yaw_rate (+ turning left), or of ay and steer (+ to the left)"
-)
-_YAW_OR_AY = (
-    "one of the two is the wrong way round (no steering to tell which) — check `scale` of the roles "
-    "yaw_rate (+ turning left) and ay (+ to the left)"
-)
 
 
 @dataclass(frozen=True)
@@ -187,36 +177,12 @@ class Snapshot:
             d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
         elif not witness.d_fixed and witness.d_m < 0:
             d, where = witness.d_m, f"{-witness.d_m:.2f} m behind the rear axle"
-        flipped = yaw_rate_flipped(self.signs)
-        if _positive(fit.c2n) and d >= 0:
-            if self.d_witnessed or not flipped:
-                return None
-            # circles at one speed: no d of their own, but the car's a_y and steering show the yaw's sign
-            one = _YAW_ONE if steer_against(self.signs) else _YAW_OR_AY
-            return f"the yaw rate turns against {against_words(self.signs)}: {one}"
+        if _positive(fit.c2n) and d >= 0:  # no d of the samples' own (one speed): the votes show the signs
+            return None if self.d_witnessed else yaw_rate_problem(self.signs)
         if d < 0:
-            which = (
-                "a role is the wrong way round — check `scale` of the roles yaw_rate (+ turning left) "
-                "and vy/beta (+ to the left)"
-            )
-            if flipped and steer_against(self.signs):
-                which = (
-                    f"the yaw rate is the one (it turns against {against_words(self.signs)}) — check "
-                    "`scale` of the role yaw_rate (+ turning left)"
-                )
-            elif flipped:  # one flip explains it; two (a_y and the sideslip) would too
-                which = (
-                    f"most likely the yaw rate (it turns against {against_words(self.signs)}; else both "
-                    "ay and vy/beta are) — check `scale` of the role yaw_rate (+ turning left)"
-                )
-            elif flipped is False and odd_sign(self.signs) is None:  # a_y, and the steering if any, with it
-                which = (
-                    "the sideslip is the wrong way round (the yaw rate turns with the lateral "
-                    "acceleration) — check `scale` of the roles vy and beta (+ to the left)"
-                )
             return (
                 f"the sideslip and the yaw rate disagree in sign (the regression puts the sensor "
-                f"{where}): {which}"
+                f"{where}): {which_of_the_two(self.signs)}"
             )
         return (
             f"the regression's C2n is {fit.c2n:.2f}, not positive: the steady samples do not show the "
@@ -242,17 +208,7 @@ class Snapshot:
         """A role the wrong way round that leaves C2n as it is: a_y or the steering against the
         other two; or the yaw rate against both where the sideslip turns with it (the fit's d
         ahead of the axle: the two flips cancel in C2n)."""
-        if self.sign_problem:
-            return None
-        odd = odd_sign(self.signs)
-        if odd is None and self.d_witnessed and yaw_rate_flipped(self.signs):
-            roles = "ay and steer (a vehicle bus in SAE axes)" if steer_against(self.signs) else "the role ay"
-            odd = (
-                f"the yaw rate turns against {against_words(self.signs)} while the sideslip turns "
-                f"with it (the fit puts the sensor ahead of the axle), so C2n stands: {roles}, or "
-                "both yaw_rate and vy/beta, are the wrong way round — check their `scale`"
-            )
-        return odd
+        return None if self.sign_problem else odd_sign(self.signs, self.d_witnessed)
 
     @property
     def replay_hint(self) -> str | None:

@@ -36,12 +36,12 @@ def test_the_odd_one_out_is_named() -> None:
     assert yaw_rate_flipped(SignVotes(0, n, 0, n)) is True  # a_y and steering against it
     assert yaw_rate_flipped(SignVotes(0, n)) is True  # a_y against, no steering to tell: not trusted
     assert yaw_rate_flipped(SignVotes(0, n, n, 0)) is False  # the steering sides with it: a_y is odd
-    assert "role ay" in (odd_sign(SignVotes(0, n, n, 0)) or "")
-    assert "role steer" in (odd_sign(SignVotes(n, 0, 0, n)) or "")
-    assert yaw_rate_flipped(SignVotes(n, 0, n, 0)) is False and odd_sign(SignVotes(n, 0, n, 0)) is None
+    assert "role ay" in (odd_sign(SignVotes(0, n, n, 0), False) or "")
+    assert "role steer" in (odd_sign(SignVotes(n, 0, 0, n), False) or "")
+    assert yaw_rate_flipped(SignVotes(n, 0, n, 0)) is False and odd_sign(SignVotes(n, 0, n, 0), False) is None
     assert yaw_rate_flipped(SignVotes(0, n - 1, 0, n - 1)) is None  # too few votes
     assert yaw_rate_flipped(SignVotes(n, n, n, n)) is None  # split: a noisy sensor, not a sign
-    assert "is the role ay the car's lateral axis" in (odd_sign(SignVotes(n, n, n, 0)) or "")
+    assert "is the role ay the car's lateral axis" in (odd_sign(SignVotes(n, n, n, 0), False) or "")
 
 
 @pytest.fixture(scope="module")

@@ -72,24 +72,82 @@ def yaw_rate_flipped(votes: SignVotes) -> bool | None:
     return _against(votes.steer_against, votes.steer_with) is not False
 
 
-def steer_against(votes: SignVotes) -> bool:
-    """Does the steering turn against the yaw rate (the car's wheel the other way)?"""
+def _steer_against(votes: SignVotes) -> bool:
     return _against(votes.steer_against, votes.steer_with) is True
 
 
-def against_words(votes: SignVotes) -> str:
+def _against_words(votes: SignVotes) -> str:
     """What the yaw rate turns against, and how often: "the lateral acceleration and the steering
     in 100 % of the cornering"."""
     share = 100.0 * votes.ay_against / max(votes.ay_against + votes.ay_with, 1)
-    steer = _against(votes.steer_against, votes.steer_with)
-    return f"the lateral acceleration{' and the steering' if steer else ''} in {share:.0f} % of the cornering"
+    steering = " and the steering" if _steer_against(votes) else ""
+    return f"the lateral acceleration{steering} in {share:.0f} % of the cornering"
 
 
-def odd_sign(votes: SignVotes) -> str | None:
-    """A warning for a role the wrong way round that does not touch C2n: the lateral acceleration
-    against the yaw rate and the steering, or the steering against the yaw rate and a_y; or a_y
-    that follows no sign (a logger's accelerometer on another axis: a real CANedge drive's IMU
-    agrees with u·r in 49 % of its corners)."""
+def yaw_rate_problem(votes: SignVotes) -> str | None:
+    """Where nothing in the fit shows the signs (d held: circles at one speed): why its C2n is no
+    result, or None. a_y and the steering usually share one bus, and with it its axes, so both
+    against the yaw rate may be either."""
+    if not yaw_rate_flipped(votes):
+        return None
+    if _steer_against(votes):
+        fix = (
+            "the yaw rate is the wrong way round, or ay and steer both are (a vehicle bus in SAE axes, "
+            "+ to the right) — check `scale` of the role yaw_rate (+ turning left), or of ay and steer "
+            "(+ to the left)"
+        )
+    else:
+        fix = (
+            "one of the two is the wrong way round (no steering to tell which) — check `scale` of the "
+            "roles yaw_rate (+ turning left) and ay (+ to the left)"
+        )
+    return f"the yaw rate turns against {_against_words(votes)}: {fix}"
+
+
+def which_of_the_two(votes: SignVotes) -> str:
+    """Where the fit puts the sensor behind the rear axle (the yaw rate and the sideslip disagree):
+    which of the two the votes point at."""
+    flipped = yaw_rate_flipped(votes)
+    if flipped and _steer_against(votes):
+        return (
+            f"the yaw rate is the one (it turns against {_against_words(votes)}) — check `scale` of "
+            "the role yaw_rate (+ turning left)"
+        )
+    if flipped:  # one flip explains it; two (a_y and the sideslip) would too
+        return (
+            f"most likely the yaw rate (it turns against {_against_words(votes)}; else both ay and "
+            "vy/beta are) — check `scale` of the role yaw_rate (+ turning left)"
+        )
+    if flipped is False and _odd_one(votes) is None:  # a_y, and the steering if any, with it
+        return (
+            "the sideslip is the wrong way round (the yaw rate turns with the lateral acceleration) — "
+            "check `scale` of the roles vy and beta (+ to the left)"
+        )
+    return (
+        "a role is the wrong way round — check `scale` of the roles yaw_rate (+ turning left) and "
+        "vy/beta (+ to the left)"
+    )
+
+
+def odd_sign(votes: SignVotes, d_witnessed: bool) -> str | None:
+    """A warning for a role the wrong way round that leaves C2n as it is: a_y or the steering
+    against the other two, a_y that follows no sign; or, where the fit's own d shows the sideslip
+    turning with the yaw rate, the yaw rate against a_y (the flips cancel, or do not enter C2n)."""
+    odd = _odd_one(votes)
+    if odd is None and d_witnessed and yaw_rate_flipped(votes):
+        roles = "ay and steer (a vehicle bus in SAE axes)" if _steer_against(votes) else "the role ay"
+        odd = (
+            f"the yaw rate turns against {_against_words(votes)} while the sideslip turns with it (the "
+            f"fit puts the sensor ahead of the axle), so C2n stands: {roles}, or both yaw_rate and "
+            "vy/beta, are the wrong way round — check their `scale`"
+        )
+    return odd
+
+
+def _odd_one(votes: SignVotes) -> str | None:
+    """a_y or the steering against the other two, or a_y that follows no sign (a logger's
+    accelerometer on another axis: a real CANedge drive's IMU agrees with u·r in 49 % of its
+    corners)."""
     ay = _against(votes.ay_against, votes.ay_with)
     steer = _against(votes.steer_against, votes.steer_with)
     if ay and steer is False:

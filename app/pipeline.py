@@ -71,6 +71,7 @@ class Pipeline:
             {role: spec.resolution for role, spec in config.roles.items()},
         )
         self.gate = SteadyStateGate(config.detector)
+        self._ay_votes = "yaw_rate" in config.roles  # without a gyro a_y gives the yaw rate: no vote on it
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
         self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m)
         self.quasi_gate = QuasiSteadyGate(config.detector)
@@ -156,7 +157,8 @@ class Pipeline:
             and estimate.v_meas_mps is not None
         ):
             latest = state.latest
-            state.signs.add(record.t, estimate.u_mps, estimate.r_radps, latest.get("ay"), latest.get("steer"))
+            ay = latest.get("ay") if self._ay_votes else None
+            state.signs.add(record.t, estimate.u_mps, estimate.r_radps, ay, latest.get("steer"))
         if steady.steady and estimate.v_meas_mps is not None:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
             if estimate.r_radps is not None:
@@ -200,7 +202,9 @@ class Pipeline:
             state.t_first = float(t[0])
         state.t_last = float(t[-1])
         steer = _held(block.values.get("steer"), state.latest.get("steer"), n)
-        ay = _held(block.values.get("ay"), state.latest.get("ay"), n)
+        ay = (
+            _held(block.values.get("ay"), state.latest.get("ay"), n) if self._ay_votes else np.full(n, np.nan)
+        )
         for role, column in block.values.items():
             given = np.flatnonzero(~np.isnan(column))
             if len(given):

@@ -15,6 +15,8 @@ AY = 'ay = "Accel_Data_FD1.VehLat2_A_Actl"'
 FLIPPED_AY = (AY, 'ay = {signal = "Accel_Data_FD1.VehLat2_A_Actl", scale = -1.0}')
 FLIPPED_STEER = (STEER, 'steer = {signal = "SteeringPinion_Data.StePinComp_An_Est", scale = -1.0}')
 NO_STEER = (STEER, "")
+NO_AY = (AY, "")
+NO_YAW = ('yaw_rate = "AngVelHor.AngVelZ_hor"', "")
 
 
 def test_one_sample_votes_per_tenth_of_a_second_and_only_in_a_corner() -> None:
@@ -79,6 +81,24 @@ def test_without_steering_a_yaw_rate_against_a_y_names_both(circles: Path, tmp_p
     out, result = analyse(circles, tmp_path, FLIPPED_YAW, NO_STEER)
     assert result["c2n"] is None
     assert "check `scale` of the roles yaw_rate (+ turning left) and ay (+ to the left)" in out
+
+
+def test_without_a_y_the_steering_alone_names_both(circles: Path, tmp_path: Path) -> None:
+    out, result = analyse(circles, tmp_path, FLIPPED_YAW, NO_AY)
+    assert result["c2n"] is None and "the yaw rate turns against the steering in 100 %" in out
+    assert "check `scale` of the roles yaw_rate (or ay, where it gives the yaw rate" in out
+    assert result["sign_votes"]["ay_with"] + result["sign_votes"]["ay_against"] == 0
+
+
+def test_where_a_y_gives_the_yaw_rate_it_does_not_vote_and_the_steering_does(
+    circles: Path, tmp_path: Path
+) -> None:
+    """No gyro: the filter's yaw rate is a_y/u, which agrees with a_y by construction. A flipped a_y
+    there is a flipped yaw rate (C2n 3.7 times the truth at one speed): the steering says so."""
+    _, plain = analyse(circles, tmp_path, NO_YAW)
+    assert plain["c2n"] == pytest.approx(14.87, rel=0.03) and plain["sign_votes"]["ay_with"] == 0
+    out, result = analyse(circles, tmp_path, NO_YAW, FLIPPED_AY)
+    assert result["c2n"] is None and "the yaw rate turns against the steering in 100 %" in out
 
 
 def test_without_steering_on_sweeps_the_yaw_rate_is_the_likely_one(drive_log: Path, tmp_path: Path) -> None:

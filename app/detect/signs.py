@@ -65,11 +65,15 @@ def _against(against: int, with_: int) -> bool | None:
 def yaw_rate_flipped(votes: SignVotes) -> bool | None:
     """Is the yaw rate the wrong way round? True where it turns against the lateral acceleration
     and the steering does not side with it; False where it turns with a_y, or where the steering
-    does (then a_y is the odd one out); None where the votes are too few or split."""
+    does (then a_y is the odd one out); None where the votes are too few or split. Without a_y
+    (no role, or a_y giving the yaw rate itself) the steering alone says."""
+    steer = _against(votes.steer_against, votes.steer_with)
+    if not votes.ay_with + votes.ay_against:
+        return steer
     ay = _against(votes.ay_against, votes.ay_with)
     if not ay:
         return ay
-    return _against(votes.steer_against, votes.steer_with) is not False
+    return steer is not False
 
 
 def _steer_against(votes: SignVotes) -> bool:
@@ -79,7 +83,10 @@ def _steer_against(votes: SignVotes) -> bool:
 def _against_words(votes: SignVotes) -> str:
     """What the yaw rate turns against, and how often: "the lateral acceleration and the steering
     in 100 % of the cornering"."""
-    share = 100.0 * votes.ay_against / max(votes.ay_against + votes.ay_with, 1)
+    if not votes.ay_with + votes.ay_against:
+        share = 100.0 * votes.steer_against / max(votes.steer_against + votes.steer_with, 1)
+        return f"the steering in {share:.0f} % of the cornering"
+    share = 100.0 * votes.ay_against / (votes.ay_against + votes.ay_with)
     steering = " and the steering" if _steer_against(votes) else ""
     return f"the lateral acceleration{steering} in {share:.0f} % of the cornering"
 
@@ -90,7 +97,13 @@ def yaw_rate_problem(votes: SignVotes) -> str | None:
     against the yaw rate may be either."""
     if not yaw_rate_flipped(votes):
         return None
-    if _steer_against(votes):
+    if not votes.ay_with + votes.ay_against:
+        fix = (
+            "one of the two is the wrong way round (no lateral acceleration to tell which) — check "
+            "`scale` of the roles yaw_rate (or ay, where it gives the yaw rate; + turning left) and "
+            "steer (+ to the left)"
+        )
+    elif _steer_against(votes):
         fix = (
             "the yaw rate is the wrong way round, or ay and steer both are (a vehicle bus in SAE axes, "
             "+ to the right) — check `scale` of the role yaw_rate (+ turning left), or of ay and steer "
@@ -113,10 +126,10 @@ def which_of_the_two(votes: SignVotes) -> str:
             f"the yaw rate is the one (it turns against {_against_words(votes)}) — check `scale` of "
             "the role yaw_rate (+ turning left)"
         )
-    if flipped:  # one flip explains it; two (a_y and the sideslip) would too
+    if flipped:  # one flip explains it; two (a_y or the steering, and the sideslip) would too
         return (
-            f"most likely the yaw rate (it turns against {_against_words(votes)}; else both ay and "
-            "vy/beta are) — check `scale` of the role yaw_rate (+ turning left)"
+            f"most likely the yaw rate (it turns against {_against_words(votes)}; else that role and "
+            "vy/beta both are) — check `scale` of the role yaw_rate (+ turning left)"
         )
     if flipped is False and _odd_one(votes) is None:  # a_y, and the steering if any, with it
         return (
@@ -135,7 +148,11 @@ def odd_sign(votes: SignVotes, d_witnessed: bool) -> str | None:
     turning with the yaw rate, the yaw rate against a_y (the flips cancel, or do not enter C2n)."""
     odd = _odd_one(votes)
     if odd is None and d_witnessed and yaw_rate_flipped(votes):
-        roles = "ay and steer (a vehicle bus in SAE axes)" if _steer_against(votes) else "the role ay"
+        roles = "the role ay"
+        if not votes.ay_with + votes.ay_against:
+            roles = "the role steer"
+        elif _steer_against(votes):
+            roles = "ay and steer (a vehicle bus in SAE axes)"
         odd = (
             f"the yaw rate turns against {_against_words(votes)} while the sideslip turns with it (the "
             f"fit puts the sensor ahead of the axle), so C2n stands: {roles}, or both yaw_rate and "

@@ -25,8 +25,7 @@ from app.pipeline import Pipeline
 from app.records import Estimate
 from app.results.regression import RegressionFit, SampleRegression
 from app.sim.imperfections import Imperfections, draw_imperfections
-from app.sim.pack import write_log
-from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive, truth_path
+from app.sim.session import SimulatedDrive, truth_path
 from app.sim.sessions import TrackPlan
 from app.sim.standard import StandardOptions, simulate_standard
 from app.sinks import summary
@@ -111,36 +110,6 @@ def test_drives_pooled_each_keep_their_own_offset() -> None:
     one_offset = fit_of(first, second, pooled=False)
     assert one_offset is not None and one_offset.logs == 1
     assert one_offset.c2n_se > 100 * fit.c2n_se  # the offsets' step is misfit: C2n lost in it
-
-
-# slow circles both ways (4 m/s, 8 m: a third of u0), where the sideslip is nearly d·κ
-SLOW_CIRCLES = ((8.0, 4.0, 0.2), (-8.0, 4.0, 0.2))
-
-
-def test_slow_cornering_pooled_places_d_better_than_the_tape() -> None:
-    """Track laps and slow circles pooled, the tape 3 cm out: the circles place d (the track's
-    corners alone cannot), and C2n is exact, not off with the tape."""
-    tape = D + 0.03
-
-    def held(*drives: list[tuple[float, ...]]) -> RegressionFit:
-        regression = SampleRegression(G, transient=True, d_tape_m=tape)
-        for drive in drives:
-            regression.new_log()
-            for t, u, r, v, r_dot, u_dot in drive:
-                regression.add(t, u, r, v, 0.0, r_dot, u_dot)
-        fit = regression.fit()
-        assert fit is not None and fit.d_fixed
-        return fit
-
-    track = list(corners(math.radians(0.25)))
-    slow = list(corners(math.radians(-0.1), t0=track[-1][0] + 100.0, circuit=SLOW_CIRCLES))
-    alone, pooled = held(track), held(track, slow)
-    assert alone.d_slow_m is None and alone.d_m == tape
-    assert abs(alone.c2n / C2N - 1.0) > 0.01  # the tape's 3 cm in it
-    assert pooled.d_slow_m == pytest.approx(D, rel=1e-7) and pooled.d_m == pooled.d_slow_m
-    assert pooled.d_ci95[0] - 1e-9 <= D <= pooled.d_ci95[1] + 1e-9  # exact data: an interval of no width
-    assert pooled.c2n == pytest.approx(C2N, rel=1e-6)
-    assert pooled.logs == 2 and pooled.psi0_rad == pytest.approx(math.radians(0.25), abs=1e-9)
 
 
 # a circuit turning mostly left, as most do: a yaw-rate bias's sideslip, even in the turn's
@@ -382,32 +351,6 @@ def test_drives_pooled_give_one_c2n_with_an_offset_each(tmp_path: Path, config: 
     assert one["c2n_ci95"][1] - one["c2n_ci95"][0] > 1.5 * width or not (
         one["c2n_ci95"][0] <= truth <= one["c2n_ci95"][1]
     )
-
-
-def test_slow_circles_pooled_with_track_laps_place_d_and_c2n(tmp_path: Path, config: Config) -> None:
-    """Track laps (fast corners: d held at the tape's) and circles at 5 m/s, a third of u0, where
-    the sideslip is nearly d·κ: pooled, the circles place d and C2n's interval no longer carries a
-    centimetre of tape at 5 m/s (held there: ±9 %)."""
-    laps = _log(tmp_path, 3, 0.2)
-    truth = json.loads(truth_path(laps).read_text())["c2n"]
-    u0 = math.sqrt(config.vehicle.gravity_mps2 * truth * config.d_m)
-    slow = simulate_drive(
-        config,
-        DriveOptions(
-            "constant_radius", 3, truth, speed_lo_factor=4.85 / u0, speed_hi_factor=5.15 / u0, ay_max_mps2=3.1
-        ),
-    )
-    circles = tmp_path / "circles.blf"
-    write_log(slow.messages, circles)
-    out = tmp_path / "pooled.json"
-    assert main(["analyze", "--pool", str(laps), str(circles), "--json", str(out)], Console(record=True)) == 0
-    pooled = json.loads(out.read_text())
-    fit = pooled["quasi_steady"]
-    assert pooled["c2n_method"] == "quasi-steady" and fit["logs"] == 2 and fit["d_slow_cornering"]
-    assert fit["d_m"] == pytest.approx(config.d_m, abs=0.005)
-    low, high = pooled["c2n_ci95"]  # 32 s of quick laps: the track alone read 1.2 % high, ±1.6 %
-    assert low <= truth <= high and high - low < 0.05 * truth
-    assert not any("measure it with a tape" in w for w in pooled["warnings"])
 
 
 def test_drives_of_two_tyre_sets_pooled_give_no_c2n_but_each_one_s(tmp_path: Path) -> None:

@@ -98,8 +98,6 @@ _SLOPE_SPREAD = 0.3  # the headings' spread (of sin ψ, cos ψ beside the other 
 # beyond which a slope's two terms are fitted
 D_TAPE_SE_M = 0.01  # how well a tape places the sensor: its share of C2n's interval where d is held
 D_HELD_GAIN = 2.0  # d is held at the tape's value where fitting it would widen C2n's interval this much
-SLOW_SPEED = 0.5  # of u0: below it the sideslip is mostly d·κ (a_y/(g·C2n) a quarter of it or less)
-SLOW_D_SE_M = D_TAPE_SE_M / 4  # slow cornering that places d this well replaces the tape (quasi-steady)
 SLOPE_MIN_PCT = 0.25  # a slope under this moves C2n by less than the method's own error (a 2 %
 # slope left out: 2.5 %), and is seen on level pads too (0.05–0.16 %: heading-borne misfit)
 _SLOPE_WALD = -2.0 * math.log(0.05)  # χ²(2) at 95 %: a slope found, its load transfer fitted too
@@ -134,8 +132,6 @@ class RegressionFit:
     logs: int = 1  # drives pooled, each with its own ψ0 (psi0_rad: the first one's)
     transient_terms: bool = False  # the yaw inertia's and the speed's load transfer's terms kept
     d_fixed: bool = False  # True: the samples could not place d, which is the tape's (d_ci95 a point)
-    d_slow_m: float | None = None  # quasi-steady: d as the drive's slow cornering places it, where it
-    # does (below u0/2 the sideslip is nearly d·κ), held at that instead of the tape's
     d_free_m: float | None = None  # where d is held: the top of d's interval as the samples alone
     # place it — below zero, the sensor is behind the axle: a role is the wrong way round
     tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
@@ -282,18 +278,10 @@ class SampleRegression:
                 array[half] = array[self._blocks - 1]
         self._blocks = half + self._blocks % 2
 
-    def _held_se(
-        self,
-        held: "_Solution",
-        xtx: np.ndarray,
-        xty: np.ndarray,
-        run: np.ndarray,
-        n: int,
-        d_se: float = D_TAPE_SE_M,
-    ) -> float:
-        """C2n's standard error with d held, the error of the d it is held at counted (the tape's,
-        ``D_TAPE_SE_M``): the fit again with d that much longer moves C2n by that much."""
-        longer = _solve(xtx, xty - d_se * xtx[:, :, 1], run, held.terms, n)
+    def _held_se(self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int) -> float:
+        """C2n's standard error with d held at the tape's value, the tape's own error counted: the
+        fit again with d ``D_TAPE_SE_M`` longer moves C2n by that much."""
+        longer = _solve(xtx, xty - D_TAPE_SE_M * xtx[:, :, 1], run, held.terms, n)
         se = _c2n_se(held, self.g)
         if longer is None:
             return se
@@ -327,8 +315,6 @@ class SampleRegression:
         spread_k = sum(_within(xtx[log == k]) for k in np.unique(log))
         psi0_free = spread_k >= 0.04 * xtx[:, 1, 1].sum() > 0
         logs = len(np.unique(log))
-        counts = xtx[:, 0, 0]  # each block's samples and their mean u (before the drives' split)
-        speed = xtx[:, 0, 11] / np.maximum(counts, 1.0)
         offsets, speeds = [0], [(11, 12)]
         if logs > 1:  # each drive its own ψ0 (and speed columns: its own gyro's bias)
             xtx, xty, offsets, speeds = _per_log(xtx, xty, log)
@@ -350,21 +336,14 @@ class SampleRegression:
         if transient:
             base += [8, 9]
         linear = _solve(xtx, xty, run, base, n)
-        d_fixed, narrow, plain_xty, d_slow = False, False, xty, None
-        d_held, d_held_se = self.d_tape_m, D_TAPE_SE_M
-        if d_held is not None:  # β − d·κ on the other terms, d the tape's
-            held_xty = xty - d_held * xtx[:, :, 1]
+        d_fixed, narrow, plain_xty = False, False, xty
+        if self.d_tape_m is not None:  # β − d·κ on the other terms, d the tape's
+            held_xty = xty - self.d_tape_m * xtx[:, :, 1]
             held_base = [t for t in base if t != 1]
             held = _solve(xtx, held_xty, run, held_base, n)
-            if self.transient and held is not None:
-                d_slow = _slow_d(xtx, xty, run, held_base, offsets, counts, speed, d_held, n)
-            if d_slow is not None:  # the drive's slow cornering places d better than a tape
-                d_held, d_held_se = d_slow
-                held_xty = xty - d_held * xtx[:, :, 1]
-                held = _solve(xtx, held_xty, run, held_base, n)
             if held is not None:  # a design too narrow to place d beside C2n (one speed)?
                 narrow = linear is None or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(
-                    held, xtx, held_xty, run, n, d_held_se
+                    held, xtx, held_xty, run, n
                 )
             if held is not None and (narrow or self.transient):  # transient: ordinary driving, where
                 d_fixed, xty, base, linear = True, held_xty, held_base, held  # the tape's d is better
@@ -384,13 +363,13 @@ class SampleRegression:
             linear = _solve(xtx, xty, run, base, n)
         plain = (xtx, plain_xty, list(base))  # d not held, no yaw-rate bias's term: d_free_m's fit
         yaw_bias = None
-        if transient and d_fixed and wide and psi0_free and linear is not None and d_held is not None:
-            yaw_bias = _yaw_bias(xtx, xty, run, base, n, d_held, linear, speeds)
+        if transient and d_fixed and wide and psi0_free and linear is not None and self.d_tape_m is not None:
+            yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
             if yaw_bias is not None and 10 in base:  # the turn force still there with the bias out?
                 turned = _solve(yaw_bias.xtx, yaw_bias.xty, run, [*base, *yaw_bias.terms, 3], n)
                 if not self._turn_found(turned, b, d_fixed):  # a gyro's −1 °/s: 0.05 % [−0.09, 0.20]
                     base = [t for t in base if t != 10]
-                    yaw_bias = _yaw_bias(xtx, xty, run, base, n, d_held, linear, speeds)
+                    yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
             if yaw_bias is not None:
                 xtx, xty, linear = yaw_bias.xtx, yaw_bias.xty, yaw_bias.fit
                 base = [*base, *yaw_bias.terms]
@@ -413,8 +392,8 @@ class SampleRegression:
         slope = chosen.coef[i_ay]
         c2n = -1.0 / (self.g * slope)
         c2n_se = math.sqrt(chosen.cov[i_ay, i_ay]) / (self.g * slope * slope)
-        if d_fixed:  # the tape's centimetre (or the slow cornering's d's error) is in C2n too
-            c2n_se = self._held_se(chosen, xtx, xty, run, n, d_held_se)
+        if d_fixed:  # the tape's centimetre is in C2n too
+            c2n_se = self._held_se(chosen, xtx, xty, run, n)
         c2n_ci95 = ci(c2n, c2n_se)
         c2n_linear = -1.0 / (self.g * linear.coef[linear.terms.index(2)])
         c2n_cubic = -1.0 / (self.g * cubic.coef[cubic.terms.index(2)])
@@ -428,8 +407,8 @@ class SampleRegression:
             low, high = ci(c2n_cubic, cubic_se) if slope3 < 0 else (c2n_ci95[0], math.inf)
             c2n_ci95 = (min(c2n_ci95[0], low), max(c2n_ci95[1], high))
             c2n_se = max(c2n_se, cubic_se)
-        if d_fixed and d_held is not None:
-            d, d_se = d_held, d_held_se if d_slow is not None else 0.0  # the tape's: a point
+        if d_fixed and self.d_tape_m is not None:
+            d, d_se = self.d_tape_m, 0.0
         else:
             d, d_se = chosen.coef[terms.index(1)], math.sqrt(chosen.cov[terms.index(1), terms.index(1)])
         psi0 = psi0_se = None
@@ -462,7 +441,6 @@ class SampleRegression:
             logs=logs,
             transient_terms=transient,
             d_fixed=d_fixed,
-            d_slow_m=d_held if d_fixed and d_slow is not None else None,
             d_free_m=_plain_d(*plain, run, n, q) if d_fixed and wide else None,
             tilt=_tilt(chosen),
             turn_force_pct=100.0 * _turn(chosen, self.g) if 10 in terms else None,
@@ -483,63 +461,6 @@ class _Solution:
     terms: list[int]
     coef: np.ndarray
     cov: np.ndarray
-
-
-def _slow_d(
-    xtx: np.ndarray,
-    xty: np.ndarray,
-    run: np.ndarray,
-    base: list[int],
-    offsets: list[int],
-    counts: np.ndarray,
-    speed: np.ndarray,
-    d: float,
-    n: int,
-) -> tuple[float, float] | None:
-    """d and its standard error as the drive's slow cornering places it, where it does within
-    ``SLOW_D_SE_M`` (quasi-steady samples: d held, ``base`` without it): the blocks below
-    ``SLOW_SPEED``·u0, their sideslip less every other term of the whole drive's fit with d held
-    (a_y³ in it: slow corners at 3 m/s² give a softening tyre's secant), on ψ0 and d·κ alone — at
-    one slow speed a_y = u²·κ would be d's double. The whole drive's fit is refitted with the d
-    found until d settles."""
-
-    def place(d: float) -> tuple[float, float] | None:  # d as the slow blocks place it, the rest fitted at d
-        fit = _solve(xtx, xty - d * xtx[:, :, 1], run, [*base, 3], n)
-        if fit is None or d <= 0:
-            return None
-        k = -float(fit.coef[fit.terms.index(2)])  # 1/(g·C2n)
-        if k <= 0:
-            return None
-        slow = speed <= SLOW_SPEED * math.sqrt(d / k)  # u0² = g·C2n·d
-        count = int(counts[slow].sum())
-        if count < 200:
-            return None
-        x = xtx[slow]
-        others = [(i, t) for i, t in enumerate(fit.terms) if t not in offsets]
-        y = xty[slow] - sum(fit.coef[i] * x[:, :, t] for i, t in others)
-        present = [o for o in offsets if x[:, o, o].sum() > 0]
-        own = _solve(x, y, run[slow], [*present, 1], count)
-        if own is None:
-            return None
-        i = own.terms.index(1)
-        return float(own.coef[i]), math.sqrt(max(float(own.cov[i, i]), 0.0))
-
-    # d ↦ place(d) is affine (least squares, for one set of slow blocks): a secant step lands on
-    # its fixed point, where the slow blocks' d and the whole drive's fit with it agree
-    found = place(d)
-    for _ in range(_BIAS_ITERATIONS):
-        if found is None or found[0] <= 0 or found[1] > SLOW_D_SE_M:
-            return None
-        step = found[0] - d
-        if abs(step) <= 1e-9:
-            break
-        again = place(found[0])
-        gain = (again[0] - found[0]) / step if again is not None else 1.0  # place's slope
-        if gain >= 1.0:
-            return None
-        d = found[0] + (again[0] - found[0]) / (1.0 - gain) if again is not None else d
-        found = place(d)
-    return found
 
 
 def _plain_d(

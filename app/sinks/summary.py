@@ -76,7 +76,6 @@ class RegressionRow:
     slope_ci95_pct: Interval | None
     slope_downhill_deg: float | None  # where it falls: degrees from the start heading, left positive
     d_fixed: bool  # True: the samples could not place d beside C2n; d is the config's
-    d_slow_cornering: bool  # True: d held where the drive's slow cornering places it (d_ci95 its interval)
     speed_range_mps: Interval
     turn_force_pct: float | None  # a rear force following the turn's direction, % of the axle's weight
     turn_force_ci95_pct: Interval | None
@@ -331,13 +330,12 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
             "with d; the regression's does not)"
         )
-    held = fit is not None and fit.d_fixed and fit.d_slow_m is None  # the tape's d (slow cornering: its own)
-    if held and fit is snapshot.quasi:
+    if fit is not None and fit.d_fixed and fit is snapshot.quasi:
         out.append(
             f"quasi-steady cornering cannot place the sensor's d beside C2n as a sweep does: d is the "
             f"config's {config.d_m:g} m (its interval counts 1 cm of tape) — measure it with a tape"
         )
-    elif held and fit is not None:
+    elif fit is not None and fit.d_fixed:
         low, high = fit.speed_range
         out.append(
             f"the steady samples span {low:.1f}–{high:.1f} m/s only: too narrow to fit the sensor's d beside "
@@ -544,7 +542,6 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         slope_ci95_pct=_pair(fit.slope_ci95_pct, digits=2) if fit.slope_ci95_pct is not None else None,
         slope_downhill_deg=_maybe(fit.slope_downhill_deg, 0),
         d_fixed=fit.d_fixed,
-        d_slow_cornering=fit.d_slow_m is not None,
         speed_range_mps=_pair(fit.speed_range, digits=3),
         turn_force_pct=_maybe(fit.turn_force_pct, 2),
         turn_force_ci95_pct=_pair(fit.turn_force_ci95_pct, digits=2) if fit.turn_force_ci95_pct else None,

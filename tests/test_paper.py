@@ -55,3 +55,22 @@ def test_eq1_is_eq7_with_the_sensor_at_the_cg() -> None:
     c_r_per_deg, w_r, c = 1000.0, 5734.0, 1.6
     c2n = paper.DEG_PER_RAD * c_r_per_deg / w_r
     assert paper.zero_sideslip_speed_at_cg(c_r_per_deg, w_r, c) == pytest.approx(paper.crossing_speed(c2n, c))
+
+
+def test_the_paper_tables_tool_s_workers_send_their_results_back() -> None:
+    """tools/paper_tables.py runs its drives in worker processes: what a worker returns must
+    pickle (a snapshot's read-only views did not), and Table 2's Mondeo reads its rig value."""
+    import importlib.util
+    import pickle
+
+    from tests.real_data import REPO_ROOT
+
+    spec = importlib.util.spec_from_file_location(
+        "paper_tables_tool", REPO_ROOT / "tools" / "paper_tables.py"
+    )
+    assert spec is not None and spec.loader is not None
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    c2n, state = pickle.loads(pickle.dumps(tool.run_mondeo((14.87, 3))))
+    assert c2n == 14.87 and state.headline is not None
+    assert state.headline.c2n == pytest.approx(14.87, rel=0.005)

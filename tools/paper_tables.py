@@ -88,7 +88,7 @@ def run_paper_car(job: tuple[str, tuple[float, ...], int]) -> tuple[str, tuple[f
     for message in frames(trace, setup, kistler, ford, np.random.default_rng(seed)):
         pipeline.process(message)
     pipeline.finish()
-    return kind, angles, pipeline.snapshot()
+    return kind, angles, _portable(pipeline.snapshot())
 
 
 def run_mondeo(job: tuple[float, int]) -> tuple[float, Snapshot]:
@@ -99,7 +99,14 @@ def run_mondeo(job: tuple[float, int]) -> tuple[float, Snapshot]:
     for message in drive.messages:
         pipeline.process(message)
     pipeline.finish()
-    return c2n, pipeline.snapshot()
+    return c2n, _portable(pipeline.snapshot())
+
+
+def _portable(state: Snapshot) -> Snapshot:
+    """The snapshot with its read-only views as dicts: a worker process can send it back."""
+    views = {name: dict(getattr(state, name)) for name in ("latest", "status", "message_names")}
+    noise = dataclasses.replace(state.filter, noise_sigma=dict(state.filter.noise_sigma))
+    return dataclasses.replace(state, filter=noise, **views)
 
 
 def describe(state: Snapshot) -> str:

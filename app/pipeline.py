@@ -70,11 +70,11 @@ class Pipeline:
             frozenset(config.roles),
             {role: spec.resolution for role, spec in config.roles.items()},
         )
-        self.gate = SteadyStateGate(config.detector)
+        self.gate = SteadyStateGate(config.detector, config.vehicle.wheelbase_m)
         self._ay_votes = "yaw_rate" in config.roles  # without a gyro a_y gives the yaw rate: no vote on it
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
         self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m)
-        self.quasi_gate = QuasiSteadyGate(config.detector)
+        self.quasi_gate = QuasiSteadyGate(config.detector, config.vehicle.wheelbase_m)
         self.quasi = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m, transient=True)
         self._drives: list[SampleRegression] = []  # drives pooled: each one's quasi-steady samples alone
         self.heading = Heading()
@@ -316,7 +316,7 @@ class Pipeline:
         self.finish()
         self.filter.restart()
         self.heading = Heading()
-        self.gate = SteadyStateGate(self.config.detector)
+        self.gate = SteadyStateGate(self.config.detector, self.config.vehicle.wheelbase_m)
         self.quasi_gate.new_log()
         self.regression.new_log()
         if not self._drives:  # the first drive's samples: all the pooled regression holds so far

@@ -43,6 +43,7 @@ class Reason(Enum):
     SPEED_LOW = "speed low"
     AY_HIGH = "lateral acceleration high"
     STRAIGHT = "driving straight"
+    TIGHT = "radius too tight"  # the steer angle beyond the bicycle model's small angles
     SWEEP_FAST = "sweep too fast"
     TRANSIENT = "steering transient"
     SETTLING = "settling"

@@ -319,7 +319,7 @@ def test_race_laps_beyond_the_linear_range_are_refused_with_what_the_cornering_w
     assert summary["c2n"] is None and summary["quasi_steady"] is None
     cornering = summary["cornering"]
     assert cornering["turning_s"] > 300 and cornering["ay_high_s"] > 0.8 * cornering["turning_s"]
-    parts = cornering["ay_high_s"] + cornering["transient_s"] + cornering["usable_s"]
+    parts = cornering["ay_high_s"] + cornering["transient_s"] + cornering["usable_s"] + cornering["tight_s"]
     assert parts == pytest.approx(cornering["turning_s"], abs=0.3)
     (line,) = [line for line in stdout.splitlines() if line.startswith("C2n:")]
     assert f"of {cornering['turning_s']:.0f} s cornering, {cornering['ay_high_s']:.0f} s beyond" in line

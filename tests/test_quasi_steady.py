@@ -25,7 +25,8 @@ from app.pipeline import Pipeline
 from app.records import Estimate
 from app.results.regression import RegressionFit, SampleRegression
 from app.sim.imperfections import Imperfections, draw_imperfections
-from app.sim.session import SimulatedDrive, truth_path
+from app.sim.pack import write_log
+from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive, truth_path
 from app.sim.sessions import TrackPlan
 from app.sim.standard import StandardOptions, simulate_standard
 from app.sinks import summary
@@ -243,8 +244,21 @@ def test_the_gate_keeps_slow_corners_after_settling_and_drops_what_is_not() -> N
     assert not gate.step(2.0, estimate(15.0, 0.2), False)  # the sensor reports trouble
     tally = gate.cornering
     assert tally.turning_s == pytest.approx(1.03, abs=1e-9)  # the sensor's trouble is no cornering
-    assert tally.usable_s + tally.transient_s + tally.ay_high_s == pytest.approx(tally.turning_s)
+    assert tally.usable_s + tally.transient_s + tally.ay_high_s + tally.tight_s == pytest.approx(
+        tally.turning_s
+    )
     assert tally.ay_high_s == pytest.approx(0.01)
+
+
+def test_the_gate_drops_turns_tighter_than_ten_wheelbases() -> None:
+    """5 m/s on 8 m (a_y 3.1 m/s²): the steer a bicycle model takes as small is 19°. On a 2.7 m
+    wheelbase the limit is 27 m; on a 1.5 m kart, 15 m."""
+    car, kart = QuasiSteadyGate(SETTINGS, 2.7), QuasiSteadyGate(SETTINGS, 1.5)
+    for gate, radius, kept in ((car, 8.0, False), (car, 26.0, False), (car, 28.0, True), (kart, 16.0, True)):
+        u = math.sqrt(3.0 * radius)
+        flags = [gate.step(0.01 * k, estimate(u, u / radius), True) for k in range(100)]
+        assert flags[-1] is kept, (radius, gate)
+    assert car.cornering.tight_s == pytest.approx(2 * 0.99, abs=0.02) and kart.cornering.tight_s == 0.0
 
 
 def test_the_gate_over_arrays_decides_as_sample_by_sample() -> None:
@@ -280,6 +294,8 @@ def test_the_gate_over_arrays_decides_as_sample_by_sample() -> None:
     assert got.tolist() == expected and 100 < sum(expected) < n - 100
     assert blocks.cornering.usable_s == pytest.approx(one.cornering.usable_s, abs=1e-9)
     assert blocks.cornering.turning_s == pytest.approx(one.cornering.turning_s, abs=1e-9)
+    assert blocks.cornering.tight_s == pytest.approx(one.cornering.tight_s, abs=1e-9)
+    assert one.cornering.tight_s > 0
 
 
 # -- track laps through the pipeline and the command --------------------------------------------
@@ -351,6 +367,30 @@ def test_drives_pooled_give_one_c2n_with_an_offset_each(tmp_path: Path, config: 
     assert one["c2n_ci95"][1] - one["c2n_ci95"][0] > 1.5 * width or not (
         one["c2n_ci95"][0] <= truth <= one["c2n_ci95"][1]
     )
+
+
+def test_tight_circles_pooled_with_track_laps_add_nothing_to_their_c2n(
+    tmp_path: Path, config: Config
+) -> None:
+    """Circles at 5 m/s on 8 m beside track laps: a steer of 19° is no small angle (on the
+    two-track model such circles moved pooled laps from 14.12 to 16.29 for 14.14), so they are
+    counted as tight and left out; alone, a refusal."""
+    laps = _log(tmp_path, 3, 0.2)
+    slow = simulate_drive(
+        config,
+        DriveOptions("constant_radius", 3, speed_lo_factor=0.38, speed_hi_factor=0.40, ay_max_mps2=3.1),
+    )
+    circles = tmp_path / "circles.blf"
+    write_log(slow.messages, circles)
+    results = {}
+    for name, logs in (("laps", [laps]), ("pooled", [laps, circles]), ("circles", [circles])):
+        out = tmp_path / f"{name}.json"
+        main(["analyze", "--pool", *map(str, logs), "--json", str(out)], Console(record=True))
+        results[name] = json.loads(out.read_text())
+    assert results["pooled"]["c2n"] == pytest.approx(results["laps"]["c2n"], rel=1e-9)
+    assert results["pooled"]["cornering"]["tight_s"] > 20
+    alone = results["circles"]
+    assert alone["c2n"] is None and alone["cornering"]["tight_s"] > 0.8 * alone["cornering"]["turning_s"]
 
 
 def test_drives_of_two_tyre_sets_pooled_give_no_c2n_but_each_one_s(tmp_path: Path) -> None:

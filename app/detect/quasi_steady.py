@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.config import DetectorSettings
+from app.detect.steady_state import STEER_MAX_RAD, WHEELBASE_M
 from app.records import Estimate
 
 SWEEP_MAX_MPS2 = 2.0  # |u̇|: a corner under part throttle or light braking, not a stop
@@ -39,18 +40,20 @@ class Cornering:
     ay_high_s: float = 0.0  # of which |a_y| beyond the tyres' linear range
     transient_s: float = 0.0  # of which speed or steering changing too fast, or settling
     usable_s: float = 0.0  # of which quasi-steady
+    tight_s: float = 0.0  # of which on a radius under ten wheelbases (the steady gate's ``STEER_MAX_RAD``)
 
 
 NO_CORNERING = Cornering()
 
 
 class QuasiSteadyGate:
-    def __init__(self, settings: DetectorSettings) -> None:
+    def __init__(self, settings: DetectorSettings, wheelbase_m: float | None = None) -> None:
         self.settings = settings
         self._min_curvature = 1.0 / settings.radius_max_m
+        self._max_curvature = STEER_MAX_RAD / (wheelbase_m or WHEELBASE_M)
         self._since: float | None = None  # when every condition began to hold
         self._t: float | None = None  # the last sample's time
-        self._seconds = [0.0, 0.0, 0.0, 0.0]  # Cornering's fields, in order
+        self._seconds = [0.0, 0.0, 0.0, 0.0, 0.0]  # Cornering's fields, in order
 
     @property
     def cornering(self) -> Cornering:
@@ -67,6 +70,7 @@ class QuasiSteadyGate:
         fast = u >= s.speed_min_mps and u > 0
         turning = sensor_ok and fast and r is not None and abs(r) / u >= self._min_curvature
         ay_ok = ay is not None and abs(ay) <= s.ay_max_mps2
+        wide = r is not None and u > 0 and abs(r) / u <= self._max_curvature  # not too tight a turn
         slow = (
             abs(e.u_dot_mps2) <= SWEEP_MAX_MPS2
             and r_dot is not None
@@ -74,7 +78,7 @@ class QuasiSteadyGate:
             and abs(e.v_dot_mps2) <= LATERAL_RATE_MAX_MPS2
         )
         quasi = False
-        if turning and ay_ok and slow:
+        if turning and ay_ok and wide and slow:
             if self._since is None:
                 self._since = t
             quasi = t - self._since >= SETTLE_S
@@ -85,7 +89,7 @@ class QuasiSteadyGate:
         if turning:
             tally = self._seconds
             tally[0] += dt
-            tally[1 if not ay_ok else 3 if quasi else 2] += dt
+            tally[1 if not ay_ok else 4 if not wide else 3 if quasi else 2] += dt
         return quasi
 
     def steps(self, t: np.ndarray, estimates: np.ndarray, sensor_ok: np.ndarray) -> np.ndarray:
@@ -97,13 +101,14 @@ class QuasiSteadyGate:
         u, u_dot, v_dot, r, r_dot, ay = (estimates[:, k] for k in (0, 1, 3, 4, 5, 8))
         with np.errstate(divide="ignore", invalid="ignore"):
             turning = sensor_ok & (u >= s.speed_min_mps) & (u > 0) & (np.abs(r) / u >= self._min_curvature)
+            wide = np.abs(r) / u <= self._max_curvature
         ay_ok = np.abs(ay) <= s.ay_max_mps2
         slow = (
             (np.abs(u_dot) <= SWEEP_MAX_MPS2)
             & (np.abs(r_dot) <= YAW_ACCEL_MAX_RADPS2)
             & (np.abs(v_dot) <= LATERAL_RATE_MAX_MPS2)
         )
-        holds = turning & ay_ok & slow
+        holds = turning & ay_ok & wide & slow
         # when each sample's spell of holding began: after the last sample that broke it
         last_broken = np.maximum.accumulate(np.where(holds, -1, np.arange(n)))
         first = float(t[0]) if self._since is None else self._since
@@ -117,6 +122,7 @@ class QuasiSteadyGate:
         tally = self._seconds
         tally[0] += float(dt[turning].sum())
         tally[1] += float(dt[turning & ~ay_ok].sum())
-        tally[2] += float(dt[turning & ay_ok & ~quasi].sum())
+        tally[2] += float(dt[turning & ay_ok & wide & ~quasi].sum())
         tally[3] += float(dt[quasi].sum())
+        tally[4] += float(dt[turning & ay_ok & ~wide].sum())
         return np.asarray(quasi, bool)

@@ -13,6 +13,11 @@ import numpy as np
 from app.config import DetectorSettings
 from app.records import Direction, Estimate, Reason, SteadyState
 
+STEER_MAX_RAD = 0.1  # wheelbase/radius, the steer a turn asks for: beyond it the bicycle model's small
+# angles fail — at 2–3 m/s² the rear slip fell short of a_y/(g·C2n) by 1.4 % at 18 m, 7 % at 12 m and
+# 42 % at 6 m on the two-track model (2.70 m; 0.1 % at 26 m), and by 2–17 % under 18 m on CommonRoad's
+WHEELBASE_M = 2.7  # where the config gives none
+
 # what a step decided, for a block of steps (``SteadyStateGate.steps``)
 STEADY, HARD, SOFT, SETTLING = range(4)
 DIRECTIONS: tuple[Direction | None, ...] = (None, "left", "right")
@@ -23,7 +28,7 @@ class SteadyStateGate:
     limits (sweep, transients) read filtered derivatives that are noisy, so a brief excursion
     drops only its own samples and the spell goes on without settling again."""
 
-    def __init__(self, settings: DetectorSettings) -> None:
+    def __init__(self, settings: DetectorSettings, wheelbase_m: float | None = None) -> None:
         self.settings = settings
         self._since: float | None = None  # when every condition began to hold
         self._soft_since: float | None = None  # when a rate limit began to fail
@@ -31,6 +36,8 @@ class SteadyStateGate:
         s = settings
         self._min_curvature = 1.0 / s.radius_max_m
         self._straight = f"driving straight (radius over {s.radius_max_m:g} m)"
+        self._max_curvature = STEER_MAX_RAD / (wheelbase_m or WHEELBASE_M)
+        self._tight = f"radius under {1.0 / self._max_curvature:.0f} m (ten wheelbases)"
         self._below = f" m/s below {s.speed_min_mps:g}"
         self._ay_over = f" m/s² > {s.ay_max_mps2:g}"
         self._sweep_over = f" m/s² > {s.sweep_max_mps2:g}"
@@ -78,7 +85,8 @@ class SteadyStateGate:
         with np.errstate(divide="ignore", invalid="ignore"):
             curvature = np.where(~np.isnan(r), np.abs(r) / u, np.abs(ay) / (u * u))
         straight = (u > 0) & (curvature < self._min_curvature)  # NaN: no curvature, no verdict
-        hard = ~sensor_ok | (u < s.speed_min_mps) | (np.abs(ay) > s.ay_max_mps2) | straight
+        tight = (u > 0) & (curvature > self._max_curvature)
+        hard = ~sensor_ok | (u < s.speed_min_mps) | (np.abs(ay) > s.ay_max_mps2) | straight | tight
         soft = (
             (np.abs(u_dot) > s.sweep_max_mps2)
             | (np.abs(r_dot) > s.yaw_accel_max_radps2)
@@ -147,7 +155,7 @@ class SteadyStateGate:
         if e.r_dot_radps2 is not None and abs(e.r_dot_radps2) > s.yaw_accel_max_radps2:
             return False
         curvature = _curvature(e)
-        return not (curvature is not None and curvature < self._min_curvature)
+        return curvature is None or self._min_curvature <= curvature <= self._max_curvature
 
     def _hard_reasons(self, e: Estimate, sensor_problem: str | None) -> list[tuple[Reason, str]]:
         s = self.settings
@@ -163,6 +171,8 @@ class SteadyStateGate:
         curvature = _curvature(e)
         if curvature is not None and curvature < self._min_curvature:
             reasons.append((Reason.STRAIGHT, self._straight))
+        if curvature is not None and curvature > self._max_curvature:
+            reasons.append((Reason.TIGHT, self._tight))
         return reasons
 
     def _soft_reasons(self, e: Estimate) -> list[tuple[Reason, str]]:

@@ -31,6 +31,7 @@ _ADVICE: Mapping[Reason, str] = {
     Reason.SWEEP_FAST: "Change speed more gently",
     Reason.SPEED_LOW: "Speed up",
     Reason.STRAIGHT: "Turn onto the circle",
+    Reason.TIGHT: "Widen the circle",
     Reason.TRANSIENT: "Hold the steering wheel steady",
     Reason.SETTLING: "Hold it steady…",
     Reason.SENSOR: "Sensor status bad",

@@ -104,9 +104,14 @@ def run_mondeo(job: tuple[float, int]) -> tuple[float, Snapshot]:
 
 def _portable(state: Snapshot) -> Snapshot:
     """The snapshot with its read-only views as dicts: a worker process can send it back."""
-    views = {name: dict(getattr(state, name)) for name in ("latest", "status", "message_names")}
     noise = dataclasses.replace(state.filter, noise_sigma=dict(state.filter.noise_sigma))
-    return dataclasses.replace(state, filter=noise, **views)
+    return dataclasses.replace(
+        state,
+        latest=dict(state.latest),
+        status=dict(state.status),
+        message_names=dict(state.message_names),
+        filter=noise,
+    )
 
 
 def describe(state: Snapshot) -> str:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.config import DetectorSettings
-from app.detect.steady_state import STEER_MAX_RAD, WHEELBASE_M
+from app.detect.steady_state import tightest_curvature
 from app.records import Estimate
 
 SWEEP_MAX_MPS2 = 2.0  # |u̇|: a corner under part throttle or light braking, not a stop
@@ -40,7 +40,7 @@ class Cornering:
     ay_high_s: float = 0.0  # of which |a_y| beyond the tyres' linear range
     transient_s: float = 0.0  # of which speed or steering changing too fast, or settling
     usable_s: float = 0.0  # of which quasi-steady
-    tight_s: float = 0.0  # of which on a radius under ten wheelbases (the steady gate's ``STEER_MAX_RAD``)
+    tight_s: float = 0.0  # of which on a radius under ten wheelbases (``tightest_curvature``)
 
 
 NO_CORNERING = Cornering()
@@ -50,7 +50,7 @@ class QuasiSteadyGate:
     def __init__(self, settings: DetectorSettings, wheelbase_m: float | None = None) -> None:
         self.settings = settings
         self._min_curvature = 1.0 / settings.radius_max_m
-        self._max_curvature = STEER_MAX_RAD / (wheelbase_m or WHEELBASE_M)
+        self._max_curvature = tightest_curvature(wheelbase_m)
         self._since: float | None = None  # when every condition began to hold
         self._t: float | None = None  # the last sample's time
         self._seconds = [0.0, 0.0, 0.0, 0.0, 0.0]  # Cornering's fields, in order

@@ -15,8 +15,14 @@ from app.records import Direction, Estimate, Reason, SteadyState
 
 STEER_MAX_RAD = 0.1  # wheelbase/radius, the steer a turn asks for: beyond it the bicycle model's small
 # angles fail — at 2–3 m/s² the rear slip fell short of a_y/(g·C2n) by 1.4 % at 18 m, 7 % at 12 m and
-# 42 % at 6 m on the two-track model (2.70 m; 0.1 % at 26 m), and by 2–17 % under 18 m on CommonRoad's
+# 42 % at 6 m on the two-track model (2.70 m; 0.1 % at 26 m), by 2–17 % under 18 m on CommonRoad's car
 WHEELBASE_M = 2.7  # where the config gives none
+
+
+def tightest_curvature(wheelbase_m: float | None) -> float:
+    """1/radius of the tightest turn both gates take: ten wheelbases."""
+    return STEER_MAX_RAD / (wheelbase_m or WHEELBASE_M)
+
 
 # what a step decided, for a block of steps (``SteadyStateGate.steps``)
 STEADY, HARD, SOFT, SETTLING = range(4)
@@ -36,7 +42,7 @@ class SteadyStateGate:
         s = settings
         self._min_curvature = 1.0 / s.radius_max_m
         self._straight = f"driving straight (radius over {s.radius_max_m:g} m)"
-        self._max_curvature = STEER_MAX_RAD / (wheelbase_m or WHEELBASE_M)
+        self._max_curvature = tightest_curvature(wheelbase_m)
         self._tight = f"radius under {1.0 / self._max_curvature:.0f} m (ten wheelbases)"
         self._below = f" m/s below {s.speed_min_mps:g}"
         self._ay_over = f" m/s² > {s.ay_max_mps2:g}"

@@ -261,6 +261,16 @@ def test_the_gate_drops_turns_tighter_than_ten_wheelbases() -> None:
     assert car.cornering.tight_s == pytest.approx(2 * 0.99, abs=0.02) and kart.cornering.tight_s == 0.0
 
 
+def test_a_straight_s_drift_at_low_speed_is_no_turn() -> None:
+    """6 m/s on 300 m: inside the 500 m a turn needs, but a_y 0.12 m/s² asks nothing of the
+    tyres (a second log's straights like it moved CommonRoad's pooled C2n by up to 1 %)."""
+    gate = QuasiSteadyGate(SETTINGS)
+    assert not any(gate.step(0.01 * k, estimate(6.0, 6.0 / 300.0), True) for k in range(200))
+    assert gate.cornering.turning_s == 0.0
+    assert gate.step(2.0, estimate(6.0, 6.0 / 60.0), True) is False  # 0.6 m/s² on 60 m: a turn, settling
+    assert gate.cornering.turning_s > 0.0
+
+
 def test_the_gate_over_arrays_decides_as_sample_by_sample() -> None:
     rng = np.random.default_rng(3)
     n = 3000

@@ -29,6 +29,8 @@ SWEEP_MAX_MPS2 = 2.0  # |u̇|: a corner under part throttle or light braking, no
 YAW_ACCEL_MAX_RADPS2 = 0.25  # |ṙ|: a corner's radius tightening, not a turn-in or a slalom
 LATERAL_RATE_MAX_MPS2 = 0.5  # |v̇| at the sensor: the body settling, not a step steer
 SETTLE_S = 0.5  # the conditions must hold this long before samples count
+AY_MIN_MPS2 = 0.5  # a turn that asks this much of the tyres: below it, a straight's drift at low speed
+# (a second log's near-straight stretches at 6 m/s moved CommonRoad's pooled C2n by up to 1 %)
 _MAX_STEP_S = 0.5  # a longer pause between samples counts as no driving
 
 
@@ -36,7 +38,7 @@ _MAX_STEP_S = 0.5  # a longer pause between samples counts as no driving
 class Cornering:
     """Seconds of driving, by what the quasi-steady gate made of them."""
 
-    turning_s: float = 0.0  # above the speed limit, in a turn, the sensor reporting well
+    turning_s: float = 0.0  # above the speed limit, in a turn (|a_y| ≥ 0.5 m/s²), the sensor reporting well
     ay_high_s: float = 0.0  # of which |a_y| beyond the tyres' linear range
     transient_s: float = 0.0  # of which speed or steering changing too fast, or settling
     usable_s: float = 0.0  # of which quasi-steady
@@ -68,7 +70,14 @@ class QuasiSteadyGate:
         for every filtered frame of a live drive."""
         s, u, r, ay, r_dot = self.settings, e.u_mps, e.r_radps, e.ay_mps2, e.r_dot_radps2
         fast = u >= s.speed_min_mps and u > 0
-        turning = sensor_ok and fast and r is not None and abs(r) / u >= self._min_curvature
+        turning = (
+            sensor_ok
+            and fast
+            and r is not None
+            and abs(r) / u >= self._min_curvature
+            and ay is not None
+            and abs(ay) >= AY_MIN_MPS2
+        )
         ay_ok = ay is not None and abs(ay) <= s.ay_max_mps2
         wide = r is not None and u > 0 and abs(r) / u <= self._max_curvature  # not too tight a turn
         slow = (
@@ -101,6 +110,7 @@ class QuasiSteadyGate:
         u, u_dot, v_dot, r, r_dot, ay = (estimates[:, k] for k in (0, 1, 3, 4, 5, 8))
         with np.errstate(divide="ignore", invalid="ignore"):
             turning = sensor_ok & (u >= s.speed_min_mps) & (u > 0) & (np.abs(r) / u >= self._min_curvature)
+            turning &= np.abs(ay) >= AY_MIN_MPS2
             wide = np.abs(r) / u <= self._max_curvature
         ay_ok = np.abs(ay) <= s.ay_max_mps2
         slow = (

@@ -131,7 +131,7 @@ class Snapshot:
                 "no cornering in the drive: drive steady circles at 2–4 m/s² with the speed swept "
                 "slowly through the sign change"
             )
-        tight = f"{c.tight_s:.0f} s on radii under ten wheelbases, " if c.tight_s >= 0.5 else ""
+        tight = f"{c.tight_s:.0f} s on radii under eight wheelbases, " if c.tight_s >= 0.5 else ""
         return (
             f"no sideslip sign change and too little quasi-steady cornering: of {c.turning_s:.0f} s "
             f"cornering, {c.ay_high_s:.0f} s beyond the tyres' linear range of a_y, {c.transient_s:.0f} s "

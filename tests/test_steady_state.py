@@ -57,7 +57,7 @@ def test_each_hard_limit_has_its_reason() -> None:
         "lateral acceleration too high: 4.5 m/s² > 4": est(u=15.0, radius=50.0),
         "speed 3.0 m/s below 4": est(u=3.0),
         "driving straight (radius over 500 m)": est(radius=800.0),
-        "radius under 27 m (ten wheelbases)": est(u=5.0, radius=8.0),
+        "radius under 22 m (eight wheelbases)": est(u=5.0, radius=8.0),
     }
     for reason, e in cases.items():
         gate = SteadyStateGate(s)

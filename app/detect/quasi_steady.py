@@ -42,7 +42,7 @@ class Cornering:
     ay_high_s: float = 0.0  # of which |a_y| beyond the tyres' linear range
     transient_s: float = 0.0  # of which speed or steering changing too fast, or settling
     usable_s: float = 0.0  # of which quasi-steady
-    tight_s: float = 0.0  # of which on a radius under ten wheelbases (``tightest_curvature``)
+    tight_s: float = 0.0  # of which on a radius under eight wheelbases (``tightest_curvature``)
 
 
 NO_CORNERING = Cornering()

@@ -13,14 +13,15 @@ import numpy as np
 from app.config import DetectorSettings
 from app.records import Direction, Estimate, Reason, SteadyState
 
-STEER_MAX_RAD = 0.1  # wheelbase/radius, the steer a turn asks for: beyond it the bicycle model's small
+STEER_MAX_RAD = 0.125  # wheelbase/radius, the steer a turn asks for: beyond it the bicycle model's small
 # angles fail — at 2–3 m/s² the rear slip fell short of a_y/(g·C2n) by 1.4 % at 18 m, 7 % at 12 m and
-# 42 % at 6 m on the two-track model (2.70 m; 0.1 % at 26 m), by 2–17 % under 18 m on CommonRoad's car
+# 42 % at 6 m on the two-track model (2.70 m: the limit 21.6 m; 0.1 % at 26 m), by 2–17 % under 18 m on
+# CommonRoad's car
 WHEELBASE_M = 2.7  # where the config gives none
 
 
 def tightest_curvature(wheelbase_m: float | None) -> float:
-    """1/radius of the tightest turn both gates take: ten wheelbases."""
+    """1/radius of the tightest turn both gates take: eight wheelbases."""
     return STEER_MAX_RAD / (wheelbase_m or WHEELBASE_M)
 
 
@@ -43,7 +44,7 @@ class SteadyStateGate:
         self._min_curvature = 1.0 / s.radius_max_m
         self._straight = f"driving straight (radius over {s.radius_max_m:g} m)"
         self._max_curvature = tightest_curvature(wheelbase_m)
-        self._tight = f"radius under {1.0 / self._max_curvature:.0f} m (ten wheelbases)"
+        self._tight = f"radius under {1.0 / self._max_curvature:.0f} m (eight wheelbases)"
         self._below = f" m/s below {s.speed_min_mps:g}"
         self._ay_over = f" m/s² > {s.ay_max_mps2:g}"
         self._sweep_over = f" m/s² > {s.sweep_max_mps2:g}"

@@ -94,7 +94,7 @@ class CorneringRow:
     ay_high_s: float  # beyond the tyres' linear range
     transient_s: float  # speed or steering changing too fast for quasi-steady, or settling
     usable_s: float  # quasi-steady
-    tight_s: float  # on a radius under ten wheelbases: the bicycle model's small steer angles fail
+    tight_s: float  # on a radius under eight wheelbases: the bicycle model's small steer angles fail
 
 
 @dataclass(frozen=True)

@@ -399,6 +399,10 @@ def test_tight_circles_pooled_with_track_laps_add_nothing_to_their_c2n(
         results[name] = json.loads(out.read_text())
     assert results["pooled"]["c2n"] == pytest.approx(results["laps"]["c2n"], rel=1e-9)
     assert results["pooled"]["cornering"]["tight_s"] > 20
+    assert any(
+        w.startswith("drive 2 of the 2 pooled has too little quasi-steady")
+        for w in results["pooled"]["warnings"]
+    )
     alone = results["circles"]
     assert alone["c2n"] is None and alone["cornering"]["tight_s"] > 0.8 * alone["cornering"]["turning_s"]
 

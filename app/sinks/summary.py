@@ -331,6 +331,13 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
             "with d; the regression's does not)"
         )
+    idle = [str(k) for k, alone in enumerate(snapshot.quasi_drives, 1) if alone is None]
+    if fit is not None and fit is snapshot.quasi and idle:
+        out.append(
+            f"drive {', '.join(idle)} of the {len(snapshot.quasi_drives)} pooled has too little "
+            "quasi-steady cornering to be fitted alone (`cornering` counts why: tight turns, a_y beyond "
+            "the linear range, transients): the pooled C2n rests on the others"
+        )
     if fit is not None and fit.d_fixed and fit is snapshot.quasi:
         out.append(
             f"quasi-steady cornering cannot place the sensor's d beside C2n as a sweep does: d is the "

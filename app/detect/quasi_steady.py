@@ -69,17 +69,10 @@ class QuasiSteadyGate:
         """Is this estimate a quasi-steady sample? ``steps`` for one, without arrays: this runs
         for every filtered frame of a live drive."""
         s, u, r, ay, r_dot = self.settings, e.u_mps, e.r_radps, e.ay_mps2, e.r_dot_radps2
-        fast = u >= s.speed_min_mps and u > 0
-        turning = (
-            sensor_ok
-            and fast
-            and r is not None
-            and abs(r) / u >= self._min_curvature
-            and ay is not None
-            and abs(ay) >= AY_MIN_MPS2
-        )
+        curvature = abs(r) / u if r is not None and u >= s.speed_min_mps and u > 0 else -1.0  # -1: none
+        turning = sensor_ok and curvature >= self._min_curvature and ay is not None and abs(ay) >= AY_MIN_MPS2
         ay_ok = ay is not None and abs(ay) <= s.ay_max_mps2
-        wide = r is not None and u > 0 and abs(r) / u <= self._max_curvature  # not too tight a turn
+        wide = curvature <= self._max_curvature  # not too tight a turn
         slow = (
             abs(e.u_dot_mps2) <= SWEEP_MAX_MPS2
             and r_dot is not None
@@ -109,9 +102,10 @@ class QuasiSteadyGate:
             return np.zeros(0, bool)
         u, u_dot, v_dot, r, r_dot, ay = (estimates[:, k] for k in (0, 1, 3, 4, 5, 8))
         with np.errstate(divide="ignore", invalid="ignore"):
-            turning = sensor_ok & (u >= s.speed_min_mps) & (u > 0) & (np.abs(r) / u >= self._min_curvature)
+            curvature = np.abs(r) / u
+            turning = sensor_ok & (u >= s.speed_min_mps) & (u > 0) & (curvature >= self._min_curvature)
             turning &= np.abs(ay) >= AY_MIN_MPS2
-            wide = np.abs(r) / u <= self._max_curvature
+            wide = curvature <= self._max_curvature
         ay_ok = np.abs(ay) <= s.ay_max_mps2
         slow = (
             (np.abs(u_dot) <= SWEEP_MAX_MPS2)

@@ -1,3 +1,3 @@
 """c2n: tyre cornering stiffness (C2n) from a driving car, live on CAN."""
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

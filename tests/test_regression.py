@@ -61,6 +61,40 @@ def test_softening_is_found_and_c2n_is_the_slope_at_zero() -> None:
     assert fit.c2n_linear_model < 0.98 * 12.0  # what ignoring it would have said
 
 
+def test_each_model_has_its_own_interval_whichever_is_chosen() -> None:
+    """A campaign may compare a session on the model its own fit did not choose (its tyre set's
+    sessions together decide): both models' intervals are there, the chosen one's the headline's."""
+    rng = np.random.default_rng(5)
+    for softening, chosen in ((0.002, "softening"), (0.0, "linear")):
+        samples = [
+            (t, u, r, v + rng.normal(0, 0.005))
+            for t, u, r, v in sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0, 120.0, -120.0), softening=softening)
+        ]
+        fit = fitted(samples)
+        assert fit is not None and fit.model == chosen
+        assert fit.c2n_linear_ci95 is not None and fit.c2n_softening_ci95 is not None
+        own, other = (
+            (fit.c2n_softening_ci95, fit.c2n_linear_ci95)
+            if chosen == "softening"
+            else (fit.c2n_linear_ci95, fit.c2n_softening_ci95)
+        )
+        assert own == pytest.approx(fit.c2n_ci95, rel=1e-12)
+        # each interval is about its own model's C2n
+        assert sum(fit.c2n_linear_ci95) / 2 == pytest.approx(fit.c2n_linear_model, rel=1e-12)
+        assert fit.c2n_softening_model is not None
+        assert sum(fit.c2n_softening_ci95) / 2 == pytest.approx(fit.c2n_softening_model, rel=1e-12)
+        assert other != own
+        if chosen == "softening":  # the straight line misses the truth, the softening model holds it
+            assert (
+                fit.c2n_linear_ci95[1] < 12.0
+                and fit.c2n_softening_ci95[0] <= 12.0 <= fit.c2n_softening_ci95[1]
+            )
+        else:  # on linear tyres both hold it, the softening model's (a term more) the wider
+            width = fit.c2n_softening_ci95[1] - fit.c2n_softening_ci95[0]
+            assert width > fit.c2n_linear_ci95[1] - fit.c2n_linear_ci95[0]
+            assert all(low <= 12.0 <= high for low, high in (fit.c2n_linear_ci95, fit.c2n_softening_ci95))
+
+
 def test_stiffening_is_not_taken_for_softening() -> None:
     fit = fitted(sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0), softening=-0.002))
     assert fit is not None and fit.model == "linear"

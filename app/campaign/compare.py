@@ -8,11 +8,19 @@ k − 1 degrees of freedom whose scale is estimated from the sessions' own sprea
 sessions' stated precision: the modified form, max(1, q)), which holds its coverage with few
 sessions where the normal interval does not. A trend against a numeric tag is the same on a
 weighted line (meta-regression, k − 2 degrees of freedom).
+
+Whether tyres soften is a property of the tyre set, not of one drive, so a group decides it over
+its sessions together: a session's a_y³ term passes |t| > 2 by chance in about 1.5 % of drives on
+linear tyres (C2n then 0.6–2.4 % high), and a campaign of 42 meets one about every second time.
+The sessions' t statistics combine (Stouffer: z = Σt/√k, each t about N(0, 1) on linear tyres) and
+face the same bar a session's t does; each session is then compared on its fit of the group's
+model, the linear one or the one with the softening term.
 """
 
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from scipy.special import stdtrit  # the t quantile: scipy.stats would add a second to the start
@@ -47,6 +55,41 @@ class Trend:
     slope_ci95: tuple[float, float]
     intercept: float
     n_sessions: int
+
+
+SOFTENING_T = 2.0  # the bar a session's a_y³ term passes (app/results/regression.py), for z too
+
+Model = Literal["linear", "softening"]
+
+
+@dataclass(frozen=True)
+class Fits:
+    """One session's two fits of the same samples: without and with the softening term."""
+
+    softening_t: float  # the a_y³ term's t; negative where the tyres soften
+    linear: tuple[float, tuple[float, float]]  # C2n and its 95 % interval
+    softening: tuple[float, tuple[float, float]] | None  # None: the term made no stiffness
+    chosen: Model  # the session's own choice (|t| > 2 and softening: the softening model)
+
+    def of(self, model: Model) -> tuple[float, tuple[float, float]] | None:
+        return self.linear if model == "linear" else self.softening
+
+
+@dataclass(frozen=True)
+class Softening:
+    """A group's tyres: do they soften, on the evidence of its sessions together?"""
+
+    model: Model
+    z: float  # Stouffer's combination of the sessions' t: negative where they soften
+    n_sessions: int  # sessions whose fit could take either model
+
+
+def softening(t: Sequence[float]) -> Softening | None:
+    """The group's model from its sessions' a_y³ t statistics (None without any)."""
+    if not t:
+        return None
+    z = float(sum(t)) / math.sqrt(len(t))
+    return Softening("softening" if z < -SOFTENING_T else "linear", z, len(t))
 
 
 def session_se(ci95: tuple[float, float]) -> float:

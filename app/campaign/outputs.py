@@ -6,17 +6,31 @@ import io
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from app.campaign.compare import Difference, Pooled, Trend, difference, pool, session_se, trend
+from app.campaign.compare import (
+    Difference,
+    Fits,
+    Model,
+    Pooled,
+    Softening,
+    Trend,
+    difference,
+    pool,
+    session_se,
+    softening,
+    trend,
+)
 from app.campaign.manifest import Manifest
 from app.errors import OutputError
 from app.sinks.files import json_ready, write_atomically, write_json
-from app.sinks.html import fields, figure, none, page, section, table, text, write_html
+from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")
+# what the comparison took of each session (``Compared``), after the first columns
+_COMPARED = ("compared.c2n", "compared.c2n_ci95.low", "compared.c2n_ci95.high", "compared.model")
 _LAST = ("frames", "seconds", "worker_peak_mib", "cached", "key")
 
 
@@ -59,6 +73,18 @@ def _cell(value: Any) -> Any:
 
 
 @dataclass(frozen=True)
+class Compared:
+    """What the comparison took of one session: its fit of its group's tyre model where the fit
+    could take either model, else its own headline."""
+
+    c2n: float
+    ci95: tuple[float, float]
+    model: Model | None  # the group's tyre model; None where the headline is not such a fit
+    own_model: Model | None  # the model the session's own fit chose
+    softening_t: float | None
+
+
+@dataclass(frozen=True)
 class Comparison:
     by: str | None
     groups: dict[str, Pooled]
@@ -68,6 +94,13 @@ class Comparison:
     tag_values: dict[str, dict[str, list[tuple[float, float, float]]]]  # tag -> group -> (x, C2n, se)
     failed: list[tuple[str, str]]  # (log, error)
     n_sessions: int
+    softening: dict[str, Softening] = field(default_factory=dict)  # group -> its tyres' model
+    compared: dict[str, Compared] = field(default_factory=dict)  # log -> what was compared of it
+
+    @property
+    def switched(self) -> dict[str, Compared]:
+        """Sessions compared on their group's tyre model where their own fit chose the other."""
+        return {log: c for log, c in self.compared.items() if c.model is not None and c.model != c.own_model}
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -75,21 +108,23 @@ class Comparison:
             "sessions": self.n_sessions,
             "failed": [{"log": log, "error": error} for log, error in self.failed],
             "groups": {name: json_ready(asdict(p)) for name, p in self.groups.items()},
+            "softening": {name: json_ready(asdict(s)) for name, s in self.softening.items()},
+            "switched": [{"log": log} | json_ready(asdict(c)) for log, c in self.switched.items()],
             "differences": [json_ready(asdict(d)) for d in self.differences],
             "trends": {
                 tag: {group: json_ready(asdict(t)) for group, t in per.items()}
                 for tag, per in self.trends.items()
             },
-            "method": "random effects: DerSimonian–Laird τ², Hartung–Knapp t interval (modified, max(1, q))",
+            "method": "random effects: DerSimonian–Laird τ², Hartung–Knapp t interval (modified, max(1, q)); "
+            "tyre softening decided per group (Stouffer's z of the sessions' a_y³ t, |z| > 2)",
         }
 
 
 def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) -> Comparison:
-    """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed."""
-    sessions: dict[str, list[tuple[float, float]]] = {}
-    tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
-    numeric = [tag for tag in manifest.numeric_tags() if tag != by]
+    """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed.
+    ``rows`` are ``table_rows``' (``log`` as the manifest names it)."""
     failed = []
+    done: list[tuple[dict[str, Any], str, str, float, tuple[float, float], Fits | None]] = []
     for entry, row in zip(manifest.entries, rows, strict=True):
         values = row.get("c2n"), row.get("c2n_ci95.low"), row.get("c2n_ci95.high")
         if row.get("error") or not _finite(*values):
@@ -97,10 +132,28 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
             continue
         c2n, low, high = (float(v) for v in values if v is not None)
         group = entry.tags[by] if by else "all"
-        se = session_se((low, high))
-        sessions.setdefault(group, []).append((c2n, se))
+        done.append((entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row)))
+    decided: dict[str, Softening] = {}
+    for name in sorted({group for _, _, group, *_ in done}):
+        found = softening([f.softening_t for _, _, group, *_, f in done if group == name and f is not None])
+        if found is not None:
+            decided[name] = found
+    sessions: dict[str, list[tuple[float, float]]] = {}
+    tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
+    numeric = [tag for tag in manifest.numeric_tags() if tag != by]
+    compared: dict[str, Compared] = {}
+    for tags, log, group, c2n, ci95, fits in done:
+        model = decided[group].model if fits is not None and group in decided else None
+        picked = fits.of(model) if fits is not None and model is not None else None
+        if fits is not None and picked is not None:
+            compared[log] = Compared(*picked, model, fits.chosen, fits.softening_t)
+        else:
+            compared[log] = Compared(c2n, ci95, None, None, None)
+        value, interval = compared[log].c2n, compared[log].ci95
+        se = session_se(interval)
+        sessions.setdefault(group, []).append((value, se))
         for tag in numeric:
-            tagged.setdefault(tag, {}).setdefault(group, []).append((float(entry.tags[tag]), c2n, se))
+            tagged.setdefault(tag, {}).setdefault(group, []).append((float(tags[tag]), value, se))
     groups = {name: pool(*zip(*values, strict=True)) for name, values in sorted(sessions.items())}
     names = list(groups)
     differences = [
@@ -109,10 +162,48 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
     trends: dict[str, dict[str, Trend]] = {}
     for tag, per_group in tagged.items():
         everything = [value for values in per_group.values() for value in values]
-        found = {"all": trend(*zip(*everything, strict=True))} if len(per_group) > 1 else {}
-        found |= {group: trend(*zip(*values, strict=True)) for group, values in sorted(per_group.items())}
-        trends[tag] = {group: t for group, t in found.items() if t is not None}
-    return Comparison(by, groups, sessions, differences, trends, tagged, failed, len(rows))
+        found_trends = {"all": trend(*zip(*everything, strict=True))} if len(per_group) > 1 else {}
+        found_trends |= {g: trend(*zip(*values, strict=True)) for g, values in sorted(per_group.items())}
+        trends[tag] = {g: t for g, t in found_trends.items() if t is not None}
+    return Comparison(by, groups, sessions, differences, trends, tagged, failed, len(rows), decided, compared)
+
+
+def with_compared(
+    columns: list[str], rows: list[dict[str, Any]], comparison: Comparison
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """``results``' columns and rows with what the comparison took of each session."""
+    out = []
+    for row in rows:
+        c = comparison.compared.get(str(row["log"]))
+        extra = dict.fromkeys(_COMPARED)
+        if c is not None and not row.get("error"):
+            extra = dict(zip(_COMPARED, (c.c2n, *c.ci95, c.model), strict=True))
+        out.append(row | extra)
+    at = columns.index(_FIRST[-1]) + 1 if _FIRST[-1] in columns else len(columns)
+    named = [c for c in columns if c not in _COMPARED]
+    return [*named[:at], *_COMPARED, *named[at:]], out
+
+
+def _fits(row: dict[str, Any]) -> Fits | None:
+    """The session's two fits, where its headline is a regression's that could take either model
+    (not where its a_y range cannot tell them apart: its own interval spans both)."""
+    prefix = {"regression": "regression.", "quasi-steady": "quasi_steady."}.get(str(row.get("c2n_method")))
+    if prefix is None or row.get(f"{prefix}softening_resolved") is not True:
+        return None
+    t = row.get(f"{prefix}softening_t")
+    linear = _model(row, f"{prefix}c2n_linear")
+    if linear is None or t is None or not _finite(t):
+        return None
+    chosen: Model = "softening" if row.get(f"{prefix}model") == "softening" else "linear"
+    return Fits(float(t), linear, _model(row, f"{prefix}c2n_softening"), chosen)
+
+
+def _model(row: dict[str, Any], name: str) -> tuple[float, tuple[float, float]] | None:
+    values = row.get(f"{name}_model"), row.get(f"{name}_ci95.low"), row.get(f"{name}_ci95.high")
+    if not _finite(*values):
+        return None
+    c2n, low, high = (float(v) for v in values if v is not None)
+    return c2n, (low, high)
 
 
 def _finite(*values: Any) -> bool:
@@ -135,6 +226,7 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
             f"{p.ci95[0]:.3f} … {p.ci95[1]:.3f}",
             f"{p.tau:.3f}",
             f"{p.i2_pct:.0f}",
+            text(_tyres(comparison.softening.get(name))),
         )
         for name, p in comparison.groups.items()
     ]
@@ -153,12 +245,37 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
         section(
             f"C2n per {by} [1/rad]",
             table(
-                (by, "sessions", "C2n [1/rad]", "95 % [1/rad]", "τ between sessions [1/rad]", "I² [%]"),
+                (by, "sessions", "C2n [1/rad]", "95 % [1/rad]", "τ [1/rad]", "I² [%]", "tyres"),
                 group_rows,
-                (False, True, True, True, True, True),
+                (False, True, True, True, True, True, False),
             )
             if group_rows
             else none("no session gave a C2n"),
+        ),
+        section(
+            "Sessions compared on their group's tyre model",
+            paragraph(
+                "Whether tyres soften is decided per group, over its sessions' a_y³ t statistics together "
+                "(Stouffer's z; softening where z < −2): a session's own t passes 2 by chance in about "
+                "1.5 % of drives on linear tyres. These sessions' own fits chose the other model."
+            ),
+            table(
+                ("log", "own fit", "t", "compared on", "C2n [1/rad]", "95 % [1/rad]"),
+                [
+                    (
+                        text(log),
+                        text(c.own_model),
+                        f"{c.softening_t:+.1f}",
+                        text(c.model),
+                        f"{c.c2n:.3f}",
+                        f"{c.ci95[0]:.3f} … {c.ci95[1]:.3f}",
+                    )
+                    for log, c in comparison.switched.items()
+                ],
+                (False, False, True, False, True, True),
+            )
+            if comparison.switched
+            else none("none: every session's own fit chose its group's model"),
         ),
         section(
             "Differences [1/rad]",
@@ -190,6 +307,10 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
         section("Plots", *(figure(name, png) for name, png in images)),
     ]
     write_html(page(title, body), folder / "report.html", "report.html")
+
+
+def _tyres(tyres: Softening | None) -> str:
+    return "—" if tyres is None else f"{tyres.model} (z {tyres.z:+.1f}, {tyres.n_sessions} sessions)"
 
 
 def _trend_table(tag: str, per: dict[str, Trend]) -> str:

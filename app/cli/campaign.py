@@ -110,8 +110,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 signal.signal(sig, handler)
     elapsed = time.perf_counter() - started
     columns, table = outputs.table_rows(manifest, rows)
-    outputs.write_tables(out, columns, table)
     comparison = outputs.compare(manifest, table, args.by)
+    outputs.write_tables(out, *outputs.with_compared(columns, table, comparison))
     outputs.write_comparison(out, comparison)
     outputs.write_report(out, comparison, f"c2n campaign — {args.manifest.name}")
     cached = sum(1 for row in rows if row.get("cached"))
@@ -121,12 +121,20 @@ def run(args: argparse.Namespace, console: Console) -> int:
     )
     for name, pooled in comparison.groups.items():
         low, high = pooled.ci95
+        tyres = comparison.softening.get(name)
+        soften = f", tyres {tyres.model} (z {tyres.z:+.1f})" if tyres else ""
         console.print(
             f"  {args.by or 'all'} {name}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
-            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f})"
+            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
         )
     for d in comparison.differences:
         console.print(f"  {d.a} − {d.b}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad")
+    for log, c in comparison.switched.items():
+        console.print(
+            f"  {log}: compared on its {c.model} fit, {c.c2n:.3f} 1/rad [{c.ci95[0]:.3f}, {c.ci95[1]:.3f}] — "
+            f"its own fit chose the {c.own_model} one (t = {c.softening_t:+.1f}), its group's sessions "
+            f"together the {c.model} one"
+        )
     errors = error_console()
     for log, error in comparison.failed:
         errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)

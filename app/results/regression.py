@@ -148,6 +148,10 @@ class RegressionFit:
     yaw_bias_degps: float | None = None  # the yaw rate's bias the quasi-steady samples show (it
     # reads this much high); None where it was not fitted
     yaw_bias_ci95_degps: tuple[float, float] | None = None
+    # each model's own 95 % interval, whichever was chosen: a campaign decides softening over a
+    # tyre set's sessions together (app/campaign/compare.py) and then needs the other one
+    c2n_linear_ci95: tuple[float, float] | None = None
+    c2n_softening_ci95: tuple[float, float] | None = None
 
 
 class SampleRegression:
@@ -388,12 +392,21 @@ class SampleRegression:
         def ci(value: float, se: float) -> tuple[float, float]:
             return (value - q * se, value + q * se)
 
-        i_ay = terms.index(2)
-        slope = chosen.coef[i_ay]
+        def model_se(model: _Solution) -> float:
+            if d_fixed:  # the tape's centimetre is in C2n too
+                return self._held_se(model, xtx, xty, run, n)
+            return _c2n_se(model, self.g)
+
+        def model_ci(model: _Solution) -> tuple[float, float] | None:
+            slope = model.coef[model.terms.index(2)]
+            if slope >= 0:  # no stiffness
+                return None
+            half = float(stdtrit(max(b - len(model.terms), 1), 0.975)) * model_se(model)
+            return (-1.0 / (self.g * slope) - half, -1.0 / (self.g * slope) + half)
+
+        slope = chosen.coef[terms.index(2)]
         c2n = -1.0 / (self.g * slope)
-        c2n_se = math.sqrt(chosen.cov[i_ay, i_ay]) / (self.g * slope * slope)
-        if d_fixed:  # the tape's centimetre is in C2n too
-            c2n_se = self._held_se(chosen, xtx, xty, run, n)
+        c2n_se = model_se(chosen)
         c2n_ci95 = ci(c2n, c2n_se)
         c2n_linear = -1.0 / (self.g * linear.coef[linear.terms.index(2)])
         c2n_cubic = -1.0 / (self.g * cubic.coef[cubic.terms.index(2)])
@@ -453,6 +466,8 @@ class SampleRegression:
             slope_pct=slope[0] if slope else None,
             slope_ci95_pct=slope[1] if slope else None,
             slope_downhill_deg=slope[2] if slope else None,
+            c2n_linear_ci95=model_ci(linear),
+            c2n_softening_ci95=model_ci(cubic),
         )
 
 

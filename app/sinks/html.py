@@ -105,6 +105,10 @@ def section(heading: str, *body: str) -> str:
     return "\n".join((f"<section>\n<h2>{html.escape(heading)}</h2>", *body, "</section>"))
 
 
+def paragraph(message: str) -> str:
+    return f"<p>{html.escape(message)}</p>"
+
+
 def none(message: str) -> str:
     return f'<p class="none">{html.escape(message)}</p>'
 

@@ -68,6 +68,8 @@ class RegressionRow:
     softening_per_mps2_2: float | None
     c2n_linear_model: float | None
     c2n_softening_model: float | None
+    c2n_linear_ci95: Interval | None  # each model's own interval, whichever was chosen
+    c2n_softening_ci95: Interval | None
     n_samples: int
     ay_range_mps2: Interval
     softening_resolved: bool  # False: the a_y range cannot tell linear from softening tyres
@@ -542,6 +544,8 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         softening_per_mps2_2=_maybe(fit.softening_per_mps2_2, 6),
         c2n_linear_model=_round(fit.c2n_linear_model),
         c2n_softening_model=_maybe(fit.c2n_softening_model),
+        c2n_linear_ci95=_pair(fit.c2n_linear_ci95) if fit.c2n_linear_ci95 else None,
+        c2n_softening_ci95=_pair(fit.c2n_softening_ci95) if fit.c2n_softening_ci95 else None,
         n_samples=fit.n_samples,
         ay_range_mps2=_pair(fit.ay_range, digits=3),
         softening_resolved=fit.softening_resolved,

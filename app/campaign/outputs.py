@@ -133,11 +133,10 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
         c2n, low, high = (float(v) for v in values if v is not None)
         group = entry.tags[by] if by else "all"
         done.append((entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row)))
-    decided: dict[str, Softening] = {}
-    for name in sorted({group for _, _, group, *_ in done}):
-        found = softening([f.softening_t for _, _, group, *_, f in done if group == name and f is not None])
-        if found is not None:
-            decided[name] = found
+    evidence: dict[str, list[float]] = {}
+    for _, _, group, _, _, fits in done:
+        evidence.setdefault(group, []).extend([fits.softening_t] if fits is not None else [])
+    decided = {group: tyres for group, t in sorted(evidence.items()) if (tyres := softening(t)) is not None}
     sessions: dict[str, list[tuple[float, float]]] = {}
     tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
     numeric = [tag for tag in manifest.numeric_tags() if tag != by]
@@ -162,9 +161,9 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
     trends: dict[str, dict[str, Trend]] = {}
     for tag, per_group in tagged.items():
         everything = [value for values in per_group.values() for value in values]
-        found_trends = {"all": trend(*zip(*everything, strict=True))} if len(per_group) > 1 else {}
-        found_trends |= {g: trend(*zip(*values, strict=True)) for g, values in sorted(per_group.items())}
-        trends[tag] = {g: t for g, t in found_trends.items() if t is not None}
+        found = {"all": trend(*zip(*everything, strict=True))} if len(per_group) > 1 else {}
+        found |= {group: trend(*zip(*values, strict=True)) for group, values in sorted(per_group.items())}
+        trends[tag] = {group: t for group, t in found.items() if t is not None}
     return Comparison(by, groups, sessions, differences, trends, tagged, failed, len(rows), decided, compared)
 
 

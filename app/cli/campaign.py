@@ -123,8 +123,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         low, high = pooled.ci95
         tyres = comparison.softening.get(name)
         soften = f", tyres {tyres.model} (z {tyres.z:+.1f})" if tyres else ""
+        group = f"{args.by} {name}" if args.by else "all sessions"
         console.print(
-            f"  {args.by or 'all'} {name}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
+            f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
             f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
         )
     for d in comparison.differences:

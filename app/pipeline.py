@@ -29,6 +29,7 @@ from app.results.heading import Heading
 from app.results.pairing import Paired, pair
 from app.results.regression import RegressionFit, SampleRegression
 from app.results.sideslip_profile import SideslipProfile
+from app.results.turn_step import without_step
 from app.snapshot import FilterState, Pending, Snapshot
 from app.sources.blocks import FrameBlock, RecordBlock
 
@@ -328,22 +329,32 @@ class Pipeline:
         self._last_fit = -float("inf")
 
     def _refit(self) -> None:
-        """The regression over every sample so far; a slope it found goes to the detector. The
-        quasi-steady samples' regression too while no sweep has crossed zero."""
-        sloped = self.detector.tilt is not None
+        """The regression over every sample so far; a slope it found goes to the detector, and a
+        new slope or turn step pairs the crossings again. The quasi-steady samples' regression too
+        while no sweep has crossed zero."""
+        before = self.state.regression
         self.state.quasi = self.quasi.fit() if not self.state.crossings else None
         fit = self.state.regression = self.regression.fit()
         self.detector.tilt = fit.tilt if fit is not None else None
-        if self.state.crossings and sloped != (self.detector.tilt is not None):
+        if self.state.crossings and (_slope(before), _step(before)) != (_slope(fit), _step(fit)):
             self._pair()
 
     def _pair(self) -> None:
         """The crossings combined and paired. Where the regression finds a slope, the crossings
-        from before it was known carry it: those with it taken out are used alone."""
+        from before it was known carry it: those with it taken out are used alone. Where it finds
+        a turn step, it is taken out of every crossing (``without_step``)."""
         state = self.state
         used = state.crossings
         if self.detector.tilt is not None:
             used = [c for c in state.crossings if c.slope_corrected] or used
+        fit = state.regression
+        if fit is not None and fit.turn_step_rad is not None:  # every crossing carries it: out
+            step, step_se, g = (
+                fit.turn_step_rad,
+                fit.turn_step_se_rad or 0.0,
+                self.config.vehicle.gravity_mps2,
+            )
+            used = [without_step(c, step, step_se, self.config.d_m, g) for c in used]
         state.combined = combine(used)
         state.paired = pair(used, self.config.d_m, self.config.vehicle.gravity_mps2)
 
@@ -355,6 +366,15 @@ class Pipeline:
                 self._pair()
             elif isinstance(event, CrossingRejected):
                 self.state.rejections.append(event)
+
+
+def _slope(fit: RegressionFit | None) -> bool:
+    return fit is not None and fit.tilt is not None
+
+
+def _step(fit: RegressionFit | None) -> float | None:
+    """The regression's turn step, which the pairing takes out of every crossing."""
+    return None if fit is None else fit.turn_step_rad
 
 
 def _held(column: np.ndarray | None, before: float | None, n: int) -> np.ndarray:

@@ -84,6 +84,10 @@ class Crossing:
     n_samples: int
     method: Literal["v/r", "beta"]  # fitted quantity against u²
     slope_corrected: bool = False  # the pad's slope (the regression's) taken out before the fit
+    # how far a sideslip step δ·sign(κ) (a force that follows the turn) moves the local fit's
+    # zero: u0² moves by δ times this [m²/s² per rad] (R/slope of v/r against u²); None for "beta"
+    u0sq_per_step: float | None = None
+    step_corrected: bool = False  # the regression's turn step taken out (``without_step``)
 
     @property
     def u0_kmh(self) -> float:

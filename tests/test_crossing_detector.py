@@ -10,6 +10,7 @@ from app import paper
 from app.config import DetectorSettings
 from app.detect.crossings import CrossingDetector
 from app.records import Crossing, CrossingRejected, Estimate, Event, SignChange, SteadyState
+from app.results.turn_step import without_step
 
 C2N, D, G = 14.99, 1.11, 9.81
 U0 = paper.crossing_speed(C2N, D, G)
@@ -173,3 +174,35 @@ def test_a_slope_the_regression_found_is_taken_out_of_the_crossing() -> None:
     assert found[True].slope_corrected and not found[False].slope_corrected
     assert found[True].c2n == pytest.approx(C2N, rel=1e-6)
     assert abs(found[False].c2n / C2N - 1) > 0.01
+
+
+def test_a_turn_step_the_regression_found_is_taken_out_of_every_crossing() -> None:
+    """A force that follows the turn adds a step δ·sign(κ) to the sideslip at every speed: on a
+    circle of radius R the sign change moves to u0² = g·C2n·(d + δ·R), both ways round (a yawed
+    head moves them apart and the pairing cancels it; a step it cannot). Told δ afterwards, each
+    crossing reads eq. 7's C2n exactly, its error widened by δ's own: C2n·R/d per radian."""
+    step, radius = 0.0009, 80.0
+    read: dict[str, Crossing] = {}
+    for direction, signed in (("left", radius), ("right", -radius)):
+        detector = CrossingDetector(DetectorSettings(), D, G)
+        events: list[Event] = []
+        t = 0.0
+        for u in sweep(0.7 * U0, 1.3 * U0, radius):
+            e = estimate(float(u), signed)
+            v = e.v_meas_mps + e.u_mps * step * (1 if signed > 0 else -1)  # δ·sign(κ) in β = v/u
+            e = e._replace(
+                v_meas_mps=v, sideslip_meas_rad=math.atan2(v, e.u_mps), sideslip_rad=math.atan2(v, e.u_mps)
+            )
+            events += detector.step(t, e, SteadyState(True, direction))  # type: ignore[arg-type]
+            t += 0.01
+        events += detector.finish()
+        (read[direction],) = [event for event in events if isinstance(event, Crossing)]
+    for crossing in read.values():
+        assert crossing.c2n == pytest.approx(C2N * (1 + step * radius / D), rel=1e-6)  # the step's share
+        assert crossing.u0sq_per_step == pytest.approx(-radius * G * C2N, rel=1e-6)
+        fixed = without_step(crossing, step, 0.0, D, G)
+        assert fixed.step_corrected and fixed.c2n == pytest.approx(C2N, rel=1e-6)
+        assert fixed.u0_mps == pytest.approx(U0, rel=1e-6)
+        widened = without_step(crossing, step, 1e-4, D, G)
+        assert widened.c2n_se == pytest.approx(math.hypot(crossing.c2n_se, 1e-4 * radius * C2N / D), rel=1e-6)
+        assert widened.ci95[0] < C2N < widened.ci95[1]

@@ -267,6 +267,10 @@ class CrossingDetector:
         if direction is None:
             return reject("the turning direction is unknown")
         nearest = int(np.argmin(np.abs(u - u0) + np.where(selected, 0.0, np.inf)))
+        per_step = None
+        if run.kind == "v/r":  # y = v/r gains δ·sign(κ)·u/r = δ·u/|r| (δ·R on a circle)
+            lever = u[selected] / np.maximum(np.abs(np.asarray(run.r)[selected]), 1e-9)
+            per_step = float(np.mean(lever)) / fit.b
         ay0 = float(ay[nearest])
         radius = (u0 * u0 / ay0 if ay0 > 0 else math.inf) * (1 if direction == "left" else -1)
         scale = 1.0 / (self.g * self.d_m)
@@ -286,6 +290,7 @@ class CrossingDetector:
             n_samples=n,
             method="v/r" if run.kind == "v/r" else "beta",
             slope_corrected=corrected,
+            u0sq_per_step=per_step,
         )
 
     def _slope_part(self, u: np.ndarray, psi: np.ndarray, r: np.ndarray) -> np.ndarray:

@@ -145,6 +145,7 @@ class RegressionFit:
     # size, % of the axle's weight, + towards the turn's inside; None where not found
     turn_force_ci95_pct: tuple[float, float] | None = None
     turn_step_rad: float | None = None  # the sideslip step it makes, δ·sign(κ)
+    turn_step_se_rad: float | None = None
     yaw_bias_degps: float | None = None  # the yaw rate's bias the quasi-steady samples show (it
     # reads this much high); None where it was not fitted
     yaw_bias_ci95_degps: tuple[float, float] | None = None
@@ -459,6 +460,7 @@ class SampleRegression:
             turn_force_pct=100.0 * _turn(chosen, self.g) if 10 in terms else None,
             turn_force_ci95_pct=_turn_ci(chosen, self.g, q) if 10 in terms else None,
             turn_step_rad=float(chosen.coef[terms.index(10)]) if 10 in terms else None,
+            turn_step_se_rad=_se(chosen, 10) if 10 in terms else None,
             yaw_bias_degps=bias[0] if bias else None,
             yaw_bias_ci95_degps=bias[1] if bias else None,
             softening_resolved=resolved,
@@ -625,6 +627,11 @@ def _tilt_pct(fit: "_Solution", g: float) -> float:
     """The slope in % the fit's sin ψ, cos ψ terms say: C2n·√(A² + B²)."""
     c2n = -1.0 / (g * float(fit.coef[fit.terms.index(2)]))
     return 100.0 * abs(c2n) * math.hypot(fit.coef[fit.terms.index(4)], fit.coef[fit.terms.index(5)])
+
+
+def _se(fit: "_Solution", term: int) -> float:
+    i = fit.terms.index(term)
+    return math.sqrt(max(float(fit.cov[i, i]), 0.0))
 
 
 def _c2n_se(fit: "_Solution", g: float) -> float:

@@ -93,6 +93,7 @@ def test_a_group_s_tyres_soften_on_its_sessions_evidence_together() -> None:
     assert leaning is not None and leaning.model == "softening" and leaning.z == pytest.approx(-2.7)
     assert softening([-2.1]).model == "softening"  # type: ignore[union-attr]  # one session: its own rule
     assert softening([2.5, 3.0]).model == "linear"  # type: ignore[union-attr]  # stiffening is no softening
+    assert softening([-0.04]).shown == "linear (z +0.0)"  # type: ignore[union-attr]
 
 
 def _row(log: str, model: str, t: float, linear: float, cubic: float, resolved: bool = True) -> dict:

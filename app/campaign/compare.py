@@ -83,6 +83,11 @@ class Softening:
     z: float  # Stouffer's combination of the sessions' t: negative where they soften
     n_sessions: int  # sessions whose fit could take either model
 
+    @property
+    def shown(self) -> str:
+        """The model and z as the terminal and the report show them (never "z −0.0")."""
+        return f"{self.model} (z {round(self.z, 1) + 0.0:+.1f})"
+
 
 def softening(t: Sequence[float]) -> Softening | None:
     """The group's model from its sessions' a_y³ t statistics (None without any)."""

@@ -309,7 +309,7 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
 
 
 def _tyres(tyres: Softening | None) -> str:
-    return "—" if tyres is None else f"{tyres.model} (z {tyres.z:+.1f}, {tyres.n_sessions} sessions)"
+    return "—" if tyres is None else f"{tyres.shown}, {tyres.n_sessions} sessions"
 
 
 def _trend_table(tag: str, per: dict[str, Trend]) -> str:

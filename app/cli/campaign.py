@@ -122,7 +122,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     for name, pooled in comparison.groups.items():
         low, high = pooled.ci95
         tyres = comparison.softening.get(name)
-        soften = f", tyres {tyres.model} (z {tyres.z:+.1f})" if tyres else ""
+        soften = f", tyres {tyres.shown}" if tyres else ""
         group = f"{args.by} {name}" if args.by else "all sessions"
         console.print(
             f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "

@@ -50,6 +50,26 @@ class Tyres:
 
 
 @dataclass(frozen=True)
+class Calibration:
+    """The sensors' scale tolerances from their data sheets, ± % (read as uniform: a standard
+    error of x/√3 %). No drive can show them — C2n scales with them — so they are counted in its
+    interval beside the data's own error. 0: not counted."""
+
+    yaw_rate_scale_pct: float = 0.0  # the regression's C2n scales as (1 + s)
+    speed_scale_pct: float = 0.0  # the optical speed: the regression's C2n as (1 + k), a crossing's (1 + 2k)
+
+    @property
+    def fit_se(self) -> float:
+        """The relative standard error the scales add to a regression's C2n."""
+        return math.hypot(self.yaw_rate_scale_pct, self.speed_scale_pct) / (100.0 * math.sqrt(3.0))
+
+    @property
+    def crossing_se(self) -> float:
+        """The relative standard error the speed's scale adds to a crossing's C2n = u0²/(g·d)."""
+        return 2.0 * self.speed_scale_pct / (100.0 * math.sqrt(3.0))
+
+
+@dataclass(frozen=True)
 class DetectorSettings:
     """Steady-state gate and crossing detection; see README for what each limit protects."""
 
@@ -108,6 +128,8 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("vehicle", "gravity_mps2"): (9.7, 9.9, _CLOSED),  # on Earth: 9.78 at the equator, 9.83 at a pole
     ("tyres", "c1n_per_rad"): (0.0, 200.0, _OPEN),
     ("tyres", "c2n_per_rad"): (0.0, 200.0, _OPEN),
+    ("calibration", "yaw_rate_scale_pct"): (0.0, 10.0, _CLOSED),
+    ("calibration", "speed_scale_pct"): (0.0, 10.0, _CLOSED),
     ("detector", "ay_max_mps2"): (0.0, 20.0, _OPEN),
     ("detector", "sweep_max_mps2"): (0.0, 10.0, _OPEN),
     ("detector", "speed_min_mps"): (0.0, 100.0, _CLOSED),
@@ -193,6 +215,7 @@ class Config:
     status: tuple[StatusCondition, ...]
     detector: DetectorSettings
     filter: FilterSettings
+    calibration: Calibration = Calibration()
 
     @property
     def d_m(self) -> float:
@@ -210,6 +233,7 @@ _SECTIONS = {
     "channels",
     "detector",
     "filter",
+    "calibration",
 }
 
 
@@ -240,12 +264,13 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     tyres = _dataclass_from(path, "tyres", Tyres, _section(path, table, "tyres"))
     detector = _dataclass_from(path, "detector", DetectorSettings, _section(path, table, "detector"))
     filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
+    calibration = _dataclass_from(path, "calibration", Calibration, _section(path, table, "calibration"))
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(
         path, table, "beta_status", ("beta",), dbcs
     )
-    return Config(path, vehicle, tyres, dbcs, roles, status, detector, filter_settings)
+    return Config(path, vehicle, tyres, dbcs, roles, status, detector, filter_settings, calibration)
 
 
 def _section(path: Path, table: dict[str, Any], name: str, required: bool = False) -> dict[str, Any]:

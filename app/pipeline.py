@@ -74,9 +74,12 @@ class Pipeline:
         self.gate = SteadyStateGate(config.detector, config.vehicle.wheelbase_m)
         self._ay_votes = "yaw_rate" in config.roles  # without a gyro a_y gives the yaw rate: no vote on it
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
-        self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m)
+        scale = config.calibration.fit_se  # the sensors' scale tolerances, in C2n's interval
+        self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m, scale_se=scale)
         self.quasi_gate = QuasiSteadyGate(config.detector, config.vehicle.wheelbase_m)
-        self.quasi = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m, transient=True)
+        self.quasi = SampleRegression(
+            config.vehicle.gravity_mps2, d_tape_m=config.d_m, transient=True, scale_se=scale
+        )
         self._drives: list[SampleRegression] = []  # drives pooled: each one's quasi-steady samples alone
         self.heading = Heading()
         self.profile = SideslipProfile()
@@ -323,7 +326,12 @@ class Pipeline:
         if not self._drives:  # the first drive's samples: all the pooled regression holds so far
             self._drives.append(copy.deepcopy(self.quasi))
         self._drives.append(
-            SampleRegression(self.config.vehicle.gravity_mps2, d_tape_m=self.config.d_m, transient=True)
+            SampleRegression(
+                self.config.vehicle.gravity_mps2,
+                d_tape_m=self.config.d_m,
+                transient=True,
+                scale_se=self.config.calibration.fit_se,
+            )
         )
         self.quasi.new_log()
         self._last_fit = -float("inf")
@@ -357,6 +365,13 @@ class Pipeline:
             used = [without_step(c, step, step_se, self.config.d_m, g) for c in used]
         state.combined = combine(used)
         state.paired = pair(used, self.config.d_m, self.config.vehicle.gravity_mps2)
+        scale = self.config.calibration.crossing_se  # the speed's scale: in every crossing alike
+        if scale > 0 and state.combined is not None:
+            state.combined = replace(
+                state.combined, se=math.hypot(state.combined.se, scale * state.combined.c2n)
+            )
+        if scale > 0 and state.paired is not None:
+            state.paired = replace(state.paired, se=math.hypot(state.paired.se, scale * state.paired.c2n))
 
     def _collect(self, events: list[Event]) -> None:
         for event in events:

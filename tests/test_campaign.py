@@ -164,6 +164,36 @@ def test_each_session_is_compared_on_its_group_s_tyre_model(tmp_path: Path) -> N
     assert switched[0]["own_model"] == "softening" and switched[0]["softening_t"] == -3.4
 
 
+def test_the_sensors_scale_counts_once_in_a_group_and_not_in_its_differences(tmp_path: Path) -> None:
+    """Each session's interval holds the scale's 0.3 % (``c2n_scale_se_pct``): one sensor drove
+    them all, so the sessions are pooled without it, it is added once to each group's interval,
+    and the groups' difference is the one their data alone give."""
+    data_se = 0.05
+
+    def row(log: str, c2n: float, scale_pct: float) -> dict:
+        se = math.hypot(data_se, scale_pct / 100 * c2n)
+        return {"log": log, "error": None, "c2n": c2n, "c2n_method": "paired crossings"} | {
+            "c2n_ci95.low": c2n - Z95 * se,
+            "c2n_ci95.high": c2n + Z95 * se,
+            "c2n_scale_se_pct": scale_pct,
+        }
+
+    values = {"A": [15.0, 15.1, 14.95], "B": [16.0, 16.1, 16.05]}
+    for scale_pct in (0.0, 0.3):
+        rows = [row(f"{g}{k}.blf", c, scale_pct) for g, cs in values.items() for k, c in enumerate(cs)]
+        entries = tuple(Entry(k + 2, tmp_path / r["log"], {"set": r["log"][0]}) for k, r in enumerate(rows))
+        found = compare(Manifest(tmp_path / "m.csv", ("set",), entries), rows, "set")
+        for name, cs in values.items():
+            alone = pool(cs, [data_se] * 3)
+            group = found.groups[name]
+            assert group.c2n == pytest.approx(alone.c2n)
+            half = math.hypot((alone.ci95[1] - alone.ci95[0]) / 2, Z95 * scale_pct / 100 * alone.c2n)
+            assert group.ci95[1] - group.c2n == pytest.approx(half)
+        (d,) = found.differences
+        expected = difference("B", pool(values["B"], [data_se] * 3), "A", pool(values["A"], [data_se] * 3))
+        assert d.ci95 == pytest.approx(expected.ci95)
+
+
 # -- the command ------------------------------------------------------------------------------
 
 

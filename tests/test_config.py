@@ -1,5 +1,6 @@
 """The vehicle config: defaults load; every mistake is one line naming the file, key and fix."""
 
+import math
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -87,6 +88,10 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
             ("[sensor_status]", "[detector]\nradius_max_m = 0\n[sensor_status]"),
             "radius_max_m = 0.0 is out of range — use above 0",
         ),
+        (
+            ("[sensor_status]", "[calibration]\nyaw_rate_scale_pct = -0.5\n[sensor_status]"),
+            "[calibration] yaw_rate_scale_pct = -0.5 is out of range — use 0 to 10",
+        ),
     ],
 )
 def test_mistakes_give_one_line_naming_file_key_and_fix(
@@ -156,3 +161,15 @@ def test_settings_sections_are_typed(write_config: Callable[[str], Path]) -> Non
         load_config(write_config(GOOD + '\n[filter]\nsideslip_source = "angle"\n'))
     with pytest.raises(ConfigError, match="min_fit_samples must be an integer"):
         load_config(write_config(GOOD + "\n[detector]\nmin_fit_samples = 2.5\n"))
+
+
+def test_the_sensors_scale_tolerances_are_read_as_uniform(write_config: Callable[[str], Path]) -> None:
+    """±x % from a data sheet is a standard error of x/√3 %; the regression's C2n scales with the
+    gyro's and the speed's scale together, a crossing's C2n = u0²/(g·d) with the speed's twice."""
+    assert load_config(write_config(GOOD)).calibration.fit_se == 0.0  # not given: not counted
+    text = GOOD.replace(
+        "[sensor_status]", "[calibration]\nyaw_rate_scale_pct = 0.5\nspeed_scale_pct = 0.2\n[sensor_status]"
+    )
+    calibration = load_config(write_config(text)).calibration
+    assert calibration.fit_se == pytest.approx(math.hypot(0.005, 0.002) / math.sqrt(3))
+    assert calibration.crossing_se == pytest.approx(2 * 0.002 / math.sqrt(3))

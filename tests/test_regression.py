@@ -95,6 +95,26 @@ def test_each_model_has_its_own_interval_whichever_is_chosen() -> None:
             assert all(low <= 12.0 <= high for low, high in (fit.c2n_linear_ci95, fit.c2n_softening_ci95))
 
 
+def test_the_sensors_scale_tolerance_widens_the_interval_by_its_share() -> None:
+    """A relative error σ from the sensors' scales is in C2n's interval beside the data's:
+    half-width q·√(se² + (σ·C2n)²), the estimate itself unchanged."""
+    rng = np.random.default_rng(8)
+    samples = [
+        (t, u, r, v + rng.normal(0, 0.005))
+        for t, u, r, v in sweep_samples(14.0, 1.1, 0.0, (70.0, -70.0, 140.0))
+    ]
+    plain, counted = fitted(samples), fitted(samples, scale_se=0.003)
+    assert plain is not None and counted is not None and counted.c2n == plain.c2n
+    q = (plain.c2n_ci95[1] - plain.c2n) / plain.c2n_se
+    assert counted.c2n_se == pytest.approx(math.hypot(plain.c2n_se, 0.003 * plain.c2n), rel=1e-9)
+    assert counted.c2n_ci95[1] - counted.c2n == pytest.approx(q * counted.c2n_se, rel=1e-9)
+    assert counted.c2n_linear_ci95 is not None and plain.c2n_linear_ci95 is not None
+    assert (
+        counted.c2n_linear_ci95[1] - counted.c2n_linear_ci95[0]
+        > plain.c2n_linear_ci95[1] - plain.c2n_linear_ci95[0]
+    )
+
+
 def test_stiffening_is_not_taken_for_softening() -> None:
     fit = fitted(sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0), softening=-0.002))
     assert fit is not None and fit.model == "linear"

@@ -15,11 +15,15 @@ linear tyres (C2n then 0.6–2.4 % high), and a campaign of 42 meets one about e
 The sessions' t statistics combine (Stouffer: z = Σt/√k, each t about N(0, 1) on linear tyres) and
 face the same bar a session's t does; each session is then compared on its fit of the group's
 model, the linear one or the one with the softening term.
+
+A session's interval may hold the sensors' scale tolerance (``c2n_scale_se_pct``): one sensor
+drove them all, so it is taken out before the sessions are pooled and counted once in each
+group's C2n (``with_scale``); the differences and trends are free of it.
 """
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -119,6 +123,16 @@ def pool(c2n: Sequence[float], se: Sequence[float]) -> Pooled:
     half = float(stdtrit(k - 1, 0.975)) * se_pooled
     i2 = max(0.0, (q - (k - 1)) / q) * 100 if q > 0 else 0.0
     return Pooled(mean, (mean - half, mean + half), se_pooled, k - 1, k, math.sqrt(tau2), i2)
+
+
+def with_scale(pooled: Pooled, relative_se: float) -> Pooled:
+    """The group's C2n with the sensors' scale error counted once: one sensor drove every session,
+    so its scale does not average out over them (nor does it enter their differences or trends)."""
+    if not relative_se > 0:
+        return pooled
+    extra = relative_se * pooled.c2n
+    half = math.hypot((pooled.ci95[1] - pooled.ci95[0]) / 2, Z95 * extra)
+    return replace(pooled, ci95=(pooled.c2n - half, pooled.c2n + half), se=math.hypot(pooled.se, extra))
 
 
 def difference(a: str, pa: Pooled, b: str, pb: Pooled) -> Difference:

@@ -22,6 +22,7 @@ from app.campaign.compare import (
     session_se,
     softening,
     trend,
+    with_scale,
 )
 from app.campaign.manifest import Manifest
 from app.errors import OutputError
@@ -125,6 +126,7 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
     ``rows`` are ``table_rows``' (``log`` as the manifest names it)."""
     failed = []
     done: list[tuple[dict[str, Any], str, str, float, tuple[float, float], Fits | None]] = []
+    scales: dict[str, float] = {}  # log -> C2n's relative error from the sensors' scales
     for entry, row in zip(manifest.entries, rows, strict=True):
         values = row.get("c2n"), row.get("c2n_ci95.low"), row.get("c2n_ci95.high")
         if row.get("error") or not _finite(*values):
@@ -133,6 +135,8 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
         c2n, low, high = (float(v) for v in values if v is not None)
         group = entry.tags[by] if by else "all"
         done.append((entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row)))
+        scale = row.get("c2n_scale_se_pct")
+        scales[str(row["log"])] = float(scale) / 100.0 if _finite(scale) and scale is not None else 0.0
     evidence: dict[str, list[float]] = {}
     for _, _, group, _, _, fits in done:
         evidence.setdefault(group, []).extend([fits.softening_t] if fits is not None else [])
@@ -149,15 +153,17 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
         else:
             compared[log] = Compared(c2n, ci95, None, None, None)
         value, interval = compared[log].c2n, compared[log].ci95
-        se = session_se(interval)
+        se = _data_se(session_se(interval), value, scales[log])
         sessions.setdefault(group, []).append((value, se))
         for tag in numeric:
             tagged.setdefault(tag, {}).setdefault(group, []).append((float(tags[tag]), value, se))
-    groups = {name: pool(*zip(*values, strict=True)) for name, values in sorted(sessions.items())}
-    names = list(groups)
-    differences = [
-        difference(b, groups[b], a, groups[a]) for i, a in enumerate(names) for b in names[i + 1 :]
+    pooled = {name: pool(*zip(*values, strict=True)) for name, values in sorted(sessions.items())}
+    names = list(pooled)
+    differences = [  # one sensor: its scale cancels
+        difference(b, pooled[b], a, pooled[a]) for i, a in enumerate(names) for b in names[i + 1 :]
     ]
+    common = {name: max(scales[log] for _, log, g, *_ in done if g == name) for name in names}
+    groups = {name: with_scale(p, common[name]) for name, p in pooled.items()}
     trends: dict[str, dict[str, Trend]] = {}
     for tag, per_group in tagged.items():
         everything = [value for values in per_group.values() for value in values]
@@ -181,6 +187,13 @@ def with_compared(
     at = columns.index(_FIRST[-1]) + 1 if _FIRST[-1] in columns else len(columns)
     named = [c for c in columns if c not in _COMPARED]
     return [*named[:at], *_COMPARED, *named[at:]], out
+
+
+def _data_se(se: float, c2n: float, scale: float) -> float:
+    """A session's standard error without the sensors' scale share (``c2n_scale_se_pct``)."""
+    if scale == 0:
+        return se
+    return math.sqrt(max(se * se - (scale * c2n) ** 2, (0.01 * se) ** 2))
 
 
 def _fits(row: dict[str, Any]) -> Fits | None:

@@ -165,8 +165,10 @@ class SampleRegression:
         min_samples: int = 200,
         d_tape_m: float | None = None,
         transient: bool = False,
+        scale_se: float = 0.0,
     ) -> None:
         self.g = g
+        self.scale_se = scale_se  # C2n's relative error from the sensors' scales (Calibration.fit_se)
         self.transient = transient  # quasi-steady samples: try the yaw inertia's and load transfer's terms
         self.d_tape_m = d_tape_m  # the sensor's d as measured with a tape: held where the data cannot fit it
         self.block_s = block_s
@@ -394,9 +396,11 @@ class SampleRegression:
             return (value - q * se, value + q * se)
 
         def model_se(model: _Solution) -> float:
-            if d_fixed:  # the tape's centimetre is in C2n too
-                return self._held_se(model, xtx, xty, run, n)
-            return _c2n_se(model, self.g)
+            """C2n's error: the data's (with the tape's centimetre where d is held) and the
+            sensors' scales', which no drive can show."""
+            data = self._held_se(model, xtx, xty, run, n) if d_fixed else _c2n_se(model, self.g)
+            scale = self.scale_se / (self.g * abs(float(model.coef[model.terms.index(2)])))
+            return math.hypot(data, scale)
 
         def model_ci(model: _Solution) -> tuple[float, float] | None:
             slope = model.coef[model.terms.index(2)]

@@ -171,6 +171,9 @@ class Summary:
     c2n: float | None = None
     c2n_ci95: Interval | None = None
     c2n_method: str | None = None
+    # C2n's relative standard error [%] from the sensors' scale tolerances ([calibration]), counted
+    # in c2n_ci95; 0 where none is given
+    c2n_scale_se_pct: float | None = None
     u0_mps: float | None = None
     crossings: tuple[CrossingRow, ...] = ()
     regression: RegressionRow | None = None
@@ -213,6 +216,7 @@ def build(
         c2n=_round(headline.c2n) if headline else None,
         c2n_ci95=_pair(headline.ci95) if headline else None,
         c2n_method=headline.method if headline else None,
+        c2n_scale_se_pct=_scale_se_pct(headline.method, config) if headline else None,
         u0_mps=_round(u0) if u0 is not None else None,
         crossings=tuple(_crossing(c, t0) for c in snapshot.crossings),
         regression=_regression(snapshot.regression),
@@ -526,6 +530,14 @@ def _crossing(c: Crossing, t0: float) -> CrossingRow:
 
 def _rejected(r: CrossingRejected, t0: float) -> RejectedRow:
     return RejectedRow(_round(r.t - t0, 3), r.direction, r.sweep, _round(r.u_mps, 3), r.reason)
+
+
+def _scale_se_pct(method: str, config: Config) -> float:
+    """What the sensors' scales add to the headline's error: a fit's C2n scales with the gyro's
+    and the speed's, a crossing's with the speed's twice."""
+    calibration = config.calibration
+    share = calibration.fit_se if method in ("regression", "quasi-steady") else calibration.crossing_se
+    return round(100.0 * share, 4)
 
 
 def _regression(fit: RegressionFit | None) -> RegressionRow | None:

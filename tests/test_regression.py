@@ -108,6 +108,7 @@ def test_the_sensors_scale_tolerance_widens_the_interval_by_its_share() -> None:
     q = (plain.c2n_ci95[1] - plain.c2n) / plain.c2n_se
     assert counted.c2n_se == pytest.approx(math.hypot(plain.c2n_se, 0.003 * plain.c2n), rel=1e-9)
     assert counted.c2n_ci95[1] - counted.c2n == pytest.approx(q * counted.c2n_se, rel=1e-9)
+    assert counted.scale_se == 0.003 and plain.scale_se == 0.0
     assert counted.c2n_linear_ci95 is not None and plain.c2n_linear_ci95 is not None
     assert (
         counted.c2n_linear_ci95[1] - counted.c2n_linear_ci95[0]

@@ -153,6 +153,7 @@ class RegressionFit:
     # tyre set's sessions together (app/campaign/compare.py) and then needs the other one
     c2n_linear_ci95: tuple[float, float] | None = None
     c2n_softening_ci95: tuple[float, float] | None = None
+    scale_se: float = 0.0  # C2n's relative error from the sensors' scales, in its intervals
 
 
 class SampleRegression:
@@ -474,6 +475,7 @@ class SampleRegression:
             slope_downhill_deg=slope[2] if slope else None,
             c2n_linear_ci95=model_ci(linear),
             c2n_softening_ci95=model_ci(cubic),
+            scale_se=self.scale_se,
         )
 
 

@@ -53,6 +53,8 @@ def result_line(snapshot: Snapshot) -> str:
             how += ", extrapolated to zero a_y"
         elif not fit.softening_resolved:
             how += "; interval widened: the a_y range cannot rule out softening tyres"
+    if fit is not None and fit.scale_se > 0 and headline.method in ("regression", "quasi-steady"):
+        how += f"; the sensors' scale counted, σ {100 * fit.scale_se:.2f} %"
     text = f"C2n = {headline.c2n:.3f} 1/rad [{lo:.3f}, {hi:.3f}] (95 %, {how}); "
     text += f"u0 = {u0:.3f} m/s = {u0 * 3.6:.2f} km/h" if u0 is not None else "u0: none (C2n is not positive)"
     crossings = snapshot.paired or snapshot.combined

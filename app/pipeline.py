@@ -351,20 +351,16 @@ class Pipeline:
         """The crossings combined and paired. Where the regression finds a slope, the crossings
         from before it was known carry it: those with it taken out are used alone. Where it finds
         a turn step, it is taken out of every crossing (``without_step``)."""
-        state = self.state
+        state, g = self.state, self.config.vehicle.gravity_mps2
         used = state.crossings
         if self.detector.tilt is not None:
             used = [c for c in state.crossings if c.slope_corrected] or used
         fit = state.regression
         if fit is not None and fit.turn_step_rad is not None:  # every crossing carries it: out
-            step, step_se, g = (
-                fit.turn_step_rad,
-                fit.turn_step_se_rad or 0.0,
-                self.config.vehicle.gravity_mps2,
-            )
+            step, step_se = fit.turn_step_rad, fit.turn_step_se_rad or 0.0
             used = [without_step(c, step, step_se, self.config.d_m, g) for c in used]
         state.combined = combine(used)
-        state.paired = pair(used, self.config.d_m, self.config.vehicle.gravity_mps2)
+        state.paired = pair(used, self.config.d_m, g)
         scale = self.config.calibration.crossing_se  # the speed's scale: in every crossing alike
         if scale > 0 and state.combined is not None:
             state.combined = replace(

@@ -171,9 +171,6 @@ class Summary:
     c2n: float | None = None
     c2n_ci95: Interval | None = None
     c2n_method: str | None = None
-    # C2n's relative standard error [%] from the sensors' scale tolerances ([calibration]), counted
-    # in c2n_ci95; 0 where none is given
-    c2n_scale_se_pct: float | None = None
     u0_mps: float | None = None
     crossings: tuple[CrossingRow, ...] = ()
     regression: RegressionRow | None = None
@@ -188,6 +185,9 @@ class Summary:
     sign_votes: SignVotesRow | None = None  # do a_y and the steering turn with the yaw rate?
     d_m: float | None = None
     g_mps2: float | None = None
+    # C2n's relative standard error [%] from the sensors' scale tolerances ([calibration]), counted
+    # in c2n_ci95; 0 where none is given
+    c2n_scale_se_pct: float | None = None
     duration_s: float | None = None
     inputs: tuple[str, ...] = ()
     config: str | None = None

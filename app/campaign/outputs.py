@@ -8,7 +8,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from app.campaign.compare import (
     Difference,
@@ -121,48 +121,62 @@ class Comparison:
         }
 
 
+class _Session(NamedTuple):
+    """A session with a C2n, as the comparison reads its row."""
+
+    tags: dict[str, str]
+    log: str
+    group: str
+    c2n: float  # the headline's
+    ci95: tuple[float, float]
+    fits: Fits | None  # its two fits, where the headline is one that could take either model
+    scale: float  # C2n's relative error from the sensors' scales, in its interval
+
+    def compared(self, decided: dict[str, Softening]) -> Compared:
+        """Its fit of its group's tyre model, where it has both fits; else its own headline."""
+        tyres = decided.get(self.group)
+        picked = self.fits.of(tyres.model) if self.fits is not None and tyres is not None else None
+        if self.fits is None or tyres is None or picked is None:
+            return Compared(self.c2n, self.ci95, None, None, None)
+        return Compared(*picked, tyres.model, self.fits.chosen, self.fits.softening_t)
+
+
 def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) -> Comparison:
     """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed.
     ``rows`` are ``table_rows``' (``log`` as the manifest names it)."""
-    failed = []
-    done: list[tuple[dict[str, Any], str, str, float, tuple[float, float], Fits | None]] = []
-    scales: dict[str, float] = {}  # log -> C2n's relative error from the sensors' scales
+    failed, done = [], []
     for entry, row in zip(manifest.entries, rows, strict=True):
         values = row.get("c2n"), row.get("c2n_ci95.low"), row.get("c2n_ci95.high")
         if row.get("error") or not _finite(*values):
             failed.append((entry.log.name, str(row.get("error") or "no C2n")))
             continue
         c2n, low, high = (float(v) for v in values if v is not None)
-        group = entry.tags[by] if by else "all"
-        done.append((entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row)))
         scale = row.get("c2n_scale_se_pct")
-        scales[str(row["log"])] = float(scale) / 100.0 if _finite(scale) and scale is not None else 0.0
+        share = float(scale) / 100.0 if scale is not None and _finite(scale) else 0.0
+        group = entry.tags[by] if by else "all"
+        done.append(_Session(entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row), share))
     evidence: dict[str, list[float]] = {}
-    for _, _, group, _, _, fits in done:
-        evidence.setdefault(group, []).extend([fits.softening_t] if fits is not None else [])
+    for session in done:
+        evidence.setdefault(session.group, []).extend([session.fits.softening_t] if session.fits else [])
     decided = {group: tyres for group, t in sorted(evidence.items()) if (tyres := softening(t)) is not None}
     sessions: dict[str, list[tuple[float, float]]] = {}
     tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
     numeric = [tag for tag in manifest.numeric_tags() if tag != by]
     compared: dict[str, Compared] = {}
-    for tags, log, group, c2n, ci95, fits in done:
-        model = decided[group].model if fits is not None and group in decided else None
-        picked = fits.of(model) if fits is not None and model is not None else None
-        if fits is not None and picked is not None:
-            compared[log] = Compared(*picked, model, fits.chosen, fits.softening_t)
-        else:
-            compared[log] = Compared(c2n, ci95, None, None, None)
-        value, interval = compared[log].c2n, compared[log].ci95
-        se = _data_se(session_se(interval), value, scales[log])
-        sessions.setdefault(group, []).append((value, se))
+    for session in done:
+        c = compared[session.log] = session.compared(decided)
+        se = _data_se(session_se(c.ci95), c.c2n, session.scale)
+        sessions.setdefault(session.group, []).append((c.c2n, se))
         for tag in numeric:
-            tagged.setdefault(tag, {}).setdefault(group, []).append((float(tags[tag]), value, se))
+            tagged.setdefault(tag, {}).setdefault(session.group, []).append(
+                (float(session.tags[tag]), c.c2n, se)
+            )
     pooled = {name: pool(*zip(*values, strict=True)) for name, values in sorted(sessions.items())}
     names = list(pooled)
     differences = [  # one sensor: its scale cancels
         difference(b, pooled[b], a, pooled[a]) for i, a in enumerate(names) for b in names[i + 1 :]
     ]
-    common = {name: max(scales[log] for _, log, g, *_ in done if g == name) for name in names}
+    common = {name: max(s.scale for s in done if s.group == name) for name in names}
     groups = {name: with_scale(p, common[name]) for name, p in pooled.items()}
     trends: dict[str, dict[str, Trend]] = {}
     for tag, per_group in tagged.items():

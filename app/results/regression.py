@@ -622,9 +622,8 @@ def _turn(fit: "_Solution", g: float) -> float:
 
 def _turn_ci(fit: "_Solution", g: float, q: float) -> tuple[float, float]:
     """Its 95 % interval in %, from the step's own (C2n's share of the error is second order)."""
-    i = fit.terms.index(10)
     c2n = -1.0 / (g * float(fit.coef[fit.terms.index(2)]))
-    half = q * math.sqrt(max(float(fit.cov[i, i]), 0.0)) * abs(c2n) * 100.0
+    half = q * _se(fit, 10) * abs(c2n) * 100.0
     centre = 100.0 * _turn(fit, g)
     return (centre - half, centre + half)
 
@@ -636,14 +635,14 @@ def _tilt_pct(fit: "_Solution", g: float) -> float:
 
 
 def _se(fit: "_Solution", term: int) -> float:
+    """A coefficient's standard error."""
     i = fit.terms.index(term)
     return math.sqrt(max(float(fit.cov[i, i]), 0.0))
 
 
 def _c2n_se(fit: "_Solution", g: float) -> float:
     """C2n's standard error: the delta method on C2n = −1/(g·b_ay)."""
-    i = fit.terms.index(2)
-    return math.sqrt(max(float(fit.cov[i, i]), 0.0)) / (g * float(fit.coef[i]) ** 2)
+    return _se(fit, 2) / (g * float(fit.coef[fit.terms.index(2)]) ** 2)
 
 
 def _wald(fit: "_Solution", terms: list[int]) -> float:

@@ -12,6 +12,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
+from typing import TypeVar
 
 import can
 import numpy as np
@@ -74,12 +75,9 @@ class Pipeline:
         self.gate = SteadyStateGate(config.detector, config.vehicle.wheelbase_m)
         self._ay_votes = "yaw_rate" in config.roles  # without a gyro a_y gives the yaw rate: no vote on it
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
-        scale = config.calibration.fit_se  # the sensors' scale tolerances, in C2n's interval
-        self.regression = SampleRegression(config.vehicle.gravity_mps2, d_tape_m=config.d_m, scale_se=scale)
+        self.regression = self._sample_regression(transient=False)
         self.quasi_gate = QuasiSteadyGate(config.detector, config.vehicle.wheelbase_m)
-        self.quasi = SampleRegression(
-            config.vehicle.gravity_mps2, d_tape_m=config.d_m, transient=True, scale_se=scale
-        )
+        self.quasi = self._sample_regression(transient=True)
         self._drives: list[SampleRegression] = []  # drives pooled: each one's quasi-steady samples alone
         self.heading = Heading()
         self.profile = SideslipProfile()
@@ -325,16 +323,20 @@ class Pipeline:
         self.regression.new_log()
         if not self._drives:  # the first drive's samples: all the pooled regression holds so far
             self._drives.append(copy.deepcopy(self.quasi))
-        self._drives.append(
-            SampleRegression(
-                self.config.vehicle.gravity_mps2,
-                d_tape_m=self.config.d_m,
-                transient=True,
-                scale_se=self.config.calibration.fit_se,
-            )
-        )
+        self._drives.append(self._sample_regression(transient=True))
         self.quasi.new_log()
         self._last_fit = -float("inf")
+
+    def _sample_regression(self, transient: bool) -> SampleRegression:
+        """The every-sample regression on the config's car: steady samples, or (``transient``)
+        quasi-steady ones; the sensors' scale tolerances counted in its intervals."""
+        config = self.config
+        return SampleRegression(
+            config.vehicle.gravity_mps2,
+            d_tape_m=config.d_m,
+            transient=transient,
+            scale_se=config.calibration.fit_se,
+        )
 
     def _refit(self) -> None:
         """The regression over every sample so far; a slope it found goes to the detector, and a
@@ -362,12 +364,9 @@ class Pipeline:
         state.combined = combine(used)
         state.paired = pair(used, self.config.d_m, g)
         scale = self.config.calibration.crossing_se  # the speed's scale: in every crossing alike
-        if scale > 0 and state.combined is not None:
-            state.combined = replace(
-                state.combined, se=math.hypot(state.combined.se, scale * state.combined.c2n)
-            )
-        if scale > 0 and state.paired is not None:
-            state.paired = replace(state.paired, se=math.hypot(state.paired.se, scale * state.paired.c2n))
+        if scale > 0:
+            state.combined = _with_scale(state.combined, scale)
+            state.paired = _with_scale(state.paired, scale)
 
     def _collect(self, events: list[Event]) -> None:
         for event in events:
@@ -377,6 +376,14 @@ class Pipeline:
                 self._pair()
             elif isinstance(event, CrossingRejected):
                 self.state.rejections.append(event)
+
+
+_Result = TypeVar("_Result", Combined, Paired)
+
+
+def _with_scale(result: _Result | None, share: float) -> _Result | None:
+    """The crossings' result with a relative error common to all of them (a scale) counted."""
+    return None if result is None else replace(result, se=math.hypot(result.se, share * result.c2n))
 
 
 def _slope(fit: RegressionFit | None) -> bool:

@@ -1,5 +1,6 @@
 """The whole pipeline on seeded simulated sessions: C2n within 1 % of the truth."""
 
+import dataclasses
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -7,7 +8,7 @@ from pathlib import Path
 import can
 import pytest
 
-from app.config import Config, load_config
+from app.config import Calibration, Config, load_config
 from app.pipeline import Pipeline
 from app.sim.session import SimulatedDrive
 from tests.simulated import REPO, cached_drive, run_pipeline
@@ -137,3 +138,21 @@ def test_misaligned_head_on_two_radii(config: Config) -> None:
     assert max(lefts) < 0.8 * 14.6 and min(rights) > 1.2 * 14.6
     headline = pipeline.snapshot().headline
     assert headline is not None and headline.method == "regression"
+
+
+def test_the_sensors_scale_tolerances_widen_the_headline_and_the_crossings(config: Config) -> None:
+    """[calibration]: the regression's C2n gains the gyro's and the speed's scale (its relative
+    error √(s² + k²)/√3), the paired crossings the speed's twice (2k/√3); the estimates stay."""
+    drive = cached_drive("radii", 25, 14.6)
+    plain = run_pipeline(config, drive).snapshot()
+    tolerant = dataclasses.replace(
+        config, calibration=Calibration(yaw_rate_scale_pct=0.5, speed_scale_pct=0.2)
+    )
+    counted = run_pipeline(tolerant, drive).snapshot()
+    fit, wide = plain.regression, counted.regression
+    assert fit is not None and wide is not None and wide.c2n == fit.c2n
+    share = math.hypot(0.005, 0.002) / math.sqrt(3)
+    assert wide.c2n_se == pytest.approx(math.hypot(fit.c2n_se, share * fit.c2n), rel=1e-9)
+    paired, widened = plain.paired, counted.paired
+    assert paired is not None and widened is not None and widened.c2n == pytest.approx(paired.c2n)
+    assert widened.se == pytest.approx(math.hypot(paired.se, 2 * 0.002 / math.sqrt(3) * paired.c2n), rel=1e-9)

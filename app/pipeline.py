@@ -22,7 +22,7 @@ from app.decode.decoder import Decoder
 from app.detect.crossings import CrossingDetector
 from app.detect.quasi_steady import QuasiSteadyGate
 from app.detect.signs import SignVotes
-from app.detect.steady_state import DIRECTIONS, STEADY, SteadyStateGate
+from app.detect.steady_state import DIRECTIONS, STEADY, WHEELBASE_M, SteadyStateGate
 from app.estimate.compiled import CompiledMotionFilter, estimate_of
 from app.records import Crossing, CrossingRejected, Estimate, Event, Record, SteadyState
 from app.results.combine import Combined, combine
@@ -336,6 +336,7 @@ class Pipeline:
             d_tape_m=config.d_m,
             transient=transient,
             scale_se=config.calibration.fit_se,
+            wheelbase_m=config.vehicle.wheelbase_m or WHEELBASE_M,
         )
 
     def _refit(self) -> None:

@@ -383,3 +383,75 @@ def test_one_radius_each_way_cannot_tell_a_turn_force_from_d() -> None:
     fit = fitted(samples)
     assert fit is not None and fit.turn_force_pct is None
     assert fit.d_m == pytest.approx(1.1 + 0.002 * 80.0, rel=1e-6)
+
+
+def tight_samples(
+    c2n: float, d: float, psi0: float, radii: tuple[float, ...], split: float = 0.0, step: float = 0.0
+):
+    """(t, u, r, v) for sweeps on a small pad's radii, from 7.7 m/s up to 4 m/s² (the steady gate)
+    and down: a_y never below 1.6 m/s². ``split`` mimics the two wheels of an axle on a tight turn,
+    α2 = a_y/(g·C2n)·(1 + split·κ·a_y); ``step`` a sideslip step δ·sign(κ) (a turn force)."""
+    t, hz = 0.0, 50.0
+    for radius in radii:
+        top = math.sqrt(4.0 * abs(radius))
+        for u in np.concatenate([np.linspace(7.7, top, 1000), np.linspace(top, 7.7, 1000)]):
+            r = u / radius
+            ay, kappa = u * r, r / u
+            beta = psi0 + d * kappa - ay / (G * c2n) * (1 + split * kappa * ay) + step * math.copysign(1, r)
+            yield t, float(u), float(r), float(u * beta)
+            t += 1.0 / hz
+        t += 5.0
+
+
+SMALL_PAD = (25.0, -25.0, 30.0, -30.0, 36.0, -36.0)
+
+
+def test_on_radii_under_twenty_wheelbases_d_is_held_at_the_tape_s_value() -> None:
+    """A tight turn's two wheels misread by a share that d·κ takes: fitted, d lands 7 mm short and
+    C2n 1 % high; held at the tape's value, C2n is within 0.5 %, and the fit says how much a
+    centimetre of tape moves it (its interval counts one)."""
+    samples = list(tight_samples(14.0, 1.11, math.radians(0.2), SMALL_PAD, split=0.1))
+    free = fitted(samples)
+    assert free is not None and not free.d_fixed and abs(free.c2n / 14.0 - 1.0) > 0.01
+    held = fitted(samples, d_tape_m=1.11, wheelbase_m=2.7)
+    assert held is not None and held.d_fixed and held.d_held_tight and held.d_m == 1.11
+    assert held.c2n == pytest.approx(14.0, rel=0.005)
+    assert held.c2n_per_tape_cm_pct is not None and held.c2n_per_tape_cm_pct > 1.0
+    assert held.c2n_ci95[0] <= 14.0 <= held.c2n_ci95[1]
+    # a wheelbase of 1 m puts the same radii at 25–36 wheelbases: d fitted
+    assert not fitted(samples, d_tape_m=1.11, wheelbase_m=1.0).d_fixed  # type: ignore[union-attr]
+    # and wide circles keep d free where the tape is 2 cm out
+    wide = fitted(
+        sweep_samples(14.0, 1.11, 0.0, (70.0, -70.0, 140.0, -140.0)), d_tape_m=1.13, wheelbase_m=2.7
+    )
+    assert wide is not None and not wide.d_fixed and wide.d_m == pytest.approx(1.11, rel=1e-9)
+
+
+def test_a_turn_force_is_found_where_no_sample_is_near_zero_a_y() -> None:
+    """On a small pad every steady sample has a_y ≥ 1.6 m/s², so sign(κ) is nearly a_y's double;
+    a 2.5 % turn force (CommonRoad's camber step) still shows and comes out exactly."""
+    fit = fitted(tight_samples(14.0, 1.11, 0.0, SMALL_PAD, step=0.025 / 14.0), d_tape_m=1.11, wheelbase_m=2.7)
+    assert fit is not None and fit.turn_force_pct == pytest.approx(2.5, rel=1e-6)
+    assert fit.c2n == pytest.approx(14.0, rel=1e-8)
+
+
+def test_the_summary_says_why_d_was_held_on_a_small_pad() -> None:
+    """Through the pipeline's regression (the config's d and wheelbase) to the summary: the keys
+    and a warning naming the radii, the share of a centimetre and what to do."""
+    from app.config import load_config
+    from app.pipeline import Pipeline
+    from app.sinks import summary
+
+    config = load_config()
+    pipeline = Pipeline(config)
+    for t, u, r, v in tight_samples(14.0, config.d_m, 0.0, SMALL_PAD):
+        pipeline.regression.add(t, u, r, v)
+    pipeline.finish()
+    result = summary.build(pipeline.snapshot(), config, ["small pad"]).to_json()
+    fit = result["regression"]
+    assert fit["d_fixed"] is True and fit["d_held_tight"] is True and fit["d_m"] == config.d_m
+    assert fit["c2n"] == pytest.approx(14.0, rel=1e-6) and fit["c2n_per_tape_cm_pct"] > 1.0
+    said = [w for w in result["warnings"] if "wheelbases" in w]
+    assert len(said) == 1 and "radii under 54 m (20 wheelbases)" in said[0]
+    assert f"each cm of d moves C2n by {fit['c2n_per_tape_cm_pct']:.1f} %" in said[0]
+    assert not any("too narrow to fit the sensor's d" in w for w in result["warnings"])

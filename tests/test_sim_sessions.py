@@ -15,7 +15,7 @@ from app.cli import main
 from app.config import Config
 from app.sim.session import SimulatedDrive, truth_path
 from app.sim.sessions import CIRCUIT, TRACK_PLAN, track_session
-from app.sim.standard import StandardOptions, simulate_standard
+from app.sim.standard import TIGHT_PLAN, StandardOptions, simulate_standard
 from app.sources.logs import open_log
 
 
@@ -129,6 +129,23 @@ def test_circles_hold_one_speed_on_three_radii_both_ways(circles: SimulatedDrive
         assert np.median(np.abs(trace.ay[settled])) == pytest.approx(expected, rel=0.02)
     assert 270.0 <= circles.truth["duration_s"] <= 330.0
     assert circles.truth["session"] == "circles"
+
+
+def test_a_small_pad_sweeps_radii_of_25_to_36_m_each_to_7_mps2(config: Config, u0: float) -> None:
+    """Issue 23's small pad: the Mondeo's u0 takes 6.5, 5.4 and 4.5 m/s² on its radii, and no sweep
+    runs past 7 m/s²: each passes u0, the tightest by 4 %."""
+    drive = simulate_standard(config, StandardOptions(seed=5, plan=TIGHT_PLAN))
+    trace = drive.trace
+    assert trace is not None
+    sweeps = parts(drive, "sweep")
+    assert sorted({s["radius_m"] for s in sweeps}) == [25.0, 30.0, 36.0]
+    assert sorted(s["direction"] for s in sweeps) == [-1, -1, -1, 1, 1, 1]
+    for sweep in sweeps:
+        inside = during(drive, sweep, after_s=6.0)
+        top = np.max(np.abs(trace.ay[inside]))
+        assert 6.5 < top <= 7.05
+        assert np.min(trace.u[inside]) == pytest.approx(0.6 * u0, rel=0.01)
+        assert np.max(trace.u[inside]) > u0
 
 
 @pytest.mark.parametrize(("session", "model"), [("track", "two_track"), ("circles", "commonroad")])

@@ -15,7 +15,10 @@ session on CommonRoad's multi-body model (config/commonroad_vehicle2.toml; the t
 car's rear axle read from its own state on the same car's standard sweeps (app/sim/axle.py: its roll
 camber makes it 8–10 % stiffer than the tyres' p_ky1, which the bench also compares with). Cases h–k
 have a test day's nuisances: gyro biases and scale, a steering offset and ratio error, tyres a few %
-off the nominal (the truth is the car's), mixed sensor rates, and the head yawed by up to 0.3°. Each
+off the nominal (the truth is the car's), mixed sensor rates, and the head yawed by up to 0.3°; (l)
+the standard session on a small pad (two-track, radii on which u0 takes 6.5, 5.4 and 4.5 m/s²:
+25, 30 and 36 m, each swept to 7 m/s², the steady gate keeping 1.3–4 m/s²) and (m) the same on
+CommonRoad's car (37, 44 and 53 m for its u0), both with a test day's nuisances as h–k. Each
 session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad, also for e–i),
 S-Motion-like noise (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°),
 written as CAN frames and run through the `c2n analyze` pipeline. Each row also says the headline's
@@ -25,6 +28,7 @@ most common method, in how many sessions, and how many sessions had no headline 
     python tools/bench_accuracy.py --cases a --scenarios constant_radius,constant_steer,step_steer
     python tools/bench_accuracy.py --cases e,f --sessions 10      # sloping pads, and level
     python tools/bench_accuracy.py --cases h,i,j,k --sessions 10  # circles, track laps, CommonRoad
+    python tools/bench_accuracy.py --cases l,m --sessions 10      # a small pad
 """
 
 import argparse
@@ -43,7 +47,7 @@ from app.pipeline import Pipeline
 from app.sim.effects import Effect
 from app.sim.imperfections import draw_imperfections
 from app.sim.session import DriveOptions, simulate_drive
-from app.sim.standard import StandardOptions, simulate_standard
+from app.sim.standard import TIGHT_PLAN, StandardOptions, simulate_standard
 
 CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "a": ("linear tyres", {}),
@@ -57,6 +61,8 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "i": ("track laps", {}),
     "j": ("CommonRoad, C2n ×0.8–1.2", {}),
     "k": ("track laps on CommonRoad", {}),
+    "l": ("radii 25–36 m, to 7 m/s²", {}),
+    "m": ("as l, on CommonRoad", {}),
 }
 SESSIONS = {
     "e": "standard",
@@ -65,6 +71,8 @@ SESSIONS = {
     "i": "track",
     "j": "standard (CR)",
     "k": "track (CR)",
+    "l": "tight radii",
+    "m": "tight radii (CR)",
 }
 
 
@@ -85,6 +93,16 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
     elif case == "f":
         drive = simulate_standard(config, StandardOptions(seed, c2n=truth, sensor=sensor))
         truth = float(drive.truth["c2n"])
+    elif case == "l":
+        tight = StandardOptions(
+            seed,
+            c2n=truth,
+            sensor=sensor | _head(seed),
+            plan=TIGHT_PLAN,
+            imperfections=draw_imperfections(np.random.default_rng(30_000 + seed)),
+        )
+        drive = simulate_standard(config, tight)
+        truth = float(drive.truth["c2n"])
     elif case in ("h", "i"):
         kind: Literal["circles", "track"] = "circles" if case == "h" else "track"
         drive = simulate_standard(
@@ -99,7 +117,7 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
             ),
         )
         truth = float(drive.truth["c2n"])
-    elif case in ("j", "k"):
+    elif case in ("j", "k", "m"):
         config = load_config(COMMONROAD_CONFIG)
         nominal = config.tyres.c2n_per_rad
         if nominal is None:
@@ -108,7 +126,12 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
         car = StandardOptions(seed, c2n=scaled, model="commonroad", plan_c2n=scaled)
         day = draw_imperfections(np.random.default_rng(30_000 + seed))
         on_the_day = replace(car, sensor=sensor | _head(seed), imperfections=day)
-        drive = simulate_standard(config, on_the_day if case == "j" else replace(on_the_day, session="track"))
+        sessions = {
+            "j": on_the_day,
+            "k": replace(on_the_day, session="track"),
+            "m": replace(on_the_day, plan=TIGHT_PLAN),
+        }
+        drive = simulate_standard(config, sessions[case])
         # the car's rear axle, not its tyres' p_ky1 (app/sim/axle.py): read on the same car's sweeps
         sweeps = drive if case == "j" else simulate_standard(config, car)
         truth = float(sweeps.truth["c2n_axle"])
@@ -225,7 +248,7 @@ def main() -> None:
             )
     for case in cases:
         rows = [r for r in results if r["case"] == case]
-        if case in ("j", "k"):
+        if case in ("j", "k", "m"):
             print(
                 f"({case}) against the tyres' p_ky1 instead of the car's rear axle: "
                 f"{_median([r['against_tyre'] for r in rows], '+.2f')} % (median); turn force found "

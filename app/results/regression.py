@@ -90,6 +90,7 @@ _TERMS = (  # the columns each block keeps; a fit takes a subset
     "turn",  # sign(κ): a force that follows the turn's direction
     "u",  # u and 1/u: a yaw-rate bias combines them (quasi-steady)
     "inv_u",
+    "ay2_kappa",  # κ·a_y²: the rear wheels' split on a tight turn
 )
 _K = len(_TERMS)
 _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrelation across it)
@@ -106,7 +107,12 @@ TURN_MIN_HELD_PCT = 1.0  # where d is held (ordinary driving) a gyro's bias, who
 # test day's 0.06 °/s read 0.6 % on track laps (C2n −3.4 %); CommonRoad's camber step is 2–3 %
 _WIDE_SPEEDS = 1.2  # the fastest sample this many times the slowest: speeds apart, not one speed
 _BIAS_ITERATIONS = 5  # refits of a yaw-rate bias's term, its C2n from the fit before (3 settle it to 1e-6)
-_TURN_SPREAD = 0.05  # of sign(κ) beside ψ0 and d·κ (one radius each way: 0) beyond which it is tried
+TIGHT_WHEELBASES = 20.0  # most samples on radii under this many wheelbases: d is held at the tape's
+# (the bicycle model's one-wheel axle misreads the two wheels of a tight turn by a share that d·κ
+# takes: two-track radii of 25–36 m, d fitted 5–8 mm long, C2n 1–2.3 % low; held, within 1 %)
+_TURN_SPREAD = 0.02  # of sign(κ) beside the other terms beyond which it is tried: one radius each way
+# leaves 0; a small pad, every sample at a_y ≥ 1.2 m/s², 0.024 (at 0.05 it was not tried there, and
+# CommonRoad's car read 8–21 % high, the truth outside every interval)
 
 
 @dataclass(frozen=True)
@@ -132,6 +138,8 @@ class RegressionFit:
     logs: int = 1  # drives pooled, each with its own ψ0 (psi0_rad: the first one's)
     transient_terms: bool = False  # the yaw inertia's and the speed's load transfer's terms kept
     d_fixed: bool = False  # True: the samples could not place d, which is the tape's (d_ci95 a point)
+    d_held_tight: bool = False  # d held because most samples turned tighter than TIGHT_WHEELBASES
+    c2n_per_tape_cm_pct: float | None = None  # where d is held: how far 1 cm of d moves C2n, %
     d_free_m: float | None = None  # where d is held: the top of d's interval as the samples alone
     # place it — below zero, the sensor is behind the axle: a role is the wrong way round
     tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
@@ -167,8 +175,12 @@ class SampleRegression:
         d_tape_m: float | None = None,
         transient: bool = False,
         scale_se: float = 0.0,
+        wheelbase_m: float | None = None,
     ) -> None:
         self.g = g
+        # where most samples turn tighter than TIGHT_WHEELBASES of these, d is held at the tape's
+        self._tight_curvature = 1.0 / (TIGHT_WHEELBASES * wheelbase_m) if wheelbase_m else math.inf
+        self._tight_n = 0
         self.scale_se = scale_se  # C2n's relative error from the sensors' scales (Calibration.fit_se)
         self.transient = transient  # quasi-steady samples: try the yaw inertia's and load transfer's terms
         self.d_tape_m = d_tape_m  # the sensor's d as measured with a tape: held where the data cannot fit it
@@ -238,13 +250,14 @@ class SampleRegression:
         self._ay_min, self._ay_max = min(self._ay_min, abs(ay)), max(self._ay_max, abs(ay))
         self._kappa_min, self._kappa_max = min(self._kappa_min, abs(kappa)), max(self._kappa_max, abs(kappa))
         self._u_min, self._u_max = min(self._u_min, u), max(self._u_max, u)
+        self._tight_n += abs(kappa) > self._tight_curvature
         self._open.append((kappa, ay, v_meas / u, heading, r_dot, u_dot, u))
 
     def _open_stats(self) -> tuple[np.ndarray, np.ndarray]:
         kappa, ay, beta, heading, r_dot, u_dot, u = np.array(self._open).T
         sin, cos = np.sin(heading), np.cos(heading)
         columns = [np.ones_like(ay), kappa, ay, ay**3, sin, cos, ay * sin, ay * cos]
-        columns += [r_dot, ay * u_dot, np.sign(kappa), u, 1.0 / u]
+        columns += [r_dot, ay * u_dot, np.sign(kappa), u, 1.0 / u, kappa * ay * ay]
         x = np.column_stack(columns)
         return x.T @ x, x.T @ beta
 
@@ -287,14 +300,18 @@ class SampleRegression:
         self._blocks = half + self._blocks % 2
 
     def _held_se(self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int) -> float:
-        """C2n's standard error with d held at the tape's value, the tape's own error counted: the
-        fit again with d ``D_TAPE_SE_M`` longer moves C2n by that much."""
+        """C2n's standard error with d held at the tape's value, the tape's own error counted."""
+        return math.hypot(_c2n_se(held, self.g), self._tape_shift(held, xtx, xty, run, n))
+
+    def _tape_shift(
+        self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int
+    ) -> float:
+        """How far C2n moves when the held d is ``D_TAPE_SE_M`` longer: the fit again."""
         longer = _solve(xtx, xty - D_TAPE_SE_M * xtx[:, :, 1], run, held.terms, n)
-        se = _c2n_se(held, self.g)
         if longer is None:
-            return se
+            return 0.0
         i = held.terms.index(2)
-        return math.hypot(se, 1.0 / (self.g * held.coef[i]) - 1.0 / (self.g * longer.coef[i]))
+        return abs(1.0 / (self.g * float(held.coef[i])) - 1.0 / (self.g * float(longer.coef[i])))
 
     def _turn_found(self, fit: "_Solution | None", blocks: int, held: bool) -> bool:
         """A turn force kept on the BIC's evidence, χ² > ln(blocks) (at 95 % one Magic-Formula drive
@@ -345,6 +362,7 @@ class SampleRegression:
             base += [8, 9]
         linear = _solve(xtx, xty, run, base, n)
         d_fixed, narrow, plain_xty = False, False, xty
+        tight = 2 * self._tight_n > n
         if self.d_tape_m is not None:  # β − d·κ on the other terms, d the tape's
             held_xty = xty - self.d_tape_m * xtx[:, :, 1]
             held_base = [t for t in base if t != 1]
@@ -353,8 +371,8 @@ class SampleRegression:
                 narrow = linear is None or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(
                     held, xtx, held_xty, run, n
                 )
-            if held is not None and (narrow or self.transient):  # transient: ordinary driving, where
-                d_fixed, xty, base, linear = True, held_xty, held_base, held  # the tape's d is better
+            if held is not None and (narrow or tight or self.transient):  # transient: ordinary driving,
+                d_fixed, xty, base, linear = True, held_xty, held_base, held  # where the tape's d is better
         wide = self._u_max >= _WIDE_SPEEDS * self._u_min
         # a turn force needs radii and speeds apart: at one speed it takes a_y's slope and the a_y³
         # term's curvature (circles at one speed ±1 %: worst C2n 0.7 → 4.3 %)
@@ -460,6 +478,8 @@ class SampleRegression:
             logs=logs,
             transient_terms=transient,
             d_fixed=d_fixed,
+            d_held_tight=d_fixed and tight and not narrow,
+            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, xtx, xty, run, n) / c2n if d_fixed else None,
             d_free_m=_plain_d(*plain, run, n, q) if d_fixed and wide else None,
             tilt=_tilt(chosen),
             turn_force_pct=100.0 * _turn(chosen, self.g) if 10 in terms else None,

@@ -54,6 +54,9 @@ class StandardPlan:
     speed_hi_factor: float = 1.3
     ay_top_mps2: float = 4.0  # at the top speed of the smallest radius
     radius_factors: tuple[float, ...] = (1.0, 1.4, 2.0)
+    radii_ay_at_u0_mps2: tuple[float, ...] = ()  # radii on which u0 takes these a_y (rounded to
+    # metres); () for radius_factors of the base
+    ay_max_mps2: float | None = None  # each sweep's top speed held to this a_y on its radius
     sweep_mps2: float = 0.3
     settle_s: float = 6.0  # after turning in
     hold_s: float = 3.0  # at the ends of a sweep
@@ -65,6 +68,10 @@ class StandardPlan:
 
 
 STANDARD_PLAN = StandardPlan()
+
+# The standard session on a small test area: radii on which u0 takes 6.5, 5.4 and 4.5 m/s² (25, 30
+# and 36 m for the Mondeo), each swept up to 7 m/s², deep into the tyres' non-linear range (issue 23)
+TIGHT_PLAN = StandardPlan(radii_ay_at_u0_mps2=(6.5, 5.4, 4.5), ay_max_mps2=7.0)
 
 # A short session for smoke tests (one radius, fast sweeps): too coarse for a diagnosis.
 QUICK_PLAN = StandardPlan(
@@ -103,15 +110,17 @@ def standard_session(
     add(ramp, lo, straight)
 
     base = hi * hi / plan.ay_top_mps2
-    sweep_s = (hi - lo) / plan.sweep_mps2
-    for factor in plan.radius_factors:
-        radius = float(round(factor * base))
+    factors = tuple(u0_mps**2 / (ay * base) for ay in plan.radii_ay_at_u0_mps2) or plan.radius_factors
+    radii = tuple(float(round(factor * base)) for factor in factors)
+    for radius in radii:
+        top = hi if plan.ay_max_mps2 is None else min(hi, math.sqrt(plan.ay_max_mps2 * radius))
+        sweep_s = (top - lo) / plan.sweep_mps2
         for sign in (1, -1):
             turn = Steer("radius", sign * radius)
             begin = clock[0]
             add(plan.settle_s, lo, turn)
-            add(sweep_s, hi, turn)
-            add(plan.hold_s, hi, turn)
+            add(sweep_s, top, turn)
+            add(plan.hold_s, top, turn)
             add(sweep_s, lo, turn)
             add(plan.hold_s, lo, turn)
             parts.append(Part("sweep", begin, clock[0], sign, radius))

@@ -14,10 +14,11 @@ from typing import Any, Literal
 from app import __version__
 from app.config import Config
 from app.detect.signs import SignVotes
+from app.detect.steady_state import WHEELBASE_M
 from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results.combine import Combined
 from app.results.pairing import Paired
-from app.results.regression import RegressionFit
+from app.results.regression import TIGHT_WHEELBASES, RegressionFit
 from app.sinks.files import json_ready, write_json
 from app.snapshot import Snapshot
 from app.sources.logs import LogReport
@@ -78,6 +79,8 @@ class RegressionRow:
     slope_ci95_pct: Interval | None
     slope_downhill_deg: float | None  # where it falls: degrees from the start heading, left positive
     d_fixed: bool  # True: the samples could not place d beside C2n; d is the config's
+    d_held_tight: bool  # True: held because most samples turned on radii under 20 wheelbases
+    c2n_per_tape_cm_pct: float | None  # where d is held: how far 1 cm of d moves C2n
     speed_range_mps: Interval
     turn_force_pct: float | None  # a rear force following the turn's direction, % of the axle's weight
     turn_force_ci95_pct: Interval | None
@@ -349,6 +352,14 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"quasi-steady cornering cannot place the sensor's d beside C2n as a sweep does: d is the "
             f"config's {config.d_m:g} m (its interval counts 1 cm of tape) — measure it with a tape"
         )
+    elif fit is not None and fit.d_held_tight:
+        wheelbases = TIGHT_WHEELBASES * (config.vehicle.wheelbase_m or WHEELBASE_M)
+        out.append(
+            f"most steady samples turned on radii under {wheelbases:.0f} m ({TIGHT_WHEELBASES:g} "
+            f"wheelbases), where the sensor's d cannot be fitted beside C2n: d is the config's "
+            f"{config.d_m:g} m, and each cm of d moves C2n by {fit.c2n_per_tape_cm_pct or 0.0:.1f} % here "
+            "(its interval counts 1 cm of tape) — measure d to the millimetre, or sweep on wider circles"
+        )
     elif fit is not None and fit.d_fixed:
         low, high = fit.speed_range
         out.append(
@@ -566,6 +577,8 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         slope_ci95_pct=_pair(fit.slope_ci95_pct, digits=2) if fit.slope_ci95_pct is not None else None,
         slope_downhill_deg=_maybe(fit.slope_downhill_deg, 0),
         d_fixed=fit.d_fixed,
+        d_held_tight=fit.d_held_tight,
+        c2n_per_tape_cm_pct=_maybe(fit.c2n_per_tape_cm_pct, 3),
         speed_range_mps=_pair(fit.speed_range, digits=3),
         turn_force_pct=_maybe(fit.turn_force_pct, 2),
         turn_force_ci95_pct=_pair(fit.turn_force_ci95_pct, digits=2) if fit.turn_force_ci95_pct else None,

@@ -29,6 +29,7 @@ from app.results.combine import Combined, combine
 from app.results.heading import Heading
 from app.results.pairing import Paired, pair
 from app.results.regression import RegressionFit, SampleRegression
+from app.results.secant import at_zero_ay
 from app.results.sideslip_profile import SideslipProfile
 from app.results.turn_step import without_step
 from app.snapshot import FilterState, Pending, Snapshot
@@ -347,13 +348,14 @@ class Pipeline:
         self.state.quasi = self.quasi.fit() if not self.state.crossings else None
         fit = self.state.regression = self.regression.fit()
         self.detector.tilt = fit.tilt if fit is not None else None
-        if self.state.crossings and (_slope(before), _step(before)) != (_slope(fit), _step(fit)):
+        if self.state.crossings and _pairing_terms(before) != _pairing_terms(fit):
             self._pair()
 
     def _pair(self) -> None:
         """The crossings combined and paired. Where the regression finds a slope, the crossings
         from before it was known carry it: those with it taken out are used alone. Where it finds
-        a turn step, it is taken out of every crossing (``without_step``)."""
+        a turn step, it is taken out of every crossing (``without_step``); where it keeps the tyres'
+        softening, every crossing is scaled to zero a_y (``at_zero_ay``)."""
         state, g = self.state, self.config.vehicle.gravity_mps2
         used = state.crossings
         if self.detector.tilt is not None:
@@ -362,6 +364,9 @@ class Pipeline:
         if fit is not None and fit.turn_step_rad is not None:  # every crossing carries it: out
             step, step_se = fit.turn_step_rad, fit.turn_step_se_rad or 0.0
             used = [without_step(c, step, step_se, self.config.d_m, g) for c in used]
+        if fit is not None and fit.softening_per_mps2_2 is not None:  # each reads its own a_y's secant
+            s, s_se = fit.softening_per_mps2_2, fit.softening_se_per_mps2_2 or 0.0
+            used = [at_zero_ay(c, s, s_se) for c in used]
         state.combined = combine(used)
         state.paired = pair(used, self.config.d_m, g)
         scale = self.config.calibration.crossing_se  # the speed's scale: in every crossing alike
@@ -387,13 +392,12 @@ def _with_scale(result: _Result | None, share: float) -> _Result | None:
     return None if result is None else replace(result, se=math.hypot(result.se, share * result.c2n))
 
 
-def _slope(fit: RegressionFit | None) -> bool:
-    return fit is not None and fit.tilt is not None
-
-
-def _step(fit: RegressionFit | None) -> float | None:
-    """The regression's turn step, which the pairing takes out of every crossing."""
-    return None if fit is None else fit.turn_step_rad
+def _pairing_terms(fit: RegressionFit | None) -> tuple[bool, float | None, float | None]:
+    """What of the regression the pairing uses: a slope found, the turn step and the softening it
+    takes out of every crossing. A change pairs them again."""
+    if fit is None:
+        return (False, None, None)
+    return (fit.tilt is not None, fit.turn_step_rad, fit.softening_per_mps2_2)
 
 
 def _held(column: np.ndarray | None, before: float | None, n: int) -> np.ndarray:

@@ -88,6 +88,7 @@ class Crossing:
     # zero: u0² moves by δ times this [m²/s² per rad] (R/slope of v/r against u²); None for "beta"
     u0sq_per_step: float | None = None
     step_corrected: bool = False  # the regression's turn step taken out (``without_step``)
+    secant_corrected: bool = False  # scaled to zero a_y by the regression's softening (``at_zero_ay``)
 
     @property
     def u0_kmh(self) -> float:

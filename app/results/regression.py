@@ -140,6 +140,7 @@ class RegressionFit:
     d_fixed: bool = False  # True: the samples could not place d, which is the tape's (d_ci95 a point)
     d_held_tight: bool = False  # d held because most samples turned tighter than TIGHT_WHEELBASES
     c2n_per_tape_cm_pct: float | None = None  # where d is held: how far 1 cm of d moves C2n, %
+    softening_se_per_mps2_2: float | None = None  # s's standard error, where the term is kept
     d_free_m: float | None = None  # where d is held: the top of d's interval as the samples alone
     # place it — below zero, the sensor is behind the axle: a role is the wrong way round
     tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
@@ -453,9 +454,10 @@ class SampleRegression:
             psi0, psi0_se = chosen.coef[0], math.sqrt(chosen.cov[0, 0])
         slope = _slope(chosen if 4 in terms else tilted, c2n, q) if tilted is not None else None
         bias = _bias(chosen, yaw_bias.terms[0], q) if yaw_bias is not None else None
-        softening = None
+        softening = softening_se = None
         if chosen is cubic:
             softening = -cubic.coef[-1] * self.g * c2n  # α2 = a_y/(g·C2n)·(1 + s·a_y²)
+            softening_se = _se(cubic, cubic.terms[-1]) * self.g * abs(c2n)
         return RegressionFit(
             c2n=c2n,
             c2n_se=c2n_se,
@@ -467,6 +469,7 @@ class SampleRegression:
             model="softening" if chosen is cubic else "linear",
             softening_t=t3,
             softening_per_mps2_2=softening,
+            softening_se_per_mps2_2=softening_se,
             c2n_linear_model=c2n_linear,
             c2n_softening_model=c2n_cubic,
             n_samples=n,

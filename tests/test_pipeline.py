@@ -193,3 +193,38 @@ def test_paired_crossings_on_softening_tyres_read_the_slope_at_zero_a_y(config: 
     assert paired.ci95[0] <= truth <= paired.ci95[1]
     raw = [c.c2n for c in snapshot.crossings]
     assert sum(raw) / len(raw) < 0.995 * truth and not any(c.secant_corrected for c in snapshot.crossings)
+
+
+def test_paired_crossings_apart_from_the_regression_say_which_to_believe(config: Config) -> None:
+    """A small pad on a test day (head yawed 0.11°, the gyros' biases and scale): the regression
+    reads within 0.5 %, the two crossings its sweeps left inside the gate (both left turns, a_y
+    3.3 m/s² on 36 m) pair to 6 % low with a tight interval. The summary says they are apart and
+    that the regression's C2n is the result; a drive where they agree says nothing."""
+    import numpy as np
+
+    from app.sim.imperfections import draw_imperfections
+    from app.sim.standard import TIGHT_PLAN, StandardOptions, simulate_standard
+    from app.sinks import summary
+
+    day = draw_imperfections(np.random.default_rng(30_005))
+    head = {"optical_hz": 100.0, "yaw_misalignment_deg": 0.113}
+    drive = simulate_standard(
+        config, StandardOptions(5, c2n=11.9015, sensor=head, plan=TIGHT_PLAN, imperfections=day)
+    )
+    snapshot = run_pipeline(config, drive).snapshot()
+    truth, head_result, paired = drive.truth["c2n"], snapshot.headline, snapshot.paired
+    assert head_result is not None and head_result.method == "regression"
+    assert head_result.c2n == pytest.approx(truth, rel=0.005)
+    assert paired is not None and paired.ci95[1] < head_result.ci95[0]
+    warnings = summary.build(snapshot, config, ["small pad"]).to_json()["warnings"]
+    apart = [w for w in warnings if w.startswith("the paired crossings read")]
+    assert (
+        len(apart) == 1
+        and f"{paired.c2n:.3f}" in apart[0]
+        and "the regression's C2n is the result" in apart[0]
+    )
+    agreeing = run_pipeline(config, cached_drive("radii", 25, 14.6)).snapshot()
+    assert not any(
+        w.startswith("the paired crossings read")
+        for w in summary.build(agreeing, config, ["x"]).to_json()["warnings"]
+    )

@@ -340,6 +340,9 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
             "with d; the regression's does not)"
         )
+    apart = _crossings_apart(snapshot)
+    if apart is not None:
+        out.append(apart)
     idle = [str(k) for k, alone in enumerate(snapshot.quasi_drives, 1) if alone is None]
     if fit is not None and fit is snapshot.quasi and idle:
         out.append(
@@ -509,6 +512,24 @@ def format_id(frame_id: int, extended: bool) -> str:
 
 def _round(value: float, digits: int = 4) -> float | None:
     return round(float(value), digits) if math.isfinite(value) else None
+
+
+def _crossings_apart(snapshot: Snapshot) -> str | None:
+    """Where the paired crossings' interval and the regression's headline's do not meet: which to
+    believe, and why they differ."""
+    head, paired = snapshot.headline, snapshot.paired
+    if head is None or head.method != "regression" or paired is None:
+        return None
+    (low, high), (h_low, h_high) = paired.ci95, head.ci95
+    if low <= h_high and h_low <= high:
+        return None
+    return (
+        f"the paired crossings read {paired.c2n:.3f} [{low:.3f}, {high:.3f}], apart from the "
+        f"regression's {head.c2n:.3f}: each crossing rests on one speed and the config's d (eq. 7) "
+        "and carries what the regression fits beside C2n (a head's yaw where only one direction "
+        "crossed, the tyres' secant beyond its a_y, a tight turn's two wheels) — the regression's C2n "
+        "is the result"
+    )
 
 
 def _maybe(value: float | None, digits: int = 4, scale: float = 1.0) -> float | None:

@@ -26,6 +26,7 @@ from app.detect.steady_state import DIRECTIONS, STEADY, WHEELBASE_M, SteadyState
 from app.estimate.compiled import CompiledMotionFilter, estimate_of
 from app.records import Crossing, CrossingRejected, Estimate, Event, Record, SteadyState
 from app.results.combine import Combined, combine
+from app.results.crossing_slope import with_tilt
 from app.results.heading import Heading
 from app.results.pairing import Paired, pair
 from app.results.regression import RegressionFit, SampleRegression
@@ -352,14 +353,15 @@ class Pipeline:
             self._pair()
 
     def _pair(self) -> None:
-        """The crossings combined and paired. Where the regression finds a slope, the crossings
-        from before it was known carry it: those with it taken out are used alone. Where it finds
+        """The crossings combined and paired. Where the regression finds a slope, every crossing
+        is moved to it (``with_tilt``; one without a lever that carries it is left out). Where it finds
         a turn step, it is taken out of every crossing (``without_step``); where it keeps the tyres'
         softening, every crossing is scaled to zero a_y (``at_zero_ay``)."""
         state, g = self.state, self.config.vehicle.gravity_mps2
-        used = state.crossings
-        if self.detector.tilt is not None:
-            used = [c for c in state.crossings if c.slope_corrected] or used
+        tilt = self.detector.tilt or (0.0, 0.0, 0.0, 0.0)  # every crossing moved to the last slope
+        used = [with_tilt(c, tilt, self.config.d_m, g) for c in state.crossings]
+        if self.detector.tilt is not None:  # a crossing without a lever ("beta") keeps what it had
+            used = [c for c in used if c.slope_corrected] or used
         fit = state.regression
         if fit is not None and fit.turn_step_rad is not None:  # every crossing carries it: out
             step, step_se = fit.turn_step_rad, fit.turn_step_se_rad or 0.0
@@ -392,12 +394,14 @@ def _with_scale(result: _Result | None, share: float) -> _Result | None:
     return None if result is None else replace(result, se=math.hypot(result.se, share * result.c2n))
 
 
-def _pairing_terms(fit: RegressionFit | None) -> tuple[bool, float | None, float | None]:
-    """What of the regression the pairing uses: a slope found, the turn step and the softening it
+def _pairing_terms(
+    fit: RegressionFit | None,
+) -> tuple[tuple[float, float, float, float] | None, float | None, float | None]:
+    """What of the regression the pairing uses: the slope, the turn step and the softening it
     takes out of every crossing. A change pairs them again."""
     if fit is None:
-        return (False, None, None)
-    return (fit.tilt is not None, fit.turn_step_rad, fit.softening_per_mps2_2)
+        return (None, None, None)
+    return (fit.tilt, fit.turn_step_rad, fit.softening_per_mps2_2)
 
 
 def _held(column: np.ndarray | None, before: float | None, n: int) -> np.ndarray:

@@ -88,11 +88,26 @@ class Crossing:
     # zero: u0² moves by δ times this [m²/s² per rad] (R/slope of v/r against u²); None for "beta"
     u0sq_per_step: float | None = None
     step_corrected: bool = False  # the regression's turn step taken out (``without_step``)
+    slope_lever: "SlopeLever | None" = None  # how any slope moves its local fit ("v/r" only)
     secant_corrected: bool = False  # scaled to zero a_y by the regression's softening (``at_zero_ay``)
 
     @property
     def u0_kmh(self) -> float:
         return self.u0_mps * 3.6
+
+
+@dataclass(frozen=True, slots=True)
+class SlopeLever:
+    """A crossing's local fit of y = v/r against x = u² (y = a + b·(x − x̄)) and what a pad's slope
+    adds to it: the sideslip tilt · (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ) puts tilt_k·X_k into y, and
+    the line fit is linear in y, so the fit with ``tilt`` out is a − Σ Δ_k·a_k, b − Σ Δ_k·b_k with
+    Δ the tilt less the one already out (``app/results/crossing_slope.py``)."""
+
+    x_mean: float
+    a: float
+    b: float
+    levers: tuple[tuple[float, float], ...]  # (a_k, b_k): each slope column's own line fit
+    tilt: tuple[float, float, float, float]  # the slope already out of the fit (zeros: none)
 
 
 @dataclass(frozen=True, slots=True)

@@ -18,7 +18,17 @@ import numpy as np
 
 from app.config import DetectorSettings
 from app.detect.line_fit import LineFit, Zero, fit_line
-from app.records import Crossing, CrossingRejected, Direction, Estimate, Event, SignChange, SteadyState, Sweep
+from app.records import (
+    Crossing,
+    CrossingRejected,
+    Direction,
+    Estimate,
+    Event,
+    SignChange,
+    SlopeLever,
+    SteadyState,
+    Sweep,
+)
 
 _TRIM_EVERY = 2048  # samples between trims of a run's far-away history
 _MAX_RUN_SAMPLES = 200_000  # hard cap on a run's memory (13 min at 250 Hz)
@@ -271,6 +281,14 @@ class CrossingDetector:
         if run.kind == "v/r":  # y = v/r gains δ·sign(κ)·u/r = δ·u/|r| (δ·R on a circle)
             lever = u[selected] / np.maximum(np.abs(np.asarray(run.r)[selected]), 1e-9)
             per_step = float(np.mean(lever)) / fit.b
+        slope_lever = None
+        if run.kind == "v/r":  # how any slope moves this fit: re-corrected with the last one found
+            psi, r = np.asarray(run.psi)[selected], np.asarray(run.r)[selected]
+            x = u[selected] ** 2
+            lines = [_line(x, column) for column in self._slope_columns(u[selected], psi, r)]
+            slope_lever = SlopeLever(
+                fit.x_mean, fit.a, fit.b, tuple(lines), self.tilt or (0.0, 0.0, 0.0, 0.0)
+            )
         ay0 = float(ay[nearest])
         radius = (u0 * u0 / ay0 if ay0 > 0 else math.inf) * (1 if direction == "left" else -1)
         scale = 1.0 / (self.g * self.d_m)
@@ -291,15 +309,21 @@ class CrossingDetector:
             method="v/r" if run.kind == "v/r" else "beta",
             slope_corrected=corrected,
             u0sq_per_step=per_step,
+            slope_lever=slope_lever,
         )
 
     def _slope_part(self, u: np.ndarray, psi: np.ndarray, r: np.ndarray) -> np.ndarray:
         """What the regression's slope (``tilt``: the sideslip a · (sin ψ, cos ψ, a_y·sin ψ,
         a_y·cos ψ), a_y = u·r) adds to y = v/r = β·u/r at each sample."""
-        a, b, c, d = self.tilt or (0.0, 0.0, 0.0, 0.0)
-        sin, cos = np.sin(psi), np.cos(psi)
-        part: np.ndarray = (a * sin + b * cos + u * r * (c * sin + d * cos)) * u / r
+        tilt = np.asarray(self.tilt or (0.0, 0.0, 0.0, 0.0))
+        part: np.ndarray = tilt @ np.asarray(self._slope_columns(u, psi, r))
         return part
+
+    @staticmethod
+    def _slope_columns(u: np.ndarray, psi: np.ndarray, r: np.ndarray) -> list[np.ndarray]:
+        """Each slope term's share of y = v/r: (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ)·u/r."""
+        sin, cos, lever = np.sin(psi), np.cos(psi), u / r
+        return [sin * lever, cos * lever, u * r * sin * lever, u * r * cos * lever]
 
     def _fit_window(self, u: np.ndarray, y: np.ndarray, u_flag: float, width: float) -> "_Window | str":
         """Fit y against u² within ±width of the crossing: a first pass around the flag (which
@@ -340,3 +364,10 @@ class CrossingDetector:
         if fit.slope_t < s.min_slope_t:
             return f"the sideslip hardly changes with speed here (slope t = {fit.slope_t:.1f})"
         return _Window(fit, zero, selected)
+
+
+def _line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least squares y = a + b·(x − x̄): the same line ``fit_line`` fits, without its errors."""
+    dx = x - x.mean()
+    b = float(dx @ (y - y.mean()) / (dx @ dx))
+    return float(y.mean()), b

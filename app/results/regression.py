@@ -90,7 +90,6 @@ _TERMS = (  # the columns each block keeps; a fit takes a subset
     "turn",  # sign(κ): a force that follows the turn's direction
     "u",  # u and 1/u: a yaw-rate bias combines them (quasi-steady)
     "inv_u",
-    "ay2_kappa",  # κ·a_y²: the rear wheels' split on a tight turn
 )
 _K = len(_TERMS)
 _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrelation across it)
@@ -258,7 +257,7 @@ class SampleRegression:
         kappa, ay, beta, heading, r_dot, u_dot, u = np.array(self._open).T
         sin, cos = np.sin(heading), np.cos(heading)
         columns = [np.ones_like(ay), kappa, ay, ay**3, sin, cos, ay * sin, ay * cos]
-        columns += [r_dot, ay * u_dot, np.sign(kappa), u, 1.0 / u, kappa * ay * ay]
+        columns += [r_dot, ay * u_dot, np.sign(kappa), u, 1.0 / u]
         x = np.column_stack(columns)
         return x.T @ x, x.T @ beta
 

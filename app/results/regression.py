@@ -108,7 +108,7 @@ _WIDE_SPEEDS = 1.2  # the fastest sample this many times the slowest: speeds apa
 _BIAS_ITERATIONS = 5  # refits of a yaw-rate bias's term, its C2n from the fit before (3 settle it to 1e-6)
 TIGHT_WHEELBASES = 20.0  # most samples on radii under this many wheelbases: d is held at the tape's
 # (the bicycle model's one-wheel axle misreads the two wheels of a tight turn by a share that d·κ
-# takes: two-track radii of 25–36 m, d fitted 5–8 mm long, C2n 1–2.3 % low; held, within 1 %)
+# takes: two-track radii of 25–36 m, d fitted 6–10 mm long, C2n 1–2.3 % low; held, within 1 %)
 _TURN_SPREAD = 0.02  # of sign(κ) beside the other terms beyond which it is tried: one radius each way
 # leaves 0; a small pad, every sample at a_y ≥ 1.2 m/s², 0.024 (at 0.05 it was not tried there, and
 # CommonRoad's car read 8–21 % high, the truth outside every interval)

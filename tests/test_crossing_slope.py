@@ -9,15 +9,15 @@ from app.detect.crossings import CrossingDetector, _line
 from app.detect.line_fit import fit_line
 from app.records import Crossing, SlopeLever
 from app.results.crossing_slope import with_tilt
+from tests.crossings import D, G, read_crossing
 
-G, D, C2N, RADIUS = 9.81, 1.11, 14.0, 80.0
+C2N, RADIUS = 14.0, 80.0
 
 
 def crossing(tilt_in_data: tuple[float, ...], tilt_out: tuple[float, float, float, float]) -> Crossing:
     """A sweep up through u0 on a circle of a sloping pad: y = v/r = d − u²/(g·C2n) plus the
     slope's share Σ tilt_k·X_k at each sample's heading; fitted with ``tilt_out`` taken out."""
     u = np.linspace(11.5, 14.0, 600)
-    t = np.cumsum(np.full(u.size, 0.02))
     r = u / RADIUS
     psi = np.cumsum(r * 0.02) + 0.4
     columns = CrossingDetector._slope_columns(u, psi, r)
@@ -25,26 +25,8 @@ def crossing(tilt_in_data: tuple[float, ...], tilt_out: tuple[float, float, floa
     y = y - np.asarray(tilt_out) @ np.asarray(columns)
     x = u * u
     fit = fit_line(x, y)
-    x0 = fit.zero().x0
-    c2n = x0 / (G * D)
     lever = SlopeLever(fit.x_mean, fit.a, fit.b, tuple(_line(x, c) for c in columns), tilt_out)
-    return Crossing(
-        t=float(t[300]),
-        direction="left",
-        sweep="up",
-        u0_mps=math.sqrt(x0),
-        u0_ci95=(math.sqrt(x0) - 0.05, math.sqrt(x0) + 0.05),
-        c2n=c2n,
-        c2n_se=0.03,
-        ci95=(c2n - 0.06, c2n + 0.06),
-        ay_mps2=x0 / RADIUS,
-        radius_m=RADIUS,
-        sweep_rate_mps2=0.3,
-        n_samples=u.size,
-        method="v/r",
-        slope_corrected=any(tilt_out),
-        slope_lever=lever,
-    )
+    return read_crossing(fit.zero().x0, RADIUS, se=0.03, slope_corrected=any(tilt_out), slope_lever=lever)
 
 
 TILT = (0.0012, -0.0008, 0.0001, 0.00005)  # a 2 % slope's pull and load transfer, C2n 14

@@ -7,8 +7,7 @@ import pytest
 from app import paper
 from app.records import Crossing, Direction, Sweep
 from app.results.pairing import pair
-
-G, D = 9.81, 1.11
+from tests.crossings import D, G, read_crossing
 
 
 def crossing(
@@ -17,22 +16,7 @@ def crossing(
     """What a crossing reads: C2n·(1 − ψ·R/d + 2·τ·u̇/u0)."""
     u0 = paper.crossing_speed(c2n, D, G)
     measured = c2n * (1 - psi * radius / D + 2 * tau * rate / u0)
-    u = math.sqrt(measured * G * D)
-    return Crossing(
-        t=0.0,
-        direction=direction,
-        sweep=sweep,
-        u0_mps=u,
-        u0_ci95=(u, u),
-        c2n=measured,
-        c2n_se=0.05,
-        ci95=(measured - 0.1, measured + 0.1),
-        ay_mps2=u * u / abs(radius),
-        radius_m=radius,
-        sweep_rate_mps2=rate,
-        n_samples=1000,
-        method="v/r",
-    )
+    return read_crossing(measured * G * D, radius, 0.05, direction, sweep, rate)
 
 
 def four(psi: float, tau: float, c2n: float = 14.0) -> list[Crossing]:

@@ -7,8 +7,7 @@ import pytest
 from app import paper
 from app.records import Crossing
 from app.results.secant import at_zero_ay
-
-G, D = 9.81, 1.11
+from tests.crossings import D, G, read_crossing
 
 
 def crossing_on_softening_tyres(c2n: float, s: float, radius: float) -> Crossing:
@@ -17,22 +16,7 @@ def crossing_on_softening_tyres(c2n: float, s: float, radius: float) -> Crossing
     x = paper.crossing_speed(c2n, D, G) ** 2
     for _ in range(200):
         x = G * c2n * D / (1.0 + s * (x / radius) ** 2)
-    read = x / (G * D)
-    return Crossing(
-        t=0.0,
-        direction="left",
-        sweep="up",
-        u0_mps=math.sqrt(x),
-        u0_ci95=(math.sqrt(x) - 0.05, math.sqrt(x) + 0.05),
-        c2n=read,
-        c2n_se=0.02,
-        ci95=(read - 1.96 * 0.02, read + 1.96 * 0.02),
-        ay_mps2=x / radius,
-        radius_m=radius,
-        sweep_rate_mps2=0.3,
-        n_samples=500,
-        method="v/r",
-    )
+    return read_crossing(x, radius)
 
 
 def test_a_crossing_on_softening_tyres_reads_the_secant_and_is_scaled_to_zero_a_y() -> None:

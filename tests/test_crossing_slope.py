@@ -1,11 +1,12 @@
 """A crossing moved to the last slope the regression found, against eq. 7 in closed form."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from app.detect.crossings import CrossingDetector, _line
+from app.detect.crossings import CrossingDetector
 from app.detect.line_fit import fit_line
 from app.records import Crossing, SlopeLever
 from app.results.crossing_slope import with_tilt
@@ -25,7 +26,8 @@ def crossing(tilt_in_data: tuple[float, ...], tilt_out: tuple[float, float, floa
     y = y - np.asarray(tilt_out) @ np.asarray(columns)
     x = u * u
     fit = fit_line(x, y)
-    lever = SlopeLever(fit.x_mean, fit.a, fit.b, tuple(_line(x, c) for c in columns), tilt_out)
+    levers = tuple((line.a, line.b) for line in (fit_line(x, column) for column in columns))
+    lever = SlopeLever(fit.x_mean, fit.a, fit.b, levers, tilt_out)
     return read_crossing(fit.zero().x0, RADIUS, se=0.03, slope_corrected=any(tilt_out), slope_lever=lever)
 
 
@@ -53,5 +55,5 @@ def test_a_crossing_fitted_with_a_passing_slope_comes_back_to_none() -> None:
 
 def test_a_crossing_without_a_lever_is_left_as_it_is() -> None:
     read = crossing(TILT, (0.0, 0.0, 0.0, 0.0))
-    bare = Crossing(**{**{f: getattr(read, f) for f in Crossing.__slots__}, "slope_lever": None})
+    bare = replace(read, slope_lever=None)
     assert with_tilt(bare, TILT, D, G) is bare

@@ -285,10 +285,9 @@ class CrossingDetector:
         if run.kind == "v/r":  # how any slope moves this fit: re-corrected with the last one found
             psi, r = np.asarray(run.psi)[selected], np.asarray(run.r)[selected]
             x = u[selected] ** 2
-            lines = [_line(x, column) for column in self._slope_columns(u[selected], psi, r)]
-            slope_lever = SlopeLever(
-                fit.x_mean, fit.a, fit.b, tuple(lines), self.tilt or (0.0, 0.0, 0.0, 0.0)
-            )
+            lines = [fit_line(x, column) for column in self._slope_columns(u[selected], psi, r)]
+            levers = tuple((line.a, line.b) for line in lines)
+            slope_lever = SlopeLever(fit.x_mean, fit.a, fit.b, levers, self.tilt or (0.0, 0.0, 0.0, 0.0))
         ay0 = float(ay[nearest])
         radius = (u0 * u0 / ay0 if ay0 > 0 else math.inf) * (1 if direction == "left" else -1)
         scale = 1.0 / (self.g * self.d_m)
@@ -364,10 +363,3 @@ class CrossingDetector:
         if fit.slope_t < s.min_slope_t:
             return f"the sideslip hardly changes with speed here (slope t = {fit.slope_t:.1f})"
         return _Window(fit, zero, selected)
-
-
-def _line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """Least squares y = a + b·(x − x̄): the same line ``fit_line`` fits, without its errors."""
-    dx = x - x.mean()
-    b = float(dx @ (y - y.mean()) / (dx @ dx))
-    return float(y.mean()), b

@@ -165,8 +165,11 @@ class Pipeline:
             state.signs.add(record.t, estimate.u_mps, estimate.r_radps, ay, latest.get("steer"))
         if steady.steady and estimate.v_meas_mps is not None:
             self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
-            if estimate.r_radps is not None:
-                self.regression.add(record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps, heading)
+            if estimate.r_radps is not None:  # with u̇: a small pad's sweeps move load (regression.py)
+                u_dot = estimate.u_dot_mps2
+                self.regression.add(
+                    record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps, heading, u_dot=u_dot
+                )
         if quasi and estimate.v_meas_mps is not None and not state.crossings:  # after one, no quasi fit
             e, v = estimate, estimate.v_meas_mps
             r, r_dot = e.r_radps, e.r_dot_radps2
@@ -254,7 +257,7 @@ class Pipeline:
                     profile.add(estimate.u_mps, estimate.v_meas_mps, DIRECTIONS[directions[k]])
                     if estimate.r_radps is not None:
                         u, r, v = estimate.u_mps, estimate.r_radps, estimate.v_meas_mps
-                        regression.add(now, u, r, v, headings[k])
+                        regression.add(now, u, r, v, headings[k], u_dot=estimate.u_dot_mps2)
             if quasi_flags[k]:
                 u, u_dot, _, _, r, r_dot, *_, v = next(quasi_fields)[:11]
                 if not state.crossings:  # after one, there is no quasi-steady fit

@@ -425,6 +425,49 @@ def test_on_radii_under_twenty_wheelbases_d_is_held_at_the_tape_s_value() -> Non
         sweep_samples(14.0, 1.11, 0.0, (70.0, -70.0, 140.0, -140.0)), d_tape_m=1.13, wheelbase_m=2.7
     )
     assert wide is not None and not wide.d_fixed and wide.d_m == pytest.approx(1.11, rel=1e-9)
+    assert wide.tight_terms == ()
+
+
+def swept_pad_samples(c2n: float, d: float, psi0: float, wheels: float, transfer: float):
+    """(t, u, r, v, u̇) on the small pad: each radius swept up slowly from 7.7 m/s to 4 m/s² and
+    down fast, the circle left at 8.7 m/s (so the sweeps' load transfer does not cancel), with
+    α2 = a_y/(g·C2n)·(1 + wheels·κ² + transfer·u̇): the axle's two wheels and the sweep's load."""
+    t, hz = 0.0, 50.0
+    for radius in SMALL_PAD:
+        top = math.sqrt(4.0 * abs(radius))
+        for speeds in (np.linspace(7.7, top, 1500), np.linspace(top, 8.7, 300)):
+            u_dot = (speeds[-1] - speeds[0]) * hz / len(speeds)
+            for u in speeds:
+                r = u / radius
+                ay, kappa = u * r, r / u
+                beta = psi0 + d * kappa - ay / (G * c2n) * (1 + wheels * kappa**2 + transfer * u_dot)
+                yield t, float(u), float(r), float(u * beta), float(u_dot)
+                t += 1.0 / hz
+        t += 5.0
+
+
+def test_a_small_pad_s_two_wheels_and_its_sweeps_load_transfer_are_fitted() -> None:
+    """Where d is held on a small pad the fit has the axle's two wheels (κ²·a_y) and the sweeps'
+    load transfer (a_y·u̇) too: C2n exact with both in the sideslip. Without u̇ (a caller that
+    never gives it) that term is not tried and its share goes into C2n; with d fitted, the two
+    wheels go into d."""
+    samples = list(swept_pad_samples(14.0, 1.11, math.radians(0.2), wheels=3.0, transfer=-0.07))
+
+    def fit(with_u_dot: bool = True, **kwargs):
+        regression = SampleRegression(G, **kwargs)
+        for t, u, r, v, u_dot in samples:
+            regression.add(t, u, r, v, u_dot=u_dot if with_u_dot else 0.0)
+        return regression.fit()
+
+    held = fit(d_tape_m=1.11, wheelbase_m=2.7)
+    assert held is not None and held.d_held_tight and held.tight_terms == ("ay_u_dot", "k2_ay")
+    assert held.c2n == pytest.approx(14.0, rel=1e-9)
+    assert held.c2n_ci95[0] <= 14.0 <= held.c2n_ci95[1]
+    blind = fit(with_u_dot=False, d_tape_m=1.11, wheelbase_m=2.7)
+    assert blind is not None and blind.tight_terms == ("k2_ay",) and abs(blind.c2n / 14.0 - 1.0) > 0.003
+    free = fit()
+    assert free is not None and not free.d_fixed and free.tight_terms == ()
+    assert abs(free.c2n / 14.0 - 1.0) > 0.005 and abs(free.d_m - 1.11) > 0.002
 
 
 def test_a_turn_force_is_found_where_no_sample_is_near_zero_a_y() -> None:
@@ -450,6 +493,7 @@ def test_the_summary_says_why_d_was_held_on_a_small_pad() -> None:
     result = summary.build(pipeline.snapshot(), config, ["small pad"]).to_json()
     fit = result["regression"]
     assert fit["d_fixed"] is True and fit["d_held_tight"] is True and fit["d_m"] == config.d_m
+    assert fit["tight_terms"] == ["k2_ay"]  # u̇ not given here: the sweeps' term is not tried
     assert fit["c2n"] == pytest.approx(14.0, rel=1e-6) and fit["c2n_per_tape_cm_pct"] > 1.0
     said = [w for w in result["warnings"] if "wheelbases" in w]
     assert len(said) == 1 and "radii under 54 m (20 wheelbases)" in said[0]

@@ -81,6 +81,7 @@ class RegressionRow:
     d_fixed: bool  # True: the samples could not place d beside C2n; d is the config's
     d_held_tight: bool  # True: held because most samples turned on radii under 20 wheelbases
     c2n_per_tape_cm_pct: float | None  # where d is held: how far 1 cm of d moves C2n
+    tight_terms: list[str]  # a small pad's terms fitted: "ay_u_dot" (its sweeps), "k2_ay" (two wheels)
     speed_range_mps: Interval
     turn_force_pct: float | None  # a rear force following the turn's direction, % of the axle's weight
     turn_force_ci95_pct: Interval | None
@@ -600,6 +601,7 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         d_fixed=fit.d_fixed,
         d_held_tight=fit.d_held_tight,
         c2n_per_tape_cm_pct=_maybe(fit.c2n_per_tape_cm_pct, 3),
+        tight_terms=list(fit.tight_terms),
         speed_range_mps=_pair(fit.speed_range, digits=3),
         turn_force_pct=_maybe(fit.turn_force_pct, 2),
         turn_force_ci95_pct=_pair(fit.turn_force_ci95_pct, digits=2) if fit.turn_force_ci95_pct else None,

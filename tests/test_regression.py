@@ -468,6 +468,15 @@ def test_a_small_pad_s_two_wheels_and_its_sweeps_load_transfer_are_fitted() -> N
     free = fit()
     assert free is not None and not free.d_fixed and free.tight_terms == ()
     assert abs(free.c2n / 14.0 - 1.0) > 0.005 and abs(free.d_m - 1.11) > 0.002
+    # circles at one speed on the same radii: no sweep, so neither term (u̇ would be noise)
+    regression = SampleRegression(G, d_tape_m=1.11, wheelbase_m=2.7)
+    for i, radius in enumerate(np.repeat(SMALL_PAD, 1000)):
+        u = 8.0 * (1.0 + 0.01 * math.sin(0.02 * i))  # ±1 %
+        ay, kappa = u * u / radius, 1.0 / radius
+        beta = kappa * 1.11 - ay / (G * 14.0) * (1.0 + 3.0 * kappa**2)
+        regression.add(i / 50.0, u, u / radius, u * beta, u_dot=0.08 * math.cos(0.02 * i))
+    circles = regression.fit()
+    assert circles is not None and circles.d_fixed and circles.tight_terms == ()
 
 
 def test_a_turn_force_is_found_where_no_sample_is_near_zero_a_y() -> None:

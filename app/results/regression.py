@@ -69,11 +69,13 @@ On a small pad (most samples on radii under ``TIGHT_WHEELBASES``) every sample i
 a_y, so C2n is an extrapolation, and two effects the bicycle model lacks lean on it: the axle's two
 wheels, whose slip angles and loads differ by shares of κ (the sideslip gains a term κ²·a_y), and
 the sweeps' own load transfer, k_x·a_y·u̇, which the short sweeps' up and down halves do not
-cancel. Both are fitted there (``TIGHT_TERMS``, with d held). On the simulator's true states at
-the pipeline's steady samples each moves C2n by half a per cent (a_y³ alone +0.15 %, with κ²·a_y
-−0.41 %, with a_y·u̇ +0.63 %, with both +0.11 %); with noise, and without them, the a_y³ term did
-not pass (6 of 9 sessions, 1 % low) and a heading-borne misfit passed for a slope. The two-track
-car's radii of 25–36 m: 0.85 % / 2.0 % → 0.16 % / 0.67 % (median / worst of 20).
+cancel. Both are fitted there (``TIGHT_TERMS``, with d held) where the speeds are swept; at one
+speed u̇ is noise and κ²·a_y nearly a_y's double, so circles at one speed keep their plain fit. On
+the simulator's true states at the pipeline's steady samples each moves C2n by half a per cent
+(a_y³ alone +0.15 %, with κ²·a_y −0.41 %, with a_y·u̇ +0.63 %, with both +0.11 %); with noise,
+and without them, the a_y³ term did not pass (6 of 9 sessions, 1 % low) and a heading-borne
+misfit passed for a slope. The two-track car's radii of 25–36 m: 0.85 % / 2.0 % → 0.16 % / 0.67 %
+(median / worst of 20).
 
 Samples at 50–250 Hz are autocorrelated, so the covariance is Newey–West (Bartlett) over short
 time blocks. Only each block's sufficient statistics are kept (XᵀX, Xᵀy), so memory does not
@@ -360,8 +362,9 @@ class SampleRegression:
         total = xtx.sum(axis=0)
         base = [*offsets, 1, 2] if psi0_free else [1, 2]
         tight = 2 * self._tight_n > n
-        if tight and self.d_tape_m is not None:  # a small pad: d is held (below), these two fitted
-            base += [t for t in TIGHT_TERMS if _left(total, base, t) >= _TERM_LEFT]
+        wide = self._u_max >= _WIDE_SPEEDS * self._u_min
+        if tight and wide and self.d_tape_m is not None:  # a small pad's sweeps: d held (below) and
+            base += [t for t in TIGHT_TERMS if _left(total, base, t) >= _TERM_LEFT]  # these two fitted
         small_pad = [_TERMS[t] for t in TIGHT_TERMS if t in base]
         tilted = None  # the fit with a slope's pull, where the headings let one be fitted
         if logs == 1 and psi0_free and _spread(total, base, [4, 5], n) >= _SLOPE_SPREAD:
@@ -391,7 +394,6 @@ class SampleRegression:
                 )
             if held is not None and (narrow or tight or self.transient):  # transient: ordinary driving,
                 d_fixed, xty, base, linear = True, held_xty, held_base, held  # where the tape's d is better
-        wide = self._u_max >= _WIDE_SPEEDS * self._u_min
         # a turn force needs radii and speeds apart: at one speed it takes a_y's slope and the a_y³
         # term's curvature (circles at one speed ±1 %: worst C2n 0.7 → 4.3 %)
         # tried beside the a_y³ term: a softening tyre's curvature, left to a straight line, leans on

@@ -160,9 +160,9 @@ def test_the_sensors_scale_tolerances_widen_the_headline_and_the_crossings(confi
 
 def test_a_small_pad_holds_d_at_the_tape_and_reads_the_rear_axle(config: Config) -> None:
     """The two-track car on radii of 25–36 m swept to 7 m/s² (Magic-Formula tyres, the steady
-    gate keeping 1.3–4 m/s²): with d fitted the regression read 2 % low, the truth outside its
-    interval; held at the tape's value it read 0.9 % low (the axle's two wheels and the sweeps'
-    load transfer left out); with them, within 0.5 %, and the summary says why."""
+    gate keeping 1.3–4 m/s²): with d fitted such sessions read 1.8–1.9 % low, the truth outside
+    their intervals; held at the tape's value this one read 0.9 % low (the axle's two wheels and
+    the sweeps' load transfer left out); with them, within 0.5 %, and the summary says why."""
     from app.sim.standard import TIGHT_PLAN, StandardOptions, simulate_standard
     from app.sinks import summary
 
@@ -200,7 +200,7 @@ def test_paired_crossings_on_softening_tyres_read_the_slope_at_zero_a_y(config: 
 def test_paired_crossings_apart_from_the_regression_say_which_to_believe(config: Config) -> None:
     """A small pad on a test day (head yawed 0.11°, the gyros' biases and scale): the regression
     reads within 0.5 %, the two crossings its sweeps left inside the gate (both left turns, a_y
-    3.3 m/s² on 36 m) pair to 6 % low with a tight interval. The summary says they are apart and
+    3.3–3.4 m/s² on 36 m) pair to 6 % low with a tight interval. The summary says they are apart and
     that the regression's C2n is the result; a drive where they agree says nothing."""
     import numpy as np
 
@@ -208,10 +208,10 @@ def test_paired_crossings_apart_from_the_regression_say_which_to_believe(config:
     from app.sim.standard import TIGHT_PLAN, StandardOptions, simulate_standard
     from app.sinks import summary
 
-    day = draw_imperfections(np.random.default_rng(30_005))
+    day = draw_imperfections(np.random.default_rng(30_001))
     head = {"optical_hz": 100.0, "yaw_misalignment_deg": 0.113}
     drive = simulate_standard(
-        config, StandardOptions(5, c2n=11.9015, sensor=head, plan=TIGHT_PLAN, imperfections=day)
+        config, StandardOptions(1, c2n=11.9015, sensor=head, plan=TIGHT_PLAN, imperfections=day)
     )
     snapshot = run_pipeline(config, drive).snapshot()
     truth, head_result, paired = drive.truth["c2n"], snapshot.headline, snapshot.paired

@@ -463,6 +463,12 @@ def test_a_small_pad_s_two_wheels_and_its_sweeps_load_transfer_are_fitted() -> N
     assert held is not None and held.d_held_tight and held.tight_terms == ("ay_u_dot", "k2_ay")
     assert held.c2n == pytest.approx(14.0, rel=1e-9)
     assert held.c2n_ci95[0] <= 14.0 <= held.c2n_ci95[1]
+    quasi = SampleRegression(G, d_tape_m=1.11, wheelbase_m=2.7, transient=True)  # ordinary driving's
+    for t, u, r, v, u_dot in samples:  # fit: its ṙ and a_y·u̇ beside the pad's terms, none twice
+        quasi.add(t, u, r, v, r_dot=u_dot * r / u, u_dot=u_dot)
+    beside = quasi.fit()
+    assert beside is not None and beside.transient_terms and beside.tight_terms == ("ay_u_dot", "k2_ay")
+    assert beside.c2n == pytest.approx(14.0, rel=1e-9)
     blind = fit(with_u_dot=False, d_tape_m=1.11, wheelbase_m=2.7)
     assert blind is not None and blind.tight_terms == ("k2_ay",) and abs(blind.c2n / 14.0 - 1.0) > 0.003
     free = fit()

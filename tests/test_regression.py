@@ -485,6 +485,18 @@ def test_a_small_pad_s_two_wheels_and_its_sweeps_load_transfer_are_fitted() -> N
     assert circles is not None and circles.d_fixed and circles.tight_terms == ()
 
 
+@pytest.mark.parametrize("bad", [math.nan, -1e9])
+def test_a_broken_u_dot_leaves_the_sweeps_term_out_not_the_fit(bad: float) -> None:
+    """One sample in a hundred with a u̇ that is not a number or absurd: the sweeps' term is left
+    out and the fit still stands, C2n within 1 % and the truth in its interval."""
+    regression = SampleRegression(G, d_tape_m=1.11, wheelbase_m=2.7)
+    for i, (t, u, r, v, u_dot) in enumerate(swept_pad_samples(14.0, 1.11, 0.0, 3.0, -0.07)):
+        regression.add(t, u, r, v, u_dot=bad if i % 97 == 0 else u_dot)
+    fit = regression.fit()
+    assert fit is not None and "ay_u_dot" not in fit.tight_terms and math.isfinite(fit.c2n)
+    assert fit.c2n == pytest.approx(14.0, rel=0.01) and fit.c2n_ci95[0] <= 14.0 <= fit.c2n_ci95[1]
+
+
 def test_a_turn_force_is_found_where_no_sample_is_near_zero_a_y() -> None:
     """On a small pad every steady sample has a_y ≥ 1.6 m/s², so sign(κ) is nearly a_y's double;
     a 2.5 % turn force (CommonRoad's camber step) still shows and comes out exactly."""

@@ -364,8 +364,9 @@ class SampleRegression:
         tight = 2 * self._tight_n > n
         wide = self._u_max >= _WIDE_SPEEDS * self._u_min
         if tight and wide and self.d_tape_m is not None:  # a small pad's sweeps: d held (below) and
-            base += [t for t in TIGHT_TERMS if _left(total, base, t) >= _TERM_LEFT]  # these two fitted
-        small_pad = [_TERMS[t] for t in TIGHT_TERMS if t in base]
+            pad = [t for t in TIGHT_TERMS if _left(total, base, t) >= _TERM_LEFT]  # these two fitted,
+            if _solve(xtx, xty, run, [*base, *pad], n) is not None:  # where they leave a fit
+                base += pad
         tilted = None  # the fit with a slope's pull, where the headings let one be fitted
         if logs == 1 and psi0_free and _spread(total, base, [4, 5], n) >= _SLOPE_SPREAD:
             tilted = _solve(xtx, xty, run, [*base, 4, 5], n)
@@ -501,7 +502,7 @@ class SampleRegression:
             transient_terms=transient,
             d_fixed=d_fixed,
             d_held_tight=d_fixed and tight and not narrow,
-            tight_terms=tuple(small_pad) if d_fixed else (),
+            tight_terms=tuple(_TERMS[t] for t in TIGHT_TERMS if t in terms),
             c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, xtx, xty, run, n) / c2n if d_fixed else None,
             d_free_m=_plain_d(*plain, run, n, q) if d_fixed and wide else None,
             tilt=_tilt(chosen),

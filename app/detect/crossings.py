@@ -277,13 +277,12 @@ class CrossingDetector:
         if direction is None:
             return reject("the turning direction is unknown")
         nearest = int(np.argmin(np.abs(u - u0) + np.where(selected, 0.0, np.inf)))
-        per_step = None
-        if run.kind == "v/r":  # y = v/r gains δ·sign(κ)·u/r = δ·u/|r| (δ·R on a circle)
-            lever = u[selected] / np.maximum(np.abs(np.asarray(run.r)[selected]), 1e-9)
-            per_step = float(np.mean(lever)) / fit.b
-        slope_lever = None
-        if run.kind == "v/r":  # how any slope moves this fit: re-corrected with the last one found
+        per_step = slope_lever = None
+        if run.kind == "v/r":
             psi, r = np.asarray(run.psi)[selected], np.asarray(run.r)[selected]
+            # y = v/r gains δ·sign(κ)·u/r = δ·u/|r| (δ·R on a circle)
+            per_step = float(np.mean(u[selected] / np.maximum(np.abs(r), 1e-9))) / fit.b
+            # how any slope moves this fit: re-corrected with the last one found
             x = u[selected] ** 2
             lines = [fit_line(x, column) for column in self._slope_columns(u[selected], psi, r)]
             levers = tuple((line.a, line.b) for line in lines)

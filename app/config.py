@@ -51,12 +51,16 @@ class Tyres:
 
 @dataclass(frozen=True)
 class Calibration:
-    """The sensors' scale tolerances from their data sheets, ± % (read as uniform: a standard
-    error of x/√3 %). No drive can show them — C2n scales with them — so they are counted in its
-    interval beside the data's own error. 0: not counted."""
+    """The sensors' scale tolerances from their data sheets, ± % (a bound, read as uniform: a
+    standard error of x/√3; 0: not counted), and how well the tape measured d, ± mm (a person's
+    error, read as normal with 95 % inside: a standard error of x/1.96). No drive can show them —
+    C2n scales with them — so they are counted in its interval beside the data's own error: the
+    scales always, the tape's d where C2n rests on it (a crossing's u0²/(g·d), a fit whose d is
+    held at the tape's value; a fit that places d itself does not use the tape)."""
 
     yaw_rate_scale_pct: float = 0.0  # the regression's C2n scales as (1 + s)
     speed_scale_pct: float = 0.0  # the optical speed: the regression's C2n as (1 + k), a crossing's (1 + 2k)
+    d_tolerance_mm: float = 10.0  # the tape's d: a crossing's C2n scales as 1/(1 + δd/d)
 
     @property
     def fit_se(self) -> float:
@@ -64,9 +68,14 @@ class Calibration:
         return math.hypot(self.yaw_rate_scale_pct, self.speed_scale_pct) / (100.0 * math.sqrt(3.0))
 
     @property
-    def crossing_se(self) -> float:
-        """The relative standard error the speed's scale adds to a crossing's C2n = u0²/(g·d)."""
-        return 2.0 * self.speed_scale_pct / (100.0 * math.sqrt(3.0))
+    def d_se_m(self) -> float:
+        """The tape's standard error on d, metres."""
+        return self.d_tolerance_mm / (1000.0 * 1.96)
+
+    def crossing_se(self, d_m: float) -> float:
+        """The relative standard error the speed's scale and the tape's d add to a crossing's
+        C2n = u0²/(g·d)."""
+        return math.hypot(2.0 * self.speed_scale_pct / (100.0 * math.sqrt(3.0)), self.d_se_m / d_m)
 
 
 @dataclass(frozen=True)
@@ -130,6 +139,7 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("tyres", "c2n_per_rad"): (0.0, 200.0, _OPEN),
     ("calibration", "yaw_rate_scale_pct"): (0.0, 10.0, _CLOSED),
     ("calibration", "speed_scale_pct"): (0.0, 10.0, _CLOSED),
+    ("calibration", "d_tolerance_mm"): (0.0, 100.0, _CLOSED),
     ("detector", "ay_max_mps2"): (0.0, 20.0, _OPEN),
     ("detector", "sweep_max_mps2"): (0.0, 10.0, _OPEN),
     ("detector", "speed_min_mps"): (0.0, 100.0, _CLOSED),

@@ -334,11 +334,13 @@ class Pipeline:
 
     def _sample_regression(self, transient: bool) -> SampleRegression:
         """The every-sample regression on the config's car: steady samples, or (``transient``)
-        quasi-steady ones; the sensors' scale tolerances counted in its intervals."""
+        quasi-steady ones; the sensors' scale tolerances (and the tape's, where d is held) counted in
+        its intervals."""
         config = self.config
         return SampleRegression(
             config.vehicle.gravity_mps2,
             d_tape_m=config.d_m,
+            d_tape_se_m=config.calibration.d_se_m,
             transient=transient,
             scale_se=config.calibration.fit_se,
             wheelbase_m=config.vehicle.wheelbase_m or WHEELBASE_M,
@@ -374,7 +376,8 @@ class Pipeline:
             used = [at_zero_ay(c, s, s_se) for c in used]
         state.combined = combine(used)
         state.paired = pair(used, self.config.d_m, g)
-        scale = self.config.calibration.crossing_se  # the speed's scale: in every crossing alike
+        scale = self.config.calibration.crossing_se(self.config.d_m)  # the speed's scale, the tape's d:
+        # in every crossing alike
         if scale > 0:
             state.combined = _with_scale(state.combined, scale)
             state.paired = _with_scale(state.paired, scale)

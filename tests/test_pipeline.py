@@ -158,6 +158,23 @@ def test_the_sensors_scale_tolerances_widen_the_headline_and_the_crossings(confi
     assert widened.se == pytest.approx(math.hypot(paired.se, 2 * 0.002 / math.sqrt(3) * paired.c2n), rel=1e-9)
 
 
+def test_the_tape_s_d_widens_the_crossings_not_a_fit_that_places_d(config: Config) -> None:
+    """A crossing's C2n = u0²/(g·d) rests on the tape's d: its interval counts the tape's ±10 mm
+    (95 %: a standard error of 10/1.96 mm, over d) unless the config says d is exact; the regression
+    places d itself (a sweep through u0) and does not use the tape."""
+    drive = cached_drive("radii", 25, 14.6)
+    stated = run_pipeline(config, drive).snapshot()
+    exact_config = dataclasses.replace(config, calibration=Calibration(d_tolerance_mm=0.0))
+    exact = run_pipeline(exact_config, drive).snapshot()
+    assert stated.regression is not None and exact.regression is not None
+    assert not stated.regression.d_fixed and stated.regression.c2n_se == exact.regression.c2n_se
+    paired, widened = exact.paired, stated.paired
+    assert paired is not None and widened is not None and widened.c2n == pytest.approx(paired.c2n)
+    tape = 0.010 / 1.96 / config.d_m
+    assert widened.se == pytest.approx(math.hypot(paired.se, tape * paired.c2n), rel=1e-9)
+    assert widened.se > 1.5 * paired.se  # the tape is most of a paired crossing's error here
+
+
 def test_a_small_pad_holds_d_at_the_tape_and_reads_the_rear_axle(config: Config) -> None:
     """The two-track car on radii of 25–36 m swept to 7 m/s² (Magic-Formula tyres, the steady
     gate keeping 1.3–4 m/s²): with d fitted such sessions read 1.8–1.9 % low, the truth outside

@@ -15,14 +15,19 @@ session on CommonRoad's multi-body model (config/commonroad_vehicle2.toml; the t
 car's rear axle read from its own state on the same car's standard sweeps (app/sim/axle.py: its roll
 camber makes it 8–10 % stiffer than the tyres' p_ky1, which the bench also compares with). Cases h–k
 have a test day's nuisances: gyro biases and scale, a steering offset and ratio error, tyres a few %
-off the nominal (the truth is the car's), mixed sensor rates, and the head yawed by up to 0.3°; (l)
+off the nominal (the truth is the car's), mixed sensor rates, the head yawed by up to 0.3°, and
+the head off the config's d by the tape's error (normal, within the config's ±10 mm in 95 % of
+the sessions: the intervals, which count that tolerance where C2n rests on d, are tried on what
+they claim; `--tape-mm 0` for the tape exact); (l)
 the standard session on a small pad (two-track, radii on which u0 takes 6.5, 5.4 and 4.5 m/s²:
 25, 30 and 36 m, each swept to 7 m/s², the steady gate keeping 1.3–4 m/s²) and (m) the same on
 CommonRoad's car (37, 44 and 53 m for its u0), both with a test day's nuisances as h–k. Each
 session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad, also for e–i),
 S-Motion-like noise (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°),
 written as CAN frames and run through the `c2n analyze` pipeline. Each row also says the headline's
-most common method, in how many sessions, and how many sessions had no headline at all.
+most common method, in how many sessions, and how many sessions had no headline at all, and each
+case's errors in its intervals' own σ (rms 1 where the intervals are as wide as the errors: sharper
+than a coverage count of 20).
 
     python tools/bench_accuracy.py                       # cases a–d on the two-radius session
     python tools/bench_accuracy.py --cases a --scenarios constant_radius,constant_steer,step_steer
@@ -42,7 +47,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from app.config import COMMONROAD_CONFIG, load_config
+from app.config import COMMONROAD_CONFIG, Calibration, Config, load_config
 from app.pipeline import Pipeline
 from app.sim.effects import Effect
 from app.sim.imperfections import draw_imperfections
@@ -64,6 +69,7 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "l": ("radii 25–36 m, to 7 m/s²", {}),
     "m": ("as l, on CommonRoad", {}),
 }
+TAPE_MM = Calibration().d_tolerance_mm  # h–m: the tape's error, the tolerance the configs state
 SESSIONS = {
     "e": "standard",
     "f": "standard",
@@ -76,8 +82,9 @@ SESSIONS = {
 }
 
 
-def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
-    case, scenario, seed, optical_hz = job
+def session(job: tuple[str, str, int, float] | tuple[str, str, int, float, float]) -> dict[str, Any]:
+    case, scenario, seed, optical_hz, *rest = job
+    tape_mm = rest[0] if rest else TAPE_MM
     truth = float(np.random.default_rng(10_000 + seed).uniform(10.0, 19.0))
     options = dict(CASES[case][1])
     sensor = {"optical_hz": optical_hz} | options.pop("sensor", {})
@@ -97,7 +104,7 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
         tight = StandardOptions(
             seed,
             c2n=truth,
-            sensor=sensor | _head(seed),
+            sensor=sensor | _head(seed) | _tape(seed, config, tape_mm),
             plan=TIGHT_PLAN,
             imperfections=draw_imperfections(np.random.default_rng(30_000 + seed)),
         )
@@ -110,7 +117,7 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
             StandardOptions(
                 seed,
                 c2n=truth,
-                sensor=sensor | _head(seed),
+                sensor=sensor | _head(seed) | _tape(seed, config, tape_mm),
                 plan_c2n=truth,
                 session=kind,
                 imperfections=draw_imperfections(np.random.default_rng(30_000 + seed)),
@@ -125,7 +132,8 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
         scaled = nominal * float(np.random.default_rng(10_000 + seed).uniform(0.8, 1.2))
         car = StandardOptions(seed, c2n=scaled, model="commonroad", plan_c2n=scaled)
         day = draw_imperfections(np.random.default_rng(30_000 + seed))
-        on_the_day = replace(car, sensor=sensor | _head(seed), imperfections=day)
+        day_sensor = sensor | _head(seed) | _tape(seed, config, tape_mm)
+        on_the_day = replace(car, sensor=day_sensor, imperfections=day)
         sessions = {
             "j": on_the_day,
             "k": replace(on_the_day, session="track"),
@@ -153,6 +161,11 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
     def covers(interval: tuple[float, float] | None) -> bool | None:
         return None if interval is None else interval[0] <= truth <= interval[1]
 
+    def z(value: float, interval: tuple[float, float]) -> float | None:
+        """The error in the interval's own σ, on the side of the truth (a profile's may be uneven)."""
+        half = value - interval[0] if value > truth else interval[1] - value
+        return (value - truth) / (half / 1.96) if half > 0.0 else None
+
     head, fit, paired = state.headline, state.fit, state.paired  # fit: the headline's regression
     lefts = [c.c2n for c in state.crossings if c.direction == "left"]
     rights = [c.c2n for c in state.crossings if c.direction == "right"]
@@ -161,6 +174,7 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
         "scenario": scenario,
         "headline": error(head.c2n if head else None),
         "headline_covers": covers(head.ci95 if head else None),
+        "headline_z": z(head.c2n, head.ci95) if head and head.ci95 else None,
         "method": head.method if head else None,
         "softening": fit is not None and fit.model == "softening",
         "psi0_deg": math.degrees(fit.psi0_rad) if fit and fit.psi0_rad is not None else None,
@@ -180,8 +194,15 @@ def session(job: tuple[str, str, int, float]) -> dict[str, Any]:
 
 
 def _head(seed: int) -> dict[str, float]:
-    """A test day's sensor head for cases h–j: yawed by up to 0.3° either way."""
+    """A test day's sensor head for cases h–m: yawed by up to 0.3° either way."""
     return {"yaw_misalignment_deg": float(np.random.default_rng(40_000 + seed).uniform(-0.3, 0.3))}
+
+
+def _tape(seed: int, config: Config, tape_mm: float) -> dict[str, float]:
+    """A test day's tape for cases h–m: the head sits within ``tape_mm`` of the config's d in 95 %
+    of the sessions (normal errors, as a person's are)."""
+    error_m = float(np.random.default_rng(50_000 + seed).normal(0.0, tape_mm / 1000.0 / 1.96))
+    return {"d_m": config.d_m + error_m}
 
 
 def _stats(values: list[float | None]) -> str:
@@ -206,6 +227,16 @@ def _methods(methods: list[str | None]) -> str:
     return f"{method:<16} {count:>3}/{len(methods):<3} {none}"
 
 
+def _spread(zs: list[float | None]) -> str:
+    """How honest the intervals are, sharper than a coverage count: rms 1 where they are right,
+    under 1 where they are wider than the errors, over 1 where narrower."""
+    present = [z for z in zs if z is not None]
+    if not present:
+        return "—"
+    rms = math.sqrt(statistics.fmean(z * z for z in present))
+    return f"rms {rms:.2f}, mean {statistics.fmean(present):+.2f}, largest |z| {max(map(abs, present)):.2f}"
+
+
 def _median(values: list[float | None], fmt: str) -> str:
     present = [v for v in values if v is not None]
     return format(statistics.median(present), fmt) if present else "—"
@@ -220,9 +251,21 @@ def main() -> None:
     parser.add_argument("--scenarios", default="radii")
     parser.add_argument("--optical-hz", type=float, default=100.0)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--tape-mm",
+        type=float,
+        default=TAPE_MM,
+        help="h–m: the head sits this far from the config's d at 95 %% (default: the tolerance the "
+        "config states, so the intervals are tried on what they claim; 0: the tape exact)",
+    )
     args = parser.parse_args()
     cases, scenarios = args.cases.split(","), args.scenarios.split(",")
-    jobs = [(c, s, seed, args.optical_hz) for c in cases for s in scenarios for seed in range(args.sessions)]
+    jobs = [
+        (c, s, seed, args.optical_hz, args.tape_mm)
+        for c in cases
+        for s in scenarios
+        for seed in range(args.sessions)
+    ]
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(session, jobs))
@@ -248,6 +291,8 @@ def main() -> None:
             )
     for case in cases:
         rows = [r for r in results if r["case"] == case]
+        spread = _spread([r["headline_z"] for r in rows])
+        print(f"({case}) headline's error in its interval's own σ: {spread}")
         if case in ("j", "k", "m"):
             print(
                 f"({case}) against the tyres' p_ky1 instead of the car's rear axle: "

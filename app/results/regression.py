@@ -109,8 +109,10 @@ _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrel
 UNRESOLVED_PCT = 3.0  # softening that could hide in the data, % of C2n, beyond which both models count
 _SLOPE_SPREAD = 0.3  # the headings' spread (of sin ψ, cos ψ beside the other terms; full circles 0.5)
 # beyond which a slope's two terms are fitted
-D_TAPE_SE_M = 0.01  # how well a tape places the sensor: its share of C2n's interval where d is held
+D_TAPE_SE_M = 0.01 / 1.96  # the tape's d to ±1 cm at 95 % (the config's default): in C2n's interval
 D_HELD_GAIN = 2.0  # d is held at the tape's value where fitting it would widen C2n's interval this much
+D_HELD_REF_M = 0.01  # ... beside the held interval with this much tape, whatever the config's tolerance
+# (a result's value does not depend on a stated tolerance, only its interval does)
 SLOPE_MIN_PCT = 0.25  # a slope under this moves C2n by less than the method's own error (a 2 %
 # slope left out: 2.5 %), and is seen on level pads too (0.05–0.16 %: heading-borne misfit)
 _SLOPE_WALD = -2.0 * math.log(0.05)  # χ²(2) at 95 %: a slope found, its load transfer fitted too
@@ -189,6 +191,7 @@ class SampleRegression:
         softening_t: float = 2.0,
         min_samples: int = 200,
         d_tape_m: float | None = None,
+        d_tape_se_m: float = D_TAPE_SE_M,
         transient: bool = False,
         scale_se: float = 0.0,
         wheelbase_m: float | None = None,
@@ -200,6 +203,7 @@ class SampleRegression:
         self.scale_se = scale_se  # C2n's relative error from the sensors' scales (Calibration.fit_se)
         self.transient = transient  # quasi-steady samples: try the yaw inertia's and load transfer's terms
         self.d_tape_m = d_tape_m  # the sensor's d as measured with a tape: held where the data cannot fit it
+        self.d_tape_se_m = d_tape_se_m  # ... and its standard error, counted in C2n's interval then
         self.block_s = block_s
         self.max_blocks = max_blocks
         self.softening_t = softening_t
@@ -315,15 +319,19 @@ class SampleRegression:
                 array[half] = array[self._blocks - 1]
         self._blocks = half + self._blocks % 2
 
-    def _held_se(self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int) -> float:
+    def _held_se(
+        self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int, tape_se_m: float
+    ) -> float:
         """C2n's standard error with d held at the tape's value, the tape's own error counted."""
-        return math.hypot(_c2n_se(held, self.g), self._tape_shift(held, xtx, xty, run, n))
+        return math.hypot(_c2n_se(held, self.g), self._tape_shift(held, xtx, xty, run, n, tape_se_m))
 
     def _tape_shift(
-        self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int
+        self, held: "_Solution", xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, n: int, step_m: float
     ) -> float:
-        """How far C2n moves when the held d is ``D_TAPE_SE_M`` longer: the fit again."""
-        longer = _solve(xtx, xty - D_TAPE_SE_M * xtx[:, :, 1], run, held.terms, n)
+        """How far C2n moves when the held d is ``step_m`` longer: the fit again."""
+        if step_m == 0.0:
+            return 0.0
+        longer = _solve(xtx, xty - step_m * xtx[:, :, 1], run, held.terms, n)
         if longer is None:
             return 0.0
         i = held.terms.index(2)
@@ -391,7 +399,7 @@ class SampleRegression:
             held = _solve(xtx, held_xty, run, held_base, n)
             if held is not None:  # a design too narrow to place d beside C2n (one speed)?
                 narrow = linear is None or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(
-                    held, xtx, held_xty, run, n
+                    held, xtx, held_xty, run, n, D_HELD_REF_M
                 )
             if held is not None and (narrow or tight or self.transient):  # transient: ordinary driving,
                 d_fixed, xty, base, linear = True, held_xty, held_base, held  # where the tape's d is better
@@ -436,9 +444,12 @@ class SampleRegression:
             return (value - q * se, value + q * se)
 
         def model_se(model: _Solution) -> float:
-            """C2n's error: the data's (with the tape's centimetre where d is held) and the
-            sensors' scales', which no drive can show."""
-            data = self._held_se(model, xtx, xty, run, n) if d_fixed else _c2n_se(model, self.g)
+            """C2n's error: the data's (with the tape's where d is held) and the sensors' scales',
+            which no drive can show."""
+            if d_fixed:
+                data = self._held_se(model, xtx, xty, run, n, self.d_tape_se_m)
+            else:
+                data = _c2n_se(model, self.g)
             scale = self.scale_se / (self.g * abs(float(model.coef[model.terms.index(2)])))
             return math.hypot(data, scale)
 
@@ -503,7 +514,9 @@ class SampleRegression:
             d_fixed=d_fixed,
             d_held_tight=d_fixed and tight and not narrow,
             tight_terms=tuple(_TERMS[t] for t in TIGHT_TERMS if t in terms),
-            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, xtx, xty, run, n) / c2n if d_fixed else None,
+            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, xtx, xty, run, n, 0.01) / c2n
+            if d_fixed
+            else None,
             d_free_m=_plain_d(*plain, run, n, q) if d_fixed and wide else None,
             tilt=_tilt(chosen),
             turn_force_pct=100.0 * _turn(chosen, self.g) if 10 in terms else None,

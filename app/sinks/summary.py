@@ -351,10 +351,11 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             "quasi-steady cornering to be fitted alone (`cornering` counts why: tight turns, a_y beyond "
             "the linear range, transients): the pooled C2n rests on the others"
         )
+    tape = f"±{config.calibration.d_tolerance_mm:g} mm"
     if fit is not None and fit.d_fixed and fit is snapshot.quasi:
         out.append(
             f"quasi-steady cornering cannot place the sensor's d beside C2n as a sweep does: d is the "
-            f"config's {config.d_m:g} m (its interval counts 1 cm of tape) — measure it with a tape"
+            f"config's {config.d_m:g} m (its interval counts the tape's {tape}) — measure it with a tape"
         )
     elif fit is not None and fit.d_held_tight:
         wheelbases = TIGHT_WHEELBASES * (config.vehicle.wheelbase_m or WHEELBASE_M)
@@ -362,13 +363,14 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"most steady samples turned on radii under {wheelbases:.0f} m ({TIGHT_WHEELBASES:g} "
             f"wheelbases), where the sensor's d cannot be fitted beside C2n: d is the config's "
             f"{config.d_m:g} m, and each cm of d moves C2n by {fit.c2n_per_tape_cm_pct or 0.0:.1f} % here "
-            "(its interval counts 1 cm of tape) — measure d to the millimetre, or sweep on wider circles"
+            f"(its interval counts the tape's {tape}) — measure d to the millimetre, or sweep on wider "
+            "circles"
         )
     elif fit is not None and fit.d_fixed:
         low, high = fit.speed_range
         out.append(
             f"the steady samples span {low:.1f}–{high:.1f} m/s only: too narrow to fit the sensor's d beside "
-            f"C2n, so d is the config's {config.d_m:g} m (its interval counts 1 cm of tape); sweep the "
+            f"C2n, so d is the config's {config.d_m:g} m (its interval counts the tape's {tape}); sweep the "
             "speed through u0 to measure both"
         )
     if fit is not None and fit.model == "softening":
@@ -569,7 +571,8 @@ def _scale_se_pct(method: str, config: Config) -> float:
     """What the sensors' scales add to the headline's error: a fit's C2n scales with the gyro's
     and the speed's, a crossing's with the speed's twice."""
     calibration = config.calibration
-    share = calibration.fit_se if method in ("regression", "quasi-steady") else calibration.crossing_se
+    fit = method in ("regression", "quasi-steady")
+    share = calibration.fit_se if fit else calibration.crossing_se(config.d_m)
     return round(100.0 * share, 4)
 
 

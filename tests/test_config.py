@@ -176,7 +176,7 @@ def test_the_sensors_scale_tolerances_are_read_as_uniform(write_config: Callable
     assert calibration.crossing_se(1.5) == pytest.approx(math.hypot(2 * 0.002 / math.sqrt(3), tape))
 
 
-def test_the_tape_s_tolerance_on_d_is_read_as_uniform_and_zero_means_exact(
+def test_the_tape_s_tolerance_on_d_holds_95_percent_and_zero_means_exact(
     write_config: Callable[[str], Path],
 ) -> None:
     """±x mm of tape (95 % of a person's errors) is a standard error of x/1.96 mm on d: a crossing's

@@ -47,7 +47,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from app.config import COMMONROAD_CONFIG, Calibration, Config, load_config
+from app.config import COMMONROAD_CONFIG, Config, load_config
 from app.pipeline import Pipeline
 from app.sim.effects import Effect
 from app.sim.imperfections import draw_imperfections
@@ -69,7 +69,6 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "l": ("radii 25–36 m, to 7 m/s²", {}),
     "m": ("as l, on CommonRoad", {}),
 }
-TAPE_MM = Calibration().d_tolerance_mm  # h–m: the tape's error, the tolerance the configs state
 SESSIONS = {
     "e": "standard",
     "f": "standard",
@@ -82,9 +81,9 @@ SESSIONS = {
 }
 
 
-def session(job: tuple[str, str, int, float] | tuple[str, str, int, float, float]) -> dict[str, Any]:
-    case, scenario, seed, optical_hz, *rest = job
-    tape_mm = rest[0] if rest else TAPE_MM
+def session(job: tuple[str, str, int, float, float | None]) -> dict[str, Any]:
+    """One seeded session of a case; ``tape_mm`` (h–m): the tape's error, None: the config's tolerance."""
+    case, scenario, seed, optical_hz, tape_mm = job
     truth = float(np.random.default_rng(10_000 + seed).uniform(10.0, 19.0))
     options = dict(CASES[case][1])
     sensor = {"optical_hz": optical_hz} | options.pop("sensor", {})
@@ -198,10 +197,11 @@ def _head(seed: int) -> dict[str, float]:
     return {"yaw_misalignment_deg": float(np.random.default_rng(40_000 + seed).uniform(-0.3, 0.3))}
 
 
-def _tape(seed: int, config: Config, tape_mm: float) -> dict[str, float]:
-    """A test day's tape for cases h–m: the head sits within ``tape_mm`` of the config's d in 95 %
-    of the sessions (normal errors, as a person's are)."""
-    error_m = float(np.random.default_rng(50_000 + seed).normal(0.0, tape_mm / 1000.0 / 1.96))
+def _tape(seed: int, config: Config, tape_mm: float | None) -> dict[str, float]:
+    """A test day's tape for cases h–m: the head sits within ``tape_mm`` (None: the tolerance the
+    config states) of the config's d in 95 % of the sessions (normal errors, as a person's are)."""
+    tolerance_m = (config.calibration.d_tolerance_mm if tape_mm is None else tape_mm) / 1000.0
+    error_m = float(np.random.default_rng(50_000 + seed).normal(0.0, tolerance_m / 1.96))
     return {"d_m": config.d_m + error_m}
 
 
@@ -254,7 +254,7 @@ def main() -> None:
     parser.add_argument(
         "--tape-mm",
         type=float,
-        default=TAPE_MM,
+        default=None,
         help="h–m: the head sits this far from the config's d at 95 %% (default: the tolerance the "
         "config states, so the intervals are tried on what they claim; 0: the tape exact)",
     )

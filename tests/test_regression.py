@@ -1,5 +1,6 @@
 """The every-sample regression against eq. 6 (with offset and softening) in closed form."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -511,9 +512,10 @@ def test_a_turn_force_is_found_where_no_sample_is_near_zero_a_y() -> None:
 
 
 def test_the_summary_says_why_d_was_held_on_a_small_pad() -> None:
-    """Through the pipeline's regression (the config's d and wheelbase) to the summary: the keys
-    and a warning naming the radii, the share of a centimetre and what to do."""
-    from app.config import load_config
+    """Through the pipeline's regression (the config's d, wheelbase and tape tolerance) to the
+    summary: the keys and a warning naming the radii, the share of a centimetre, the tolerance
+    counted and what to do."""
+    from app.config import Calibration, load_config
     from app.pipeline import Pipeline
     from app.sinks import summary
 
@@ -530,4 +532,17 @@ def test_the_summary_says_why_d_was_held_on_a_small_pad() -> None:
     said = [w for w in result["warnings"] if "wheelbases" in w]
     assert len(said) == 1 and "radii under 54 m (20 wheelbases)" in said[0]
     assert f"each cm of d moves C2n by {fit['c2n_per_tape_cm_pct']:.1f} %" in said[0]
+    assert "its interval counts the tape's ±10 mm" in said[0]  # the config's default tolerance
     assert not any("too narrow to fit the sensor's d" in w for w in result["warnings"])
+    # a tape stated five times finer: the same C2n, an interval five times narrower (the samples
+    # are exact, so the tape is all of it), and the warning names it
+    careful = dataclasses.replace(config, calibration=Calibration(d_tolerance_mm=2.0))
+    pipeline = Pipeline(careful)
+    for t, u, r, v in tight_samples(14.0, config.d_m, 0.0, SMALL_PAD):
+        pipeline.regression.add(t, u, r, v)
+    pipeline.finish()
+    narrower = summary.build(pipeline.snapshot(), careful, ["small pad"]).to_json()
+    assert narrower["regression"]["c2n"] == fit["c2n"]
+    width, fine = (np.diff(r["regression"]["c2n_ci95"])[0] for r in (result, narrower))
+    assert width / fine == pytest.approx(5.0, rel=0.02)
+    assert any("its interval counts the tape's ±2 mm" in w for w in narrower["warnings"])

@@ -47,7 +47,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from app.config import COMMONROAD_CONFIG, Config, load_config
+from app.config import COMMONROAD_CONFIG, Calibration, Config, load_config
 from app.pipeline import Pipeline
 from app.sim.effects import Effect
 from app.sim.imperfections import draw_imperfections
@@ -200,8 +200,8 @@ def _head(seed: int) -> dict[str, float]:
 def _tape(seed: int, config: Config, tape_mm: float | None) -> dict[str, float]:
     """A test day's tape for cases h–m: the head sits within ``tape_mm`` (None: the tolerance the
     config states) of the config's d in 95 % of the sessions (normal errors, as a person's are)."""
-    tolerance_m = (config.calibration.d_tolerance_mm if tape_mm is None else tape_mm) / 1000.0
-    error_m = float(np.random.default_rng(50_000 + seed).normal(0.0, tolerance_m / 1.96))
+    tape = config.calibration if tape_mm is None else Calibration(d_tolerance_mm=tape_mm)
+    error_m = float(np.random.default_rng(50_000 + seed).normal(0.0, tape.d_se_m))
     return {"d_m": config.d_m + error_m}
 
 

@@ -111,7 +111,8 @@ _SLOPE_SPREAD = 0.3  # the headings' spread (of sin ψ, cos ψ beside the other 
 # beyond which a slope's two terms are fitted
 D_TAPE_SE_M = 0.01 / 1.96  # the tape's d to ±1 cm at 95 % (the config's default): in C2n's interval
 D_HELD_GAIN = 2.0  # d is held at the tape's value where fitting it would widen C2n's interval this much
-D_HELD_REF_M = 0.01  # ... beside the held interval with this much tape, whatever the config's tolerance
+_CM = 0.01  # metres: the tape step of c2n_per_tape_cm_pct, and of the decision below
+D_HELD_REF_M = _CM  # ... beside the held interval with this much tape, whatever the config's tolerance
 # (a result's value does not depend on a stated tolerance, only its interval does)
 SLOPE_MIN_PCT = 0.25  # a slope under this moves C2n by less than the method's own error (a 2 %
 # slope left out: 2.5 %), and is seen on level pads too (0.05–0.16 %: heading-borne misfit)
@@ -514,7 +515,7 @@ class SampleRegression:
             d_fixed=d_fixed,
             d_held_tight=d_fixed and tight and not narrow,
             tight_terms=tuple(_TERMS[t] for t in TIGHT_TERMS if t in terms),
-            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, xtx, xty, run, n, 0.01) / c2n
+            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, xtx, xty, run, n, _CM) / c2n
             if d_fixed
             else None,
             d_free_m=_plain_d(*plain, run, n, q) if d_fixed and wide else None,

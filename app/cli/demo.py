@@ -14,11 +14,11 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.text import Text
 
+from app import files
 from app.cli.common import add_config, number
 from app.config import Config, load_config
 from app.errors import C2nError
 from app.sim.scenarios import SCENARIOS
-from app.sinks import files
 
 if TYPE_CHECKING:
     import can

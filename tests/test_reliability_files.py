@@ -191,7 +191,7 @@ def test_an_export_folder_is_one_run_whole(drive_log: Path, tmp_path: Path) -> N
     (mine / "notes.txt").write_text("mine")
     code, err = _export(drive_log, mine, "--format", "csv")
     assert code == 1 and err.strip() == (
-        f"c2n: error: {mine}: holds files c2n export did not write (notes.txt) — choose a new or empty --out"
+        f"c2n: error: --out {mine}: holds files c2n did not write (notes.txt) — choose a new or empty folder"
     )
     assert [p.name for p in mine.iterdir()] == ["notes.txt"]
 

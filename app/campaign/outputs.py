@@ -27,6 +27,7 @@ from app.campaign.compare import (
 from app.campaign.manifest import Manifest
 from app.errors import OutputError
 from app.files import json_ready, write_atomically, write_json
+from app.output_paths import HTML_REPORT, json_with
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")
@@ -37,10 +38,22 @@ FILES = ("results.csv", "results.parquet", "comparison.json", "report.html")  # 
 
 
 def ours(entry: Path) -> bool:
-    """What a campaign leaves in its folder: its results, its cache, a killed run's temporary."""
+    """What a campaign leaves in its folder, each known by its content: its results, its cache
+    folder, a killed run's temporary folder (a user's ``results.csv`` there is not ours)."""
     from app.campaign.work import CACHE
 
-    return entry.name in (*FILES, CACHE) or entry.name.startswith(".partial-")
+    if entry.name == CACHE or entry.name.startswith(".partial-"):
+        return entry.is_dir()
+    starts = {"results.csv": b"\xef\xbb\xbflog,", "results.parquet": b"PAR1"}
+    if entry.name in starts:
+        try:
+            with entry.open("rb") as file:
+                return file.read(len(starts[entry.name])) == starts[entry.name]
+        except OSError:
+            return False
+    if entry.name == "comparison.json":
+        return json_with("groups", "differences", "trends", "method")(entry)
+    return entry.name == "report.html" and HTML_REPORT(entry)
 
 
 def clashing_tags(manifest: Manifest) -> list[str]:

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from app.files import files_together, folder_atomically
-from app.output_paths import GENERATOR
+from app.output.files import files_together, folder_atomically
+from app.output.paths import GENERATOR
 from tests.simulated import REPO
 from tests.test_reliability_inputs import MONDEO, run_cli
 

@@ -26,8 +26,8 @@ from app.campaign.compare import (
 )
 from app.campaign.manifest import Manifest
 from app.errors import OutputError
-from app.files import json_ready, write_atomically, write_json
-from app.output_paths import HTML_REPORT, json_with
+from app.output.files import json_ready, write_atomically, write_json
+from app.output.paths import HTML_REPORT, json_with
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")

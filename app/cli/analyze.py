@@ -10,7 +10,7 @@ from rich.console import Console
 from app.cli.common import add_config, add_force, error_console
 from app.config import load_config
 from app.errors import NoResultError, printable
-from app.output_paths import SUMMARY_JSON, Output, check, config_files
+from app.output.paths import SUMMARY_JSON, Output, check, config_files
 
 _POOL_GAP_S = 10.0  # between drives pooled: no filter, gate or regression run spans it
 

@@ -18,8 +18,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from app.cli.common import error_console, number
 from app.errors import UsageError, need, printable
-from app.files import files_together
-from app.output_paths import Output, check
+from app.output.files import files_together
+from app.output.paths import Output, check
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:

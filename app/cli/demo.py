@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.text import Text
 
-from app import files
 from app.cli.common import add_config, number
 from app.config import Config, load_config
 from app.errors import C2nError
+from app.output import files
 from app.sim.scenarios import SCENARIOS
 
 if TYPE_CHECKING:

@@ -9,8 +9,8 @@ from rich.console import Console
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import need, printable
-from app.files import folder_atomically
-from app.output_paths import Output, check, config_files
+from app.output.files import folder_atomically
+from app.output.paths import Output, check, config_files
 
 FORMATS = ("csv", "parquet", "mf4")  # app.sinks.channels.FORMATS; pyarrow and asammdf load only when used
 

@@ -10,9 +10,9 @@ from rich.console import Console
 from app.cli.common import add_config, add_force
 from app.config import load_config
 from app.errors import need
-from app.files import write_json
 from app.gap.result import GapResult
-from app.output_paths import DIAGNOSIS_JSON, HTML_REPORT, Output, check, config_files
+from app.output.files import write_json
+from app.output.paths import DIAGNOSIS_JSON, HTML_REPORT, Output, check, config_files
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:

@@ -9,9 +9,9 @@ from rich.console import Console
 from rich.table import Table
 
 from app.cli import common
-from app.files import write_json
-from app.output_paths import SCORES_JSON, Output
-from app.output_paths import check as guard
+from app.output.files import write_json
+from app.output.paths import SCORES_JSON, Output
+from app.output.paths import check as guard
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:

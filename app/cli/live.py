@@ -18,7 +18,7 @@ from rich.text import Text
 from app.cli.common import add_bus, add_config, add_force, bus_kwargs, channels, error_console, number
 from app.config import load_config
 from app.errors import OutputError, printable
-from app.output_paths import SUMMARY_JSON, Output, check, config_files
+from app.output.paths import SUMMARY_JSON, Output, check, config_files
 
 if TYPE_CHECKING:
     import can

@@ -18,7 +18,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextC
 from app.cli.common import add_config, add_force, number
 from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
 from app.errors import C2nError
-from app.output_paths import Output, check, config_files, never
+from app.output.paths import Output, check, config_files, never
 from app.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from app.sim.scenarios import SCENARIOS
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, OutputError
-from app.files import write_atomically, write_json
+from app.output.files import write_atomically, write_json
 from app.sim.pack import write_log
 from app.sim.session import DriveOptions, simulate_drive
 

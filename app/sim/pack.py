@@ -25,7 +25,7 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, ConfigError, OutputError
-from app.files import write_json, write_text
+from app.output.files import write_json, write_text
 from app.sim import commonroad
 from app.sim.effects import EFFECT_NAMES, Effect, draw_effect
 from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections, handbook, of_session

@@ -11,7 +11,7 @@ from app import paper
 from app.config import Config
 from app.dbc import load_dbc
 from app.errors import C2nError, LogFileError, need
-from app.files import write_atomically, write_json
+from app.output.files import write_atomically, write_json
 from app.sim.drive import DriveTrace, simulate
 from app.sim.scenarios import SCENARIOS, SweepPlan
 from app.sim.sensors import SensorSetup, frames

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import IO
 
 from app.errors import OutputError
-from app.files import write_atomically
+from app.output.files import write_atomically
 from app.records import Crossing, CrossingRejected
 
 FIELDS = (
@@ -94,7 +94,7 @@ class EventsTable:
 def write(
     path: Path, events: Iterable[Crossing | CrossingRejected], t0: float, dialect: str = "excel"
 ) -> None:
-    """The whole table at once, atomically (``app.files``), in ``dialect`` (``DIALECTS``)."""
+    """The whole table at once, atomically (``app.output.files``), in ``dialect`` (``DIALECTS``)."""
 
     def rows(tmp: Path) -> None:
         table = EventsTable(tmp, dialect)

@@ -8,8 +8,8 @@ import html
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from app.files import write_text
-from app.output_paths import GENERATOR
+from app.output.files import write_text
+from app.output.paths import GENERATOR
 
 DASH = "—"
 
@@ -51,7 +51,7 @@ _POLICY = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-
 
 
 def write_html(document: str, path: Path, what: str = "the report") -> None:
-    """Write a page atomically (``app.files``)."""
+    """Write a page atomically (``app.output.files``)."""
     write_text(path, document, what)
 
 

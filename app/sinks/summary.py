@@ -15,7 +15,7 @@ from app import __version__
 from app.config import Config
 from app.detect.signs import SignVotes
 from app.detect.steady_state import WHEELBASE_M
-from app.files import json_ready, write_json
+from app.output.files import json_ready, write_json
 from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results.combine import Combined
 from app.results.pairing import Paired

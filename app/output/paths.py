@@ -4,7 +4,7 @@ never standard output twice or a folder on standard output, never two outputs in
 a name too long for the file system, and never a file c2n did not write — a file is c2n's when
 its content is what c2n writes for that kind (``json_with``, ``HTML_REPORT``), a folder when
 every entry is (the command's ``ours``); a user's file is replaced only with ``--force``.
-Writing itself goes through ``app.files`` (a temporary, swapped in whole)."""
+Writing itself goes through ``app.output.files`` (a temporary, swapped in whole)."""
 
 import json
 import os
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from app.errors import OutputError, UsageError
-from app.files import STDOUT
+from app.output.files import STDOUT
 
 GENERATOR = '<meta name="generator" content="c2n">'  # in the head of every HTML page c2n writes
 _OLDER_HTML = "default-src 'none'; img-src data:"  # the policy of pages written before the marker

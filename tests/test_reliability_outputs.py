@@ -153,3 +153,47 @@ def test_events_csv_follows_the_csv_dialect(day: Path) -> None:
     assert lines[0].startswith("t;event;direction;")
     first = lines[1].split(";")
     assert len(first) == len(lines[0].split(";")) and "," in first[0] and "." not in first[0]
+
+
+OUTPUT_OPTIONS = ("--json", "--report", "--out", "--record")
+
+
+def test_every_output_option_of_every_command_runs_the_guard(day: Path) -> None:
+    """The class, not the cases: each command's every output option, pointed at an input (the
+    config), is refused before any work — a new command or option must be added here."""
+    import argparse
+
+    from app.cli import build_parser
+
+    pack = day / "pack"
+    (pack / "sealed").mkdir(parents=True)
+    (pack / "sealed" / "truth.json").write_text("{}")
+    (pack / "case1").mkdir()
+    shutil.copy(day / "d.blf", pack / "case1" / "drive.blf")
+    (day / "manifest.csv").write_text("log,tyre_set\nd.blf,A\n")
+    car = str(day / "car.toml")
+    drive = str(day / "d.blf")
+    before = {
+        "analyze": [drive, "--config", car],
+        "gap": [drive, "--config", car],
+        "export": [drive, "--config", car],
+        "simulate": ["--config", car],
+        "live": ["-i", "virtual", "--config", car],
+        "campaign": [str(day / "manifest.csv"), "--config", car],
+        "gap-check": [str(pack)],
+    }
+    inputs = {"gap-check": str(pack / "case1" / "drive.blf")}
+    (subparsers,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    found = 0
+    for command, parser in subparsers.choices.items():
+        options = [o for a in parser._actions for o in a.option_strings if o in OUTPUT_OPTIONS]
+        if options:
+            assert command in before, f"c2n {command} writes ({options}): add it to this test"
+        for option in options:
+            argv = [command, *before[command], option, inputs.get(command, car)]
+            snapshot = _snapshot(day)
+            code, _, err = run_cli(argv)
+            assert code == 2 and "an input" in err and err.count("\n") == 1, (argv, err)
+            assert _snapshot(day) == snapshot, argv
+            found += 1
+    assert found >= 9  # analyze, gap ×2, export, simulate, live ×2, campaign, gap-check

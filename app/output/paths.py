@@ -19,6 +19,9 @@ GENERATOR = '<meta name="generator" content="c2n">'  # in the head of every HTML
 _OLDER_HTML = "default-src 'none'; img-src data:"  # the policy of pages written before the marker
 # the longest a temporary adds to an output's name (``files.partial_path``, ``files.folder_atomically``)
 _TEMPORARY_EXTRA = len(".partial-4194304-0123456789ab.")
+# larger than any result file c2n writes (a summary of 8 hours' crossings is a few MB): a file
+# above it is not read to find out, it is not c2n's
+_LARGEST_RESULT = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,8 @@ def json_with(*keys: str) -> Callable[[Path], bool]:
 
     def ours(path: Path) -> bool:
         try:
+            if path.stat().st_size > _LARGEST_RESULT:
+                return False
             data = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return False

@@ -243,9 +243,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
 
 
 def _check_log(out: Path, config: object, force: bool) -> None:
-    """A log and its truth: never an input, never an existing file unless ``--force``."""
-    from app.sim.session import truth_path
+    """A log and its truth: never an input, never an existing file unless ``--force``; a log
+    format c2n writes (said before the drive is simulated, not after)."""
+    from app.errors import LogFileError
+    from app.sim.session import LOG_SUFFIXES, truth_path
 
+    if out != Path("-") and out.suffix.lower() not in LOG_SUFFIXES:
+        raise LogFileError(f"{out}: unknown log format '{out.suffix}' — use one of {', '.join(LOG_SUFFIXES)}")
     outputs = [Output("--out", out, never)]
     if out != Path("-"):
         outputs.append(Output("--out (its truth beside it)", truth_path(out), never))

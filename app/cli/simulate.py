@@ -248,12 +248,12 @@ def _check_log(out: Path, config: object, force: bool) -> None:
     from app.errors import LogFileError
     from app.sim.session import LOG_SUFFIXES, truth_path
 
-    if out != Path("-") and out.suffix.lower() not in LOG_SUFFIXES:
-        raise LogFileError(f"{out}: unknown log format '{out.suffix}' — use one of {', '.join(LOG_SUFFIXES)}")
     outputs = [Output("--out", out, never)]
     if out != Path("-"):
         outputs.append(Output("--out (its truth beside it)", truth_path(out), never))
     check(outputs, config_files(config), force)
+    if out.suffix.lower() not in LOG_SUFFIXES:
+        raise LogFileError(f"{out}: unknown log format '{out.suffix}' — use one of {', '.join(LOG_SUFFIXES)}")
 
 
 def _check_folder(out: Path, args: argparse.Namespace) -> None:

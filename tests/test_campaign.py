@@ -405,3 +405,31 @@ def test_a_campaign_killed_outright_leaves_no_worker_behind(campaign: Path) -> N
     child.wait(timeout=30)
     _, alive = psutil.wait_procs(workers, timeout=20)
     assert alive == []
+
+
+def test_a_campaign_never_writes_over_files_it_did_not_write(tmp_path: Path) -> None:
+    """Issue 39: a folder holding a user's results.csv, and a manifest named results.csv with
+    --out its own folder, are refused before any work and left as they were."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "results.csv").write_text("precious\n")
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("log,tyre_set\na.blf,A\n")
+    code, _, err = run_cli(["campaign", str(manifest), "--out", str(mine)])
+    assert code == 1 and "holds files c2n did not write (results.csv)" in err and err.count("\n") == 1
+    assert [p.name for p in mine.iterdir()] == ["results.csv"]
+    assert (mine / "results.csv").read_text() == "precious\n"
+    named = tmp_path / "results.csv"
+    named.write_text("log,tyre_set\na.blf,A\n")
+    code, _, err = run_cli(["campaign", str(named), "--out", str(tmp_path)])
+    assert code == 2 and "holds an input" in err and named.read_text() == "log,tyre_set\na.blf,A\n"
+
+
+@pytest.mark.parametrize("tag", ["c2n", "error", "key", "frames", "regression.model"])
+def test_a_tag_named_like_a_result_column_is_refused_with_the_fix(tmp_path: Path, tag: str) -> None:
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text(f"log,{tag}\na.blf,A\n")
+    code, _, err = run_cli(["campaign", str(manifest), "--by", tag])
+    assert code == 2 and err.count("\n") == 1
+    assert f"the tag column '{tag}' has the name of a column c2n writes" in err and f"'tag_{tag}'" in err
+    assert not (tmp_path / "manifest-campaign").exists()

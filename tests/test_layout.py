@@ -12,7 +12,7 @@ APP = Path(__file__).resolve().parent.parent / "app"
 
 # The floors, lowest first: a module may import its own floor and those below, never above.
 FLOORS: tuple[tuple[str, ...], ...] = (
-    ("app", "app.errors", "app.units", "app.paper"),
+    ("app", "app.errors", "app.units", "app.paper", "app.output"),
     ("app.records", "app.dbc"),
     ("app.config",),
     ("app.sources",),

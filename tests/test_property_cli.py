@@ -123,3 +123,119 @@ def test_every_command_with_random_options_and_configs_ends_cleanly(
     assert "Traceback" not in err.getvalue() + out.getvalue(), (argv, err.getvalue())
     leftovers = [p for p in files["root"].rglob("*") if ".partial" in p.name]
     assert not leftovers, (argv, leftovers)
+
+
+# -- where the commands write (issue 39) --------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def desk(files: dict[str, Path]) -> dict[str, Path]:
+    """A user's folder: a drive, a config with its DBC, a manifest, and files of their own — a
+    JSON, a page, a log, a folder holding a results.csv, a name with [brackets]."""
+    import shutil
+
+    root = files["root"] / "desk"
+    root.mkdir()
+    shutil.copy(files["log"], root / "drive.log")
+    shutil.copy(REPO / "dbc" / "kistler_smotion.dbc", root / "kistler.dbc")
+    (root / "car.toml").write_text(
+        MONDEO.replace(f"{REPO}/dbc/kistler_smotion.dbc", str(root / "kistler.dbc"))
+    )
+    (root / "manifest.csv").write_text("log,tyre_set\ndrive.log,A\n")
+    (root / "notes.json").write_text('{"mine": true}\n')
+    (root / "page.html").write_text("<html>mine</html>\n")
+    (root / "old.log").write_text("(0.000000) can0 123#0102\n")
+    (root / "[mine].json").write_text("[1, 2]\n")
+    (root / "folder").mkdir()
+    (root / "folder" / "results.csv").write_text("precious\n")
+    return {name: root / name for name in ("drive.log", "car.toml", "kistler.dbc", "manifest.csv")} | {
+        "root": root
+    }
+
+
+def _user_files(root: Path) -> dict[Path, bytes]:
+    return {p: p.read_bytes() for p in root.rglob("*") if p.is_file()}
+
+
+@st.composite
+def an_output_command(draw: st.DrawFn, desk: dict[str, Path]) -> tuple[list[str], bool]:
+    """A command whose output path is drawn: an input (the log, config, DBC, manifest, each
+    also through a symlink or as ./x), the folder holding them, a user's file or folder, '-',
+    a name with brackets, or a new path."""
+    root = desk["root"]
+    fresh = root / "new" / uuid.uuid4().hex
+    spelt = st.sampled_from(["as is", "dotted", "symlink"])
+
+    def spell(path: Path) -> Path:
+        how = draw(spelt)
+        if how == "dotted":
+            return path.parent / "." / path.name
+        if how == "symlink":
+            link = root / "new" / f"link-{uuid.uuid4().hex}{path.suffix}"
+            link.parent.mkdir(exist_ok=True)
+            link.symlink_to(path)
+            return link
+        return path
+
+    inputs = [desk["drive.log"], desk["car.toml"], desk["kistler.dbc"], desk["manifest.csv"]]
+    mine = [root / "notes.json", root / "page.html", root / "old.log", root / "[mine].json"]
+    target = draw(
+        st.sampled_from(
+            ["input", "input", "folder", "mine", "mine", "dash", "brackets", "fresh", "mine_folder"]
+        )
+    )
+    path = {
+        "input": lambda: spell(draw(st.sampled_from(inputs))),
+        "folder": lambda: root,
+        "mine": lambda: draw(st.sampled_from(mine)),
+        "dash": lambda: Path("-"),
+        "brackets": lambda: fresh.with_name(f"[{fresh.name}]"),
+        "fresh": lambda: fresh,
+        "mine_folder": lambda: root / "folder",
+    }[target]()
+    force = draw(st.booleans())
+    config = ["--config", str(desk["car.toml"])]
+    log = str(desk["drive.log"])
+    command = draw(st.sampled_from(["analyze", "gap-json", "gap-report", "export", "simulate", "campaign"]))
+    if command == "analyze":
+        argv = ["analyze", log, *config, "--json", str(path)]
+    elif command == "gap-json":
+        argv = ["gap", log, *config, "--json", str(path), "--report", str(fresh) + ".html"]
+    elif command == "gap-report":
+        argv = ["gap", log, *config, "--report", str(path)]
+    elif command == "export":
+        argv = ["export", log, *config, "--out", str(path), "--no-plots", "--format", "csv"]
+        force = False
+    elif command == "simulate":
+        suffix = "" if path.suffix in (".log", ".blf") else ".log"
+        argv = ["simulate", *config, "--out", str(path) + (suffix if target in ("fresh", "brackets") else "")]
+    else:
+        argv = ["campaign", str(desk["manifest.csv"]), "--workers", "1", "--out", str(path)]
+        force = False
+    return argv + (["--force"] if force else []), force
+
+
+@settings(
+    max_examples=30,
+    derandomize=True,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(data=st.data())
+def test_no_output_path_changes_a_file_c2n_did_not_write(desk: dict[str, Path], data: st.DataObject) -> None:
+    """Whatever the output path, an input never changes, and a user's file changes only with
+    --force; the run ends with 0, 1 or 2 and no traceback."""
+    root = desk["root"]
+    before = {p: b for p, b in _user_files(root).items() if "new" not in p.relative_to(root).parts}
+    argv, force = data.draw(an_output_command(desk))
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        code = main(argv, Console(file=out, width=100))
+    assert code in (0, 1, 2), (argv, code, err.getvalue())
+    assert "Traceback" not in err.getvalue() + out.getvalue(), (argv, err.getvalue())
+    kept = {p for p in before if not force or p in desk.values()}  # --force: inputs still never
+    after = _user_files(root)
+    changed = [p.name for p in kept if after.get(p) != before[p]]
+    assert not changed, (argv, changed, err.getvalue())
+    assert not Path("-").exists(), argv

@@ -129,7 +129,7 @@ def test_demo_ended_by_sigterm_leaves_no_temporary_folder_and_a_killed_ones_is_r
         _, err = child.communicate(timeout=30)
     finally:
         child.kill()
-    assert child.returncode in (0, 130) and "Traceback" not in err  # ended as Ctrl-C ends it
+    assert child.returncode in (0, 130) and "Traceback" not in err, err  # ended as Ctrl-C ends it
     assert not list(tmp_path.glob(f"{TEMP_PREFIX}*"))
     # SIGKILL cannot be caught: the folder stays until the next demo finds its process gone
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
@@ -191,7 +191,7 @@ def test_an_export_folder_is_one_run_whole(drive_log: Path, tmp_path: Path) -> N
     (mine / "notes.txt").write_text("mine")
     code, err = _export(drive_log, mine, "--format", "csv")
     assert code == 1 and err.strip() == (
-        f"c2n: error: {mine}: holds files c2n export did not write (notes.txt) — choose a new or empty --out"
+        f"c2n: error: --out {mine}: holds files c2n did not write (notes.txt) — choose a new or empty folder"
     )
     assert [p.name for p in mine.iterdir()] == ["notes.txt"]
 

@@ -26,13 +26,45 @@ from app.campaign.compare import (
 )
 from app.campaign.manifest import Manifest
 from app.errors import OutputError
-from app.sinks.files import json_ready, write_atomically, write_json
+from app.output.files import json_ready, write_atomically, write_json
+from app.output.paths import HTML_REPORT, json_with
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")
 # what the comparison took of each session (``Compared``), after the first columns
 _COMPARED = ("compared.c2n", "compared.c2n_ci95.low", "compared.c2n_ci95.high", "compared.model")
 _LAST = ("frames", "seconds", "worker_peak_mib", "cached", "key")
+FILES = ("results.csv", "results.parquet", "comparison.json", "report.html")  # written together
+
+
+def ours(entry: Path) -> bool:
+    """What a campaign leaves in its folder, each known by its content: its results, its cache
+    folder, a killed run's temporary folder (a user's ``results.csv`` there is not ours)."""
+    from app.campaign.work import CACHE
+
+    if entry.name == CACHE or entry.name.startswith(".partial-"):
+        return entry.is_dir()
+    starts = {"results.csv": b"\xef\xbb\xbflog,", "results.parquet": b"PAR1"}
+    if entry.name in starts:
+        try:
+            with entry.open("rb") as file:
+                return file.read(len(starts[entry.name])) == starts[entry.name]
+        except OSError:
+            return False
+    if entry.name == "comparison.json":
+        return json_with("groups", "differences", "trends", "method")(entry)
+    return entry.name == "report.html" and HTML_REPORT(entry)
+
+
+def clashing_tags(manifest: Manifest) -> list[str]:
+    """The manifest's tags named like a column c2n writes into results (``c2n``, ``error``,
+    ``frames``, ``regression.…``): the file could not hold both, so the manifest is refused."""
+    from dataclasses import fields as summary_fields
+
+    from app.sinks.summary import Summary
+
+    written = {*_FIRST, *_COMPARED, *_LAST, *(f.name for f in summary_fields(Summary))}
+    return [tag for tag in manifest.tag_names if tag in written or tag.split(".", 1)[0] in written]
 
 
 def table_rows(manifest: Manifest, rows: Sequence[dict[str, Any]]) -> tuple[list[str], list[dict[str, Any]]]:

@@ -22,7 +22,7 @@ from typing import Any
 from app.campaign.manifest import Manifest
 from app.campaign.session import Job, analyse, config_hash, content_hash, where
 from app.errors import C2nError, printable
-from app.sinks.files import write_json
+from app.output.files import write_json
 
 CACHE = "cache"
 HASHES = "hashes.json"  # not a row: its stem is no key

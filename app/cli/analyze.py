@@ -7,9 +7,10 @@ from typing import Any
 
 from rich.console import Console
 
-from app.cli.common import add_config, error_console
+from app.cli.common import add_config, add_force, error_console
 from app.config import load_config
 from app.errors import NoResultError, printable
+from app.output.paths import SUMMARY_JSON, Output, check, config_files
 
 _POOL_GAP_S = 10.0  # between drives pooled: no filter, gate or regression run spans it
 
@@ -23,6 +24,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument(
         "--json", type=Path, metavar="OUT", help="write the summary JSON here (- : standard output)"
     )
+    add_force(parser)
     how = parser.add_mutually_exclusive_group()
     how.add_argument(
         "--merge", action="store_true", help="the logs are channels of one drive: merge them by timestamp"
@@ -48,6 +50,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sources.logs import LogReport, LogSource, check_readable, distinct, starting_at
 
     config = load_config(args.config)
+    out = Output("--json", args.json, SUMMARY_JSON, stdout=True) if args.json else None
+    check([out], [*args.logs, *config_files(config)], args.force)
     pipeline = Pipeline(config)
     drives: list[list[Path]] = [args.logs]
     notes: list[LogReport] = []

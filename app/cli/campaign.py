@@ -18,6 +18,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from app.cli.common import error_console, number
 from app.errors import UsageError, need, printable
+from app.output.files import files_together
+from app.output.paths import Output, check
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -73,7 +75,16 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if args.by is not None and args.by not in manifest.tag_names:
         tags = ", ".join(manifest.tag_names) or "none"
         raise UsageError(f"--by {args.by}: not a column of {args.manifest} (tags: {tags})")
+    clashing = outputs.clashing_tags(manifest)
+    if clashing:
+        raise UsageError(
+            f"{args.manifest}: the tag column '{clashing[0]}' has the name of a column c2n writes in "
+            f"results.csv — rename it (e.g. 'tag_{clashing[0]}')"
+        )
     out = args.out or args.manifest.with_name(f"{args.manifest.stem}-campaign")
+    inputs = [args.manifest, *(entry.log for entry in manifest.entries)]
+    inputs += [args.config] if args.config else []
+    check([Output("--out", out, outputs.ours, folder=True)], inputs)
     config = args.config.resolve() if args.config else None
     started = time.perf_counter()
     frames = 0
@@ -111,9 +122,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     elapsed = time.perf_counter() - started
     columns, table = outputs.table_rows(manifest, rows)
     comparison = outputs.compare(manifest, table, args.by)
-    outputs.write_tables(out, *outputs.with_compared(columns, table, comparison))
-    outputs.write_comparison(out, comparison)
-    outputs.write_report(out, comparison, f"c2n campaign — {args.manifest.name}")
+    with files_together(out, outputs.FILES) as staging:  # an interrupt: the old set or the new
+        outputs.write_tables(staging, *outputs.with_compared(columns, table, comparison))
+        outputs.write_comparison(staging, comparison)
+        outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
     cached = sum(1 for row in rows if row.get("cached"))
     console.print(
         f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "

@@ -90,3 +90,11 @@ def number(
         return value
 
     return parse
+
+
+def add_force(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an existing output file that c2n did not write (never an input of the command)",
+    )

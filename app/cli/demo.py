@@ -17,8 +17,8 @@ from rich.text import Text
 from app.cli.common import add_config, number
 from app.config import Config, load_config
 from app.errors import C2nError
+from app.output import files
 from app.sim.scenarios import SCENARIOS
-from app.sinks import files
 
 if TYPE_CHECKING:
     import can

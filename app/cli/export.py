@@ -9,7 +9,8 @@ from rich.console import Console
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import need, printable
-from app.sinks.files import folder_atomically
+from app.output.files import folder_atomically
+from app.output.paths import Output, check, config_files
 
 FORMATS = ("csv", "parquet", "mf4")  # app.sinks.channels.FORMATS; pyarrow and asammdf load only when used
 
@@ -87,6 +88,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if not args.no_plots:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     log, config, out = _inputs(args)
+    check([Output("--out", out, lambda entry: _ours(entry.name), folder=True)], [log, *config_files(config)])
     pipeline = Pipeline(config)
     source = LogSource([log], triage=pipeline.decoder)
     trace_recorder = TraceRecorder(config.roles)
@@ -109,7 +111,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
             path = staging / f"channels.{fmt}"
             export.write(trace, fmt, path, args.csv_dialect)
             written.append(path)
-        events.write(staging / "events.csv", [*snapshot.crossings, *snapshot.rejections], t0)
+        events.write(
+            staging / "events.csv", [*snapshot.crossings, *snapshot.rejections], t0, args.csv_dialect
+        )
         summary.write(staging / "summary.json", result)
         written += [staging / "events.csv", staging / "summary.json"]
         if not args.no_plots:

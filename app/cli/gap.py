@@ -7,11 +7,12 @@ from pathlib import Path
 
 from rich.console import Console
 
-from app.cli.common import add_config
+from app.cli.common import add_config, add_force
 from app.config import load_config
 from app.errors import need
 from app.gap.result import GapResult
-from app.sinks.files import write_json
+from app.output.files import write_json
+from app.output.paths import DIAGNOSIS_JSON, HTML_REPORT, Output, check, config_files
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -29,6 +30,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         metavar="OUT",
         help="write an HTML report with residual maps (- : standard output)",
     )
+    add_force(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -40,6 +42,14 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if args.report:
         need("matplotlib", "drawing the residual maps of --report", "export")
     config = load_config(args.config)
+    check(
+        [
+            Output("--json", args.json, DIAGNOSIS_JSON, stdout=True) if args.json else None,
+            Output("--report", args.report, HTML_REPORT, stdout=True) if args.report else None,
+        ],
+        [*args.logs, *config_files(config)],
+        args.force,
+    )
     with console.status("reading the drive…"):
         measured = measure(args.logs, config)
     with console.status("fitting the candidate effects…"):

@@ -9,7 +9,9 @@ from rich.console import Console
 from rich.table import Table
 
 from app.cli import common
-from app.sinks.files import write_json
+from app.output.files import write_json
+from app.output.paths import SCORES_JSON, Output
+from app.output.paths import check as guard
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -26,6 +28,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser.add_argument(
         "--json", type=Path, metavar="OUT", help="write the scores JSON here (- : standard output)"
     )
+    common.add_force(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -34,6 +37,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.gap import check
 
     folders = check.cases(args.pack)
+    if args.json:  # the pack's files (its cases, configs and seal) are its inputs; gap/ is c2n's
+        pack = [
+            p
+            for p in args.pack.rglob("*")
+            if p.is_file() and check.OUT not in p.relative_to(args.pack).parts[:1]
+        ]
+        guard([Output("--json", args.json, SCORES_JSON, stdout=True)], pack, args.force)
     out = args.pack / check.OUT
     done = 0
 

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING, Any
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import add_bus, add_config, bus_kwargs, channels, error_console, number
+from app.cli.common import add_bus, add_config, add_force, bus_kwargs, channels, error_console, number
 from app.config import load_config
 from app.errors import OutputError, printable
+from app.output.paths import SUMMARY_JSON, Output, check, config_files
 
 if TYPE_CHECKING:
     import can
@@ -31,6 +32,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser = subparsers.add_parser("live", help="live dashboard and C2n on a CAN bus", description=__doc__)
     add_bus(parser)
     add_config(parser)
+    add_force(parser)
     parser.add_argument(
         "--record",
         type=Path,
@@ -125,6 +127,15 @@ def run(
 
     opener: OpenBuses = open_bus or open_buses
     config = load_config(args.config)
+    check(
+        [
+            Output("--json", args.json, SUMMARY_JSON, stdout=True) if args.json else None,
+            # a session gets a new folder of its own in --record: any folder there will do
+            None if args.no_record else Output("--record", args.record, lambda path: path.is_dir()),
+        ],
+        config_files(config),
+        args.force,
+    )
     wanted: Sequence[str | int | None] = channels(args)
     options: dict[str, Any] = bus_kwargs(args)
     buses = opener(args.interface, wanted, args.bitrate, **options)

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
-from app.cli.common import add_config, number
+from app.cli.common import add_config, add_force, number
 from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
 from app.errors import C2nError
+from app.output.paths import Output, check, config_files, never
 from app.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from app.sim.scenarios import SCENARIOS
 
@@ -140,6 +141,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="seed of the noise (and of a pack's or campaign's cases)",
     )
     add_config(parser)
+    add_force(parser)
     parser.add_argument(
         "--c2n",
         type=number(0.0, 200.0, low_allowed=False),
@@ -232,11 +234,31 @@ def run(args: argparse.Namespace, console: Console) -> int:
         sensor=sensor,
     )
     out = args.out or Path(f"sim-{args.scenario}-seed{args.seed}.blf")
+    _check_log(out, config, args.force)
     with console.status(f"simulating the {args.scenario} drive…"):
         drive = simulate_drive(config, options)
         truth = write_drive(drive, out)
     console.print(f"wrote {out} and {truth.name}: {describe(drive.truth)}")
     return 0
+
+
+def _check_log(out: Path, config: object, force: bool) -> None:
+    """A log and its truth: never an input, never an existing file unless ``--force``; a log
+    format c2n writes (said before the drive is simulated, not after)."""
+    from app.errors import LogFileError
+    from app.sim.session import LOG_SUFFIXES, truth_path
+
+    outputs = [Output("--out", out, never)]
+    if out != Path("-"):
+        outputs.append(Output("--out (its truth beside it)", truth_path(out), never))
+    check(outputs, config_files(config), force)
+    if out.suffix.lower() not in LOG_SUFFIXES:
+        raise LogFileError(f"{out}: unknown log format '{out.suffix}' — use one of {', '.join(LOG_SUFFIXES)}")
+
+
+def _check_folder(out: Path, args: argparse.Namespace) -> None:
+    """A pack's or a campaign's folder: new or empty, never holding the config or its DBCs."""
+    check([Output("--out", out, never, folder=True)], config_files(load_config(args.config)))
 
 
 def _check_session_options(args: argparse.Namespace) -> None:
@@ -294,6 +316,7 @@ def _run_session(args: argparse.Namespace, console: Console) -> int:
         circles_plan=QUICK_CIRCLES_PLAN if args.quick else CIRCLES_PLAN,
     )
     out = args.out or Path(f"sim-{args.session}-seed{args.seed}.blf")
+    _check_log(out, config, args.force)
     with console.status(f"simulating the {args.session} session on the {args.model} model…"):
         drive = simulate_standard(config, options)
         truth = write_drive(drive, out)
@@ -307,6 +330,7 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
     if args.pack < 1:
         raise C2nError(f"--pack needs at least one case, not {args.pack}")
     out = args.out or Path(f"pack-seed{args.seed}")
+    _check_folder(out, args)
     progress, task = _counting(console, args.pack)
 
     def done(case: "CaseResult") -> None:
@@ -344,6 +368,7 @@ def _run_campaign(args: argparse.Namespace, console: Console) -> int:
     if args.pack is not None or args.session is not None or args.scenario is not None:
         raise C2nError("--campaign writes drives of its own: leave out --pack, --session and --scenario")
     out = args.out or Path(f"campaign-seed{args.seed}")
+    _check_folder(out, args)
     progress, task = _counting(console, args.campaign)
     with progress:
         manifest = write_campaign(

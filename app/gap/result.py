@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from app.sinks.files import json_ready
+from app.output.files import json_ready
 
 
 @dataclass(frozen=True)

@@ -22,9 +22,9 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, OutputError
+from app.output.files import write_atomically, write_json
 from app.sim.pack import write_log
 from app.sim.session import DriveOptions, simulate_drive
-from app.sinks.files import write_atomically, write_json
 
 # tyre set -> (true C2n [1/rad], pressure [kPa]): stiffer with pressure, as tyres are
 TYRE_SETS: dict[str, tuple[float, float]] = {"A": (13.8, 200.0), "B": (14.9, 230.0), "C": (16.1, 260.0)}

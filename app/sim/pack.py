@@ -25,11 +25,11 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, ConfigError, OutputError
+from app.output.files import write_json, write_text
 from app.sim import commonroad
 from app.sim.effects import EFFECT_NAMES, Effect, draw_effect
 from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections, handbook, of_session
 from app.sim.standard import STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
-from app.sinks.files import write_json, write_text
 
 LOG_NAME = "drive.blf"
 _EFFECT_STREAM = 0xEFFEC7  # the effect's draw has a random stream of its own, apart from the noise

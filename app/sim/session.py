@@ -10,12 +10,12 @@ import numpy as np
 from app import paper
 from app.config import Config
 from app.dbc import load_dbc
-from app.errors import C2nError, LogFileError, OutputError, need
+from app.errors import C2nError, LogFileError, need
+from app.output.files import write_atomically, write_json
 from app.sim.drive import DriveTrace, simulate
 from app.sim.scenarios import SCENARIOS, SweepPlan
 from app.sim.sensors import SensorSetup, frames
 from app.sim.vehicle_model import BicycleParams, TyreModel
-from app.sinks.files import write_json
 
 DBC_DIR = Path(__file__).resolve().parents[2] / "dbc"
 LOG_SUFFIXES = (".asc", ".blf", ".log", ".csv", ".mf4", ".trc")
@@ -100,13 +100,13 @@ def write_drive(drive: SimulatedDrive, log: Path) -> Path:
         raise LogFileError(f"{log}: unknown log format '{log.suffix}' — use one of {', '.join(LOG_SUFFIXES)}")
     if log.suffix.lower() == ".mf4":
         need("asammdf", "writing .mf4 logs", "mf4")  # python-can's MF4Writer
-    log.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        with can.Logger(log) as writer:
+
+    def write(tmp: Path) -> None:
+        with can.Logger(tmp) as writer:
             for message in drive.messages:
                 writer.on_message_received(message)
-    except OSError as error:
-        raise OutputError(f"{log}: cannot write ({error.strerror})") from error
+
+    write_atomically(log, write, "the log")
     path = truth_path(log)
     write_json(path, drive.truth, "the truth")
     return path

@@ -17,7 +17,7 @@ import numpy as np
 
 from app import __version__
 from app.errors import need
-from app.sinks.files import write_atomically
+from app.output.files import write_atomically
 from app.sinks.trace import TIME, Trace
 
 FORMATS = ("csv", "parquet", "mf4")
@@ -156,7 +156,7 @@ WRITERS: dict[str, Callable[[Trace, Path], None]] = {
 
 
 def write(trace: Trace, fmt: str, path: Path, csv_dialect: str = "excel") -> None:
-    """Write atomically (``app.sinks.files``), translating OS errors."""
+    """Write atomically (``app.output.files``), translating OS errors."""
     need_writers((fmt,))
     writer = partial(write_csv, dialect=csv_dialect) if fmt == "csv" else WRITERS[fmt]
     write_atomically(path, partial(writer, trace), f"the {fmt.upper()} channels")

@@ -9,8 +9,8 @@ from pathlib import Path
 from typing import IO
 
 from app.errors import OutputError
+from app.output.files import write_atomically
 from app.records import Crossing, CrossingRejected
-from app.sinks.files import write_atomically
 
 FIELDS = (
     "t",
@@ -27,6 +27,9 @@ FIELDS = (
     "reason",
 )
 UNITS = ("s", "", "", "", "m/s", "km/h", "m/s²", "1/rad", "1/rad", "1/rad", "", "")
+_NUMBERS = (0, 4, 5, 6, 7, 8, 9)  # the columns holding a decimal number
+# (delimiter, decimal mark) of the dialects ``c2n export --csv-dialect`` offers (as the channels')
+DIALECTS = {"excel": (",", "."), "excel-semicolon": (";", ",")}
 
 
 def row(event: Crossing | CrossingRejected, t0: float) -> list[str | int]:
@@ -66,29 +69,35 @@ def row(event: Crossing | CrossingRejected, t0: float) -> list[str | int]:
 class EventsTable:
     """events.csv, written a row at a time and flushed after each."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, dialect: str = "excel") -> None:
         self.path = path
+        delimiter, self._decimal = DIALECTS[dialect]
         try:
             self._file: IO[str] = path.open("w", newline="", encoding="utf-8")
         except OSError as error:
             raise OutputError(f"{path}: cannot write the events table ({error.strerror})") from error
-        self._csv = csv.writer(self._file)
+        self._csv = csv.writer(self._file, delimiter=delimiter)
         self._csv.writerow(FIELDS)
         self._file.flush()
 
     def add(self, event: Crossing | CrossingRejected, t0: float) -> None:
-        self._csv.writerow(row(event, t0))
+        cells = row(event, t0)
+        if self._decimal != ".":
+            cells = [str(c).replace(".", self._decimal) if i in _NUMBERS else c for i, c in enumerate(cells)]
+        self._csv.writerow(cells)
         self._file.flush()
 
     def close(self) -> None:
         self._file.close()
 
 
-def write(path: Path, events: Iterable[Crossing | CrossingRejected], t0: float) -> None:
-    """The whole table at once, atomically (``app.sinks.files``)."""
+def write(
+    path: Path, events: Iterable[Crossing | CrossingRejected], t0: float, dialect: str = "excel"
+) -> None:
+    """The whole table at once, atomically (``app.output.files``), in ``dialect`` (``DIALECTS``)."""
 
     def rows(tmp: Path) -> None:
-        table = EventsTable(tmp)
+        table = EventsTable(tmp, dialect)
         try:
             for event in sorted(events, key=lambda e: e.t):
                 table.add(event, t0)

@@ -8,7 +8,8 @@ import html
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from app.sinks.files import write_text
+from app.output.files import write_text
+from app.output.paths import GENERATOR
 
 DASH = "—"
 
@@ -50,7 +51,7 @@ _POLICY = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-
 
 
 def write_html(document: str, path: Path, what: str = "the report") -> None:
-    """Write a page atomically (``app.sinks.files``)."""
+    """Write a page atomically (``app.output.files``)."""
     write_text(path, document, what)
 
 
@@ -62,6 +63,7 @@ def page(title: str, sections: Sequence[str]) -> str:
             '<html lang="en">',
             "<head>",
             '<meta charset="utf-8">',
+            GENERATOR,
             f'<meta http-equiv="Content-Security-Policy" content="{_POLICY}">',
             '<meta name="viewport" content="width=device-width, initial-scale=1">',
             f"<title>{text(title)}</title>",

@@ -19,7 +19,7 @@ from matplotlib.transforms import offset_copy
 from numpy.typing import ArrayLike
 
 from app.errors import OutputError
-from app.sinks.files import write_atomically
+from app.output.files import write_atomically
 from app.sinks.summary import CrossingRow, Summary
 from app.sinks.trace import Trace
 

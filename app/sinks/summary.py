@@ -15,11 +15,11 @@ from app import __version__
 from app.config import Config
 from app.detect.signs import SignVotes
 from app.detect.steady_state import WHEELBASE_M
+from app.output.files import json_ready, write_json
 from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results.combine import Combined
 from app.results.pairing import Paired
 from app.results.regression import TIGHT_WHEELBASES, RegressionFit
-from app.sinks.files import json_ready, write_json
 from app.snapshot import Snapshot
 from app.sources.logs import LogReport
 

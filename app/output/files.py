@@ -8,10 +8,10 @@ import glob
 import json
 import os
 import shutil
+import signal
 import sys
-import tempfile
 import uuid
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -84,16 +84,53 @@ def folder_atomically(out: Path, ours: Callable[[str], bool], what: str) -> Iter
                 f"{out}: holds files {what} did not write ({shown}) — choose a new or empty --out"
             )
     remove_stale(out.parent, f".{out.name}.partial-")  # a killed run's
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-{os.getpid()}-", dir=out.parent))
-    except OSError as error:
-        raise OutputError(f"{out}: cannot create the output folder ({error.strerror or error})") from error
+    staging = _staging(out.parent, f".{out.name}.partial-", out)
     try:
         yield staging
         _swap_in(staging, out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # gone already when it was swapped in
+
+
+@contextlib.contextmanager
+def files_together(folder: Path, names: Sequence[str]) -> Iterator[Path]:
+    """Files of one run that belong together (a campaign's results beside its cache): the
+    ``with`` body writes ``names`` into a hidden folder in ``folder``; only when every one is
+    written are they renamed into place, one after the other with Ctrl-C and SIGTERM held back,
+    so an interrupt or a full disk leaves the old set or the new one, never a mix."""
+    prefix = ".partial-"
+    remove_stale(folder, prefix)  # a killed run's
+    staging = _staging(folder, prefix, folder)
+    try:
+        yield staging
+        missing = [name for name in names if not (staging / name).is_file()]
+        if missing:
+            raise OutputError(f"{folder}: {', '.join(missing)} not written")
+        held = {signal.SIGINT, signal.SIGTERM}
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+        try:
+            for name in names:
+                os.replace(staging / name, folder / name)
+        except OSError as error:
+            raise OutputError(f"{folder}: cannot put the results in place ({error.strerror})") from error
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a held Ctrl-C arrives now
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def _staging(parent: Path, prefix: str, out: Path) -> Path:
+    """A new hidden folder ``<prefix><pid>-<random>`` in ``parent``, with the mode the umask
+    gives (``tempfile.mkdtemp``'s would be 0700 whatever the umask)."""
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        while True:
+            staging = parent / f"{prefix}{os.getpid()}-{uuid.uuid4().hex[:12]}"
+            with contextlib.suppress(FileExistsError):
+                staging.mkdir()
+                return staging
+    except OSError as error:
+        raise OutputError(f"{out}: cannot create the output folder ({error.strerror or error})") from error
 
 
 def remove_stale(folder: Path, prefix: str) -> list[Path]:

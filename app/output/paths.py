@@ -1,0 +1,174 @@
+"""The one check every command runs on where it will write, before any work: an output is never
+one of the command's inputs (a log, the manifest, the config, a DBC) nor a folder holding one,
+never standard output twice or a folder on standard output, never two outputs in one file, never
+a name too long for the file system, and never a file c2n did not write — a file is c2n's when
+its content is what c2n writes for that kind (``json_with``, ``HTML_REPORT``), a folder when
+every entry is (the command's ``ours``); a user's file is replaced only with ``--force``.
+Writing itself goes through ``app.output.files`` (a temporary, swapped in whole)."""
+
+import json
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from app.errors import OutputError, UsageError
+from app.output.files import STDOUT
+
+GENERATOR = '<meta name="generator" content="c2n">'  # in the head of every HTML page c2n writes
+_OLDER_HTML = "default-src 'none'; img-src data:"  # the policy of pages written before the marker
+# the longest a temporary adds to an output's name (``files.partial_path``, ``files.folder_atomically``)
+_TEMPORARY_EXTRA = len(".partial-4194304-0123456789ab.")
+# larger than any result file c2n writes (a summary of 8 hours' crossings is a few MB): a file
+# above it is not read to find out, it is not c2n's
+_LARGEST_RESULT = 64 * 2**20
+
+
+@dataclass(frozen=True)
+class Output:
+    """One place a command writes: ``option`` as the user named it (``--json``), what is written
+    there, and ``ours(path)``: whether an existing file (a folder: each of its entries) is c2n's
+    to replace."""
+
+    option: str
+    path: Path
+    ours: Callable[[Path], bool]
+    folder: bool = False
+    stdout: bool = False  # ``-`` means standard output
+
+
+def check(outputs: Sequence[Output | None], inputs: Iterable[Path], force: bool | None = None) -> None:
+    """Raise a UsageError (exit 2) for outputs that clash with the inputs or each other, an
+    OutputError (exit 1) for an existing file or folder c2n did not write. ``force``: the
+    command's ``--force`` (None: it has none — folders are never forced, they are replaced whole)."""
+    given = [out for out in outputs if out is not None]
+    sources = [Path(p) for p in inputs]
+    _stdout(given)
+    files = [out for out in given if out.path != STDOUT]
+    for out in files:
+        _name_fits(out)
+        for source in sources:
+            if _same(out.path, source):
+                raise UsageError(
+                    f"{out.option} {out.path}: that is an input of this command — write elsewhere"
+                )
+            if out.folder and _inside(source, out.path):
+                raise UsageError(
+                    f"{out.option} {out.path}: that folder holds an input ({source}) — choose another folder"
+                )
+    for i, a in enumerate(files):
+        for b in files[i + 1 :]:
+            if _same(a.path, b.path):
+                raise UsageError(f"{a.option} and {b.option}: both name {a.path} — give each its own file")
+    for out in files:
+        _ours(out, force)
+
+
+def config_files(config: object) -> list[Path]:
+    """The config file and its DBCs (a ``Config``): inputs every command reads."""
+    path = getattr(config, "path", None)
+    dbcs = [dbc.path for dbc in getattr(config, "dbcs", ())]
+    return ([path] if isinstance(path, Path) else []) + dbcs
+
+
+def json_with(*keys: str) -> Callable[[Path], bool]:
+    """A JSON object holding ``keys``: the file c2n writes of that kind."""
+
+    def ours(path: Path) -> bool:
+        try:
+            if path.stat().st_size > _LARGEST_RESULT:
+                return False
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return False
+        return isinstance(data, dict) and all(key in data for key in keys)
+
+    return ours
+
+
+def HTML_REPORT(path: Path) -> bool:
+    """An HTML page c2n wrote: its head carries the marker (or, older, c2n's content policy)."""
+    try:
+        with path.open("rb") as file:
+            head = file.read(4096).decode("utf-8", "replace")
+    except OSError:
+        return False
+    return GENERATOR in head or _OLDER_HTML in head
+
+
+def never(path: Path) -> bool:
+    """No existing file is c2n's to replace (a log: only ``--force`` replaces one)."""
+    return False
+
+
+def _stdout(outputs: Sequence[Output]) -> None:
+    dashes = [out for out in outputs if out.path == STDOUT]
+    for out in dashes:
+        if not out.stdout:
+            kind = "a folder" if out.folder else "this output"
+            raise UsageError(f"{out.option} -: {kind} cannot go to standard output — give a path")
+    if len(dashes) > 1:
+        named = " and ".join(f"{out.option} -" for out in dashes)
+        raise UsageError(f"{named}: only one output can go to standard output — give the others a path")
+
+
+def _name_fits(out: Output) -> None:
+    name = os.fsencode(out.path.name)
+    limit = _name_max(out.path.parent) - _TEMPORARY_EXTRA
+    if len(name) > limit:
+        raise UsageError(
+            f"{out.option}: the name {out.path.name[:40]}… is {len(name)} bytes, too long for this file "
+            f"system with c2n's temporary beside it (at most {limit}) — choose a shorter name"
+        )
+
+
+def _name_max(folder: Path) -> int:
+    for place in (folder, *folder.absolute().parents):
+        try:
+            return int(os.pathconf(place, "PC_NAME_MAX"))
+        except (OSError, ValueError):
+            continue
+    return 255
+
+
+def _ours(out: Output, force: bool | None) -> None:
+    path = out.path
+    if not os.path.lexists(path):
+        return
+    if out.folder:
+        if not path.is_dir():
+            raise OutputError(
+                f"{out.option} {path}: is a file, not a folder c2n wrote — choose a new or empty folder"
+            )
+        foreign = sorted(entry.name for entry in path.iterdir() if not out.ours(entry))
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+            raise OutputError(
+                f"{out.option} {path}: holds files c2n did not write ({shown}) — choose a new or empty folder"
+            )
+        return
+    if force or (path.is_file() and path.stat().st_size == 0) or out.ours(path):
+        return  # an empty file holds nothing to lose
+    how = " or add --force to replace it" if force is not None and not path.is_dir() else ""
+    raise OutputError(
+        f"{out.option} {path}: exists and is not a file c2n wrote of this kind — choose another name{how}"
+    )
+
+
+def _same(a: Path, b: Path) -> bool:
+    """One file however spelt: a symlink, a hard link, relative or absolute, ``./x``."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist (yet)
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    inner, outer = os.path.realpath(path), os.path.realpath(folder)
+    return inner == outer or inner.startswith(outer.rstrip(os.sep) + os.sep)
+
+
+# the files c2n writes, each known by keys only it writes together
+SUMMARY_JSON = json_with("c2n", "c2n_ci95", "c2n_method")  # analyze --json, live --json, summary.json
+DIAGNOSIS_JSON = json_with("diagnosis", "verdict", "calibration")  # gap --json
+SCORES_JSON = json_with("accuracy", "generators", "cases")  # gap-check --json

@@ -1,0 +1,199 @@
+"""Issue 39, third round: where c2n writes. An output is never an input (however spelt), never a
+file c2n did not write unless --force, never standard output twice; outputs are swapped in whole."""
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from app.output.files import files_together, folder_atomically
+from app.output.paths import GENERATOR
+from tests.simulated import REPO
+from tests.test_reliability_inputs import MONDEO, run_cli
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` (links not followed) and its bytes."""
+    return {
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and not p.is_symlink()
+    }
+
+
+@pytest.fixture
+def day(drive_log: Path, tmp_path: Path) -> Path:
+    """A folder with a drive, a config and the DBC it names, as a user has them."""
+    shutil.copy(drive_log, tmp_path / "d.blf")
+    shutil.copy(REPO / "dbc" / "kistler_smotion.dbc", tmp_path / "kistler.dbc")
+    config = MONDEO.replace(f"{REPO}/dbc/kistler_smotion.dbc", str(tmp_path / "kistler.dbc"))
+    (tmp_path / "car.toml").write_text(config)
+    return tmp_path
+
+
+def test_an_output_that_is_an_input_however_spelt_is_refused_and_nothing_changes(day: Path) -> None:
+    os.symlink(day / "d.blf", day / "link.json")
+    os.link(day / "d.blf", day / "hard.json")
+    before = _snapshot(day)
+    drive, car = str(day / "d.blf"), ["--config", str(day / "car.toml")]
+    cases = {
+        "analyze --json the log": ["analyze", drive, *car, "--json", drive],
+        "a symlink to it": ["analyze", drive, *car, "--json", str(day / "link.json")],
+        "a hard link to it": ["analyze", drive, *car, "--json", str(day / "hard.json")],
+        "another spelling": ["analyze", drive, *car, "--json", f"{day}/sub/../d.blf"],
+        "the config": ["analyze", drive, *car, "--json", str(day / "car.toml")],
+        "a DBC": ["analyze", drive, *car, "--json", str(day / "kistler.dbc")],
+        "gap --report the log": ["gap", drive, *car, "--report", drive],
+        "gap --json the config": ["gap", drive, *car, "--json", str(day / "car.toml")],
+        "export into the log's folder": ["export", drive, *car, "--out", str(day)],
+        "export over the log": ["export", drive, *car, "--out", drive],
+        "simulate over the config": ["simulate", *car, "--out", str(day / "car.toml")],
+        "simulate a pack over the config": ["simulate", "--pack", "1", *car, "--out", str(day / "car.toml")],
+        "live --json the DBC": ["live", "-i", "virtual", *car, "--json", str(day / "kistler.dbc")],
+    }
+    for name, argv in cases.items():
+        code, _, err = run_cli(argv)
+        assert code == 2 and err.count("\n") == 1 and "an input" in err, (name, err)
+        assert _snapshot(day) == before, name
+
+
+def test_two_outputs_in_one_file_or_both_on_stdout_are_usage_errors(day: Path) -> None:
+    drive = str(day / "d.blf")
+    code, _, err = run_cli(["gap", drive, "--json", str(day / "o.json"), "--report", f"{day}/./o.json"])
+    assert code == 2 and "--json and --report: both name" in err
+    code, out, err = run_cli(["gap", drive, "--json", "-", "--report", "-"])
+    assert code == 2 and "only one output can go to standard output" in err and out == ""
+    code, _, err = run_cli(["export", drive, "--out", "-"])
+    assert code == 2 and "--out -: a folder cannot go to standard output" in err
+    code, _, err = run_cli(["simulate", "--campaign", "1", "--out", "-"])
+    assert code == 2 and "standard output" in err
+    assert not (day / "o.json").exists() and not Path("-").exists()
+
+
+def test_a_file_c2n_did_not_write_is_replaced_only_with_force(day: Path) -> None:
+    drive = str(day / "d.blf")
+    mine = day / "mine.json"
+    mine.write_text('{"my": "notes"}\n')
+    report = day / "report.html"
+    report.write_text("<html><body>my page</body></html>\n")
+    code, _, err = run_cli(["analyze", drive, "--json", str(mine)])
+    assert code == 1 and "mine.json: exists and is not a file c2n wrote" in err and "--force" in err
+    code, _, err = run_cli(["gap", drive, "--report", str(report)])
+    assert code == 1 and "report.html: exists and is not a file c2n wrote" in err
+    assert mine.read_text() == '{"my": "notes"}\n' and "my page" in report.read_text()
+    # c2n's own summary is replaced without a word; a user's with --force
+    assert run_cli(["analyze", drive, "--json", str(mine), "--force"])[0] == 0
+    assert "c2n_ci95" in json.loads(mine.read_text())
+    assert run_cli(["analyze", drive, "--json", str(mine)])[0] == 0
+    (day / "empty.json").touch()  # nothing to lose
+    assert run_cli(["analyze", drive, "--json", str(day / "empty.json")])[0] == 0
+
+
+def test_simulate_never_replaces_a_log_or_a_truth_without_force(tmp_path: Path) -> None:
+    real = tmp_path / "real.log"
+    real.write_text("(0.000000) can0 123#0102\n")
+    code, _, err = run_cli(["simulate", "--out", str(real)])
+    assert code == 1 and "real.log: exists" in err and "--force" in err
+    assert real.read_text() == "(0.000000) can0 123#0102\n"
+    assert not (tmp_path / "real.log.truth.json").exists()
+    (tmp_path / "new.log.truth.json").write_text("my truth")
+    code, _, err = run_cli(["simulate", "--out", str(tmp_path / "new.log")])
+    assert code == 1 and "new.log.truth.json: exists" in err and not (tmp_path / "new.log").exists()
+    assert run_cli(["simulate", "--out", str(real), "--force"])[0] == 0
+    assert json.loads((tmp_path / "real.log.truth.json").read_text())["c2n"] > 0
+    assert real.read_text().count("\n") > 1000
+
+
+def test_a_name_too_long_for_its_temporary_is_refused_before_anything_is_written(tmp_path: Path) -> None:
+    long = tmp_path / ("a" * 247 + ".log")  # the log fits in 255 bytes, its truth would not
+    code, _, err = run_cli(["simulate", "--out", str(long)])
+    assert code == 2 and err.count("\n") == 1 and "too long" in err and "choose a shorter name" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_campaign_s_results_are_swapped_in_together_or_not_at_all(tmp_path: Path) -> None:
+    """Ctrl-C or a full disk while the new set is written: the old set, whole; no temporary."""
+    names = ("results.csv", "comparison.json", "report.html")
+    for name in names:
+        (tmp_path / name).write_text("old")
+    for stop in (KeyboardInterrupt(), OSError(28, "No space left on device")):
+        with pytest.raises(type(stop)), files_together(tmp_path, names) as staging:
+            (staging / "results.csv").write_text("new")
+            raise stop
+        assert {p.name: p.read_text() for p in tmp_path.iterdir()} == dict.fromkeys(names, "old")
+    with files_together(tmp_path, names) as staging:
+        for name in names:
+            (staging / name).write_text("new")
+    assert {p.name: p.read_text() for p in tmp_path.iterdir()} == dict.fromkeys(names, "new")
+
+
+def test_an_output_folder_takes_the_umask_s_mode(tmp_path: Path) -> None:
+    old = os.umask(0o022)
+    try:
+        with folder_atomically(tmp_path / "out", lambda name: True, "c2n export") as staging:
+            (staging / "a").write_text("x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "out").stat().st_mode & 0o777 == 0o755
+
+
+def test_every_html_page_carries_c2n_s_marker(day: Path) -> None:
+    from app.sinks.html import page
+
+    assert GENERATOR in page("t", [])
+
+
+def test_events_csv_follows_the_csv_dialect(day: Path) -> None:
+    out = day / "semi"
+    argv = ["export", str(day / "d.blf"), "--no-plots", "--format", "csv", "--out", str(out)]
+    assert run_cli([*argv, "--csv-dialect", "excel-semicolon"])[0] == 0
+    lines = (out / "events.csv").read_text(encoding="utf-8").splitlines()
+    assert lines[0].startswith("t;event;direction;")
+    first = lines[1].split(";")
+    assert len(first) == len(lines[0].split(";")) and "," in first[0] and "." not in first[0]
+
+
+OUTPUT_OPTIONS = ("--json", "--report", "--out", "--record")
+
+
+def test_every_output_option_of_every_command_runs_the_guard(day: Path) -> None:
+    """The class, not the cases: each command's every output option, pointed at an input (the
+    config), is refused before any work — a new command or option must be added here."""
+    import argparse
+
+    from app.cli import build_parser
+
+    pack = day / "pack"
+    (pack / "sealed").mkdir(parents=True)
+    (pack / "sealed" / "truth.json").write_text("{}")
+    (pack / "case1").mkdir()
+    shutil.copy(day / "d.blf", pack / "case1" / "drive.blf")
+    (day / "manifest.csv").write_text("log,tyre_set\nd.blf,A\n")
+    car = str(day / "car.toml")
+    drive = str(day / "d.blf")
+    before = {
+        "analyze": [drive, "--config", car],
+        "gap": [drive, "--config", car],
+        "export": [drive, "--config", car],
+        "simulate": ["--config", car],
+        "live": ["-i", "virtual", "--config", car],
+        "campaign": [str(day / "manifest.csv"), "--config", car],
+        "gap-check": [str(pack)],
+    }
+    inputs = {"gap-check": str(pack / "case1" / "drive.blf")}
+    (subparsers,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    found = 0
+    for command, parser in subparsers.choices.items():
+        options = [o for a in parser._actions for o in a.option_strings if o in OUTPUT_OPTIONS]
+        if options:
+            assert command in before, f"c2n {command} writes ({options}): add it to this test"
+        for option in options:
+            argv = [command, *before[command], option, inputs.get(command, car)]
+            snapshot = _snapshot(day)
+            code, _, err = run_cli(argv)
+            assert code == 2 and "an input" in err and err.count("\n") == 1, (argv, err)
+            assert _snapshot(day) == snapshot, argv
+            found += 1
+    assert found >= 9  # analyze, gap ×2, export, simulate, live ×2, campaign, gap-check

@@ -18,6 +18,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from app.cli.common import error_console, number
 from app.errors import UsageError, need, printable
+from app.user_text import shown
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -39,6 +40,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     where.add_argument(
         "--scheduler",
+        type=_scheduler,
         metavar="ADDRESS",
         help="a Dask distributed scheduler, e.g. tcp://10.0.0.5:8786; 'local': a LocalCluster of one "
         "worker process per CPU, started for the run",
@@ -56,6 +58,25 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     return parser
 
 
+_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")  # the transports a Dask scheduler listens on
+
+
+def _scheduler(text: str) -> str:
+    """An argparse ``type``: 'local' or SCHEME://HOST:PORT with a transport Dask has (a bare
+    HOST:PORT is tcp://, as for distributed.Client); anything else is a usage error."""
+    if text == "local":
+        return text
+    scheme, sep, rest = text.rpartition("://")
+    scheme = scheme if sep else "tcp"
+    host, colon, port = rest.rpartition(":")
+    if scheme not in _SCHEMES or not colon or not host or not port.isdigit():
+        raise argparse.ArgumentTypeError(
+            f"{printable(text)!r} is no scheduler address: want 'local' or "
+            f"{'|'.join(_SCHEMES)}://HOST:PORT, e.g. tcp://10.0.0.5:8786"
+        )
+    return f"{scheme}://{rest}"
+
+
 def _interrupt(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
@@ -66,7 +87,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
 
     need("pyarrow", "c2n campaign (results.parquet)", "export")
     need("matplotlib", "c2n campaign (report.html's plots)", "export")
-    if args.scheduler:
+    if args.scheduler is not None:
         need("distributed", "c2n campaign --scheduler", "dask")
 
     manifest = read_manifest(args.manifest)
@@ -96,7 +117,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             progress.update(task, advance=1, rate=f"{frames / elapsed:,.0f} frames/s")
 
         def workers() -> AbstractContextManager[Executor]:
-            if args.scheduler:
+            if args.scheduler is not None:
                 return work.dask_workers(args.scheduler)
             return work.local_workers(args.workers or os.cpu_count() or 1)
 
@@ -117,22 +138,25 @@ def run(args: argparse.Namespace, console: Console) -> int:
     cached = sum(1 for row in rows if row.get("cached"))
     console.print(
         f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "
-        f"{frames:,} frames analysed); results in {out}"
+        f"{frames:,} frames analysed); results in {shown(out)}"
     )
     for name, pooled in comparison.groups.items():
         low, high = pooled.ci95
         tyres = comparison.softening.get(name)
         soften = f", tyres {tyres.shown}" if tyres else ""
-        group = f"{args.by} {name}" if args.by else "all sessions"
+        group = f"{shown(args.by)} {shown(name)}" if args.by else "all sessions"
         console.print(
             f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
             f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
         )
     for d in comparison.differences:
-        console.print(f"  {d.a} − {d.b}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad")
+        console.print(
+            f"  {shown(d.a)} − {shown(d.b)}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad"
+        )
     for log, c in comparison.switched.items():
         console.print(
-            f"  {log}: compared on its {c.model} fit, {c.c2n:.3f} 1/rad [{c.ci95[0]:.3f}, {c.ci95[1]:.3f}] — "
+            f"  {shown(log)}: compared on its {c.model} fit, {c.c2n:.3f} 1/rad "
+            f"[{c.ci95[0]:.3f}, {c.ci95[1]:.3f}] — "
             f"its own fit chose the {c.own_model} one (t = {c.softening_t:+.1f}), its group's sessions "
             f"together the {c.model} one"
         )

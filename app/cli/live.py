@@ -18,6 +18,7 @@ from rich.text import Text
 from app.cli.common import add_bus, add_config, bus_kwargs, channels, error_console, number
 from app.config import load_config
 from app.errors import OutputError, printable
+from app.user_text import shown
 
 if TYPE_CHECKING:
     import can
@@ -138,7 +139,7 @@ def run(
     # Ctrl-C and SIGTERM both end the session cleanly, also where SIGINT was inherited ignored
     # (a shell starts background jobs so, and Python then leaves it ignored).
     previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
-    console.print(f"c2n live on {title} — Ctrl-C ends the session", style="dim")
+    console.print(f"c2n live on {shown(title)} — Ctrl-C ends the session", style="dim")
     if args.rate != 1.0:
         console.print(
             f"frame times stretched ×{args.rate:g}: the bus carries a replay at that rate", style="dim"
@@ -148,7 +149,7 @@ def run(
         return opener(args.interface, [wanted[index]], args.bitrate, **options)[0]
 
     def bus_changed(text: str) -> None:
-        console.print(Text(f"c2n: {text}", style="bold yellow"), soft_wrap=True)
+        console.print(Text(f"c2n: {printable(text)}", style="bold yellow"), soft_wrap=True)
 
     source = BusSource(
         buses, stop, reopen=reopen, backoff=backoff or Backoff(), clock=clock, on_change=bus_changed
@@ -157,7 +158,7 @@ def run(
     sinks: list[Sink] = [EventPrinter(console)]
     if recorder is not None:
         recorder.on_problem = lambda text: console.print(
-            Text(f"c2n: {text}", style="bold red"), soft_wrap=True
+            Text(f"c2n: {printable(text)}", style="bold red"), soft_wrap=True
         )
         sinks.append(recorder)
     try:
@@ -190,5 +191,5 @@ def run(
     for warning in [*result.warnings, *unwritten]:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     if recorder is not None:
-        console.print(f"session saved in {recorder.folder}", style="dim")
+        console.print(f"session saved in {shown(recorder.folder)}", style="dim")
     return 1 if stopped or unwritten else 0

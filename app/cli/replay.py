@@ -10,6 +10,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 
 from app.cli.common import add_bus, bus_kwargs, channels, number
 from app.errors import BusError, C2nError, printable
+from app.user_text import shown
 
 if TYPE_CHECKING:
     import can
@@ -118,7 +119,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     finally:
         for bus in buses:
             bus.shutdown()
-    console.print(f"sent {sent} frames from {args.log}", style="dim")
+    console.print(f"sent {sent} frames from {shown(args.log)}", style="dim")
     if report.stopped:
         console.print(
             f"c2n: warning: {printable(f'{args.log}: {report.stopped}')}", style="yellow", markup=False

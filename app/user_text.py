@@ -16,5 +16,10 @@ EMPTY = "(empty)"
 def shown(value: object) -> str:
     """``value`` as text a rich console prints literally: control characters written as their
     escapes (``\\x1b``), markup brackets escaped; the empty string as ``(empty)``."""
-    text = str(value)
-    return escape(printable(text)) if text else EMPTY
+    text = printable(str(value))
+    if not text:
+        return EMPTY
+    escaped = escape(text)
+    # rich doubles a trailing backslash lest it escape a tag that follows; none does here (the
+    # callers put no markup right after a user string), and the doubled one would be printed
+    return escaped[:-1] if escaped.endswith("\\\\") and not text.endswith("\\\\") else escaped

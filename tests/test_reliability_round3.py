@@ -1,0 +1,208 @@
+"""Issue 39, third round: silent wrong results, hangs and tracebacks a hostile user found. Each
+attack through the command line as a user makes it: the exit code, the one line, what is printed."""
+
+import http.server
+import io
+import socket
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+import can
+import pytest
+from rich.console import Console
+
+from app.campaign.work import probe_scheduler
+from app.cli import main
+from app.cli.replay import Router, log_channel
+from app.errors import C2nError
+from app.user_text import shown
+from tests.test_reliability_inputs import config_with
+
+
+def run_cli(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        code = main(argv, Console(file=out, width=100))
+    return code, out.getvalue(), err.getvalue()
+
+
+def one_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert "Traceback" not in err and "MarkupError" not in err, err
+    return lines[-1]
+
+
+def candump(path: Path, channels: list[str], frames: int = 40) -> Path:
+    """A small candump log alternating over ``channels``."""
+    lines = [f"({1.0 + k * 0.001:.6f}) {channels[k % len(channels)]} 123#{k:02X}" for k in range(frames)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+# --- 14: tracebacks become one line ------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--seed", "-1"],
+        ["simulate", "--campaign", "2", "--seed", "-3"],
+        ["simulate", "--session", "standard", "--seed", "-3"],
+        ["demo", "--seed", "-5"],
+    ],
+)
+def test_a_negative_seed_is_a_usage_error(argv: list[str], tmp_path: Path) -> None:
+    code, _, err = run_cli([*argv, "--out", str(tmp_path / "x.log")])
+    assert code == 2
+    assert "a seed is 0 to 4294967295" in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("key, option", [("bitrate", "-b"), ("interface", "-i"), ("channel", "-c")])
+@pytest.mark.parametrize("command", ["replay", "live"])
+def test_a_bus_arg_that_has_its_own_option_is_a_usage_error(
+    command: str, key: str, option: str, tmp_path: Path
+) -> None:
+    log = candump(tmp_path / "d.log", ["can0"])
+    argv = ["replay", str(log)] if command == "replay" else ["live", "--no-record", "--duration", "1"]
+    code, _, err = run_cli([*argv, "-i", "virtual", "--bus-arg", f"{key}=5"])
+    assert code == 2
+    assert one_line(err) == f"c2n: error: --bus-arg {key}=5: {key} has its own option, use {option}"
+
+
+@pytest.mark.parametrize("address", ["garbage://x", "", "tcp://nohost", "local:"])
+def test_a_scheduler_address_dask_cannot_use_is_a_usage_error(address: str, tmp_path: Path) -> None:
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("log\nd.log\n")
+    code, _, err = run_cli(["campaign", str(manifest), "--scheduler", address])
+    assert code == 2
+    assert "is no scheduler address: want 'local' or tcp|tls|ws|wss|ucx://HOST:PORT" in err
+    assert not (tmp_path / "m-campaign").exists()
+
+
+def test_gap_on_a_car_whose_model_diverges_is_one_line(drive_log: Path, tmp_path: Path) -> None:
+    config = config_with(tmp_path, ("wheelbase_m = 2.70", "wheelbase_m = 0.01"))
+    code, _, err = run_cli(["gap", str(drive_log), "--config", str(config)])
+    assert code == 1
+    assert one_line(err).startswith("c2n: error: the config's car cannot follow this drive")
+    assert "wheelbase_m" in err
+
+
+# --- 13: hangs -----------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def web_server() -> Iterator[str]:
+    """An HTTP server on a free port: it accepts a connection and waits for a request."""
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"tcp://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    server.server_close()
+
+
+def test_a_web_server_as_scheduler_is_refused_within_the_connect_timeout(web_server: str) -> None:
+    started = time.monotonic()
+    with pytest.raises(C2nError, match="sent no Dask handshake in 0.5 s"):
+        probe_scheduler(web_server, timeout_s=0.5)
+    assert time.monotonic() - started < 5
+
+
+def test_a_closed_port_as_scheduler_is_refused() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # bound, not listening: the connection is refused
+        with pytest.raises(C2nError, match="no Dask scheduler answers"):
+            probe_scheduler(f"tcp://127.0.0.1:{port}", timeout_s=2)
+
+
+def test_replay_loop_0_is_a_usage_error_and_help_says_n_at_least_1(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = candump(tmp_path / "d.log", ["can0"])
+    code, _, err = run_cli(["replay", str(log), "-i", "virtual", "--loop", "0"])
+    assert code == 2 and "--loop: 0 is out of range: use 1 to" in err
+    assert main(["replay", "--help"]) == 0
+    assert "play N times, N ≥ 1 (--loop alone: until Ctrl-C)" in " ".join(capsys.readouterr().out.split())
+
+
+# --- 9: replay --map -----------------------------------------------------------------------------
+
+
+class FakeBus:
+    def __init__(self, name: str) -> None:
+        self.channel_info = name
+
+
+def routed(log_channels: list[str], mapping: list[str], sent: list[str]) -> list[str]:
+    buses = [FakeBus("rp1"), FakeBus("rp2")]
+    router = Router(buses, ["rp1", "rp2"], mapping, log_channels)  # type: ignore[arg-type]
+    return [router.bus_for(can.Message(channel=c)).channel_info for c in sent]  # type: ignore[attr-defined]
+
+
+def test_an_unmapped_channel_goes_to_a_bus_no_map_names() -> None:
+    # before: can0 went to the bus numbered by the routes so far, rp2, as can1 did
+    assert routed(["can0", "can1"], ["can1=rp2"], ["can0", "can1", "can0"]) == ["rp1", "rp2", "rp1"]
+    assert routed(["can0", "can1"], [], ["can1", "can0"]) == ["rp1", "rp2"]
+
+
+def test_a_bare_number_maps_the_candump_channel_of_that_number() -> None:
+    assert log_channel("1", ["can0", "can1"], "1=rp1") == "can1"
+    assert log_channel("1", ["0", "1"], "1=rp1") == "1"  # a BLF's channels are numbers
+    assert routed(["can0", "can1"], ["1=rp1"], ["can0", "can1"]) == ["rp2", "rp1"]
+
+
+def test_a_map_naming_a_channel_the_log_lacks_is_one_line_naming_the_logs_channels(tmp_path: Path) -> None:
+    log = candump(tmp_path / "d.log", ["can0", "can1"])
+    channel = uuid.uuid4().hex
+    code, _, err = run_cli(["replay", str(log), "-i", "virtual", "-c", channel, "--map", f"can7={channel}"])
+    assert code == 1
+    assert one_line(err) == f"c2n: error: --map can7={channel}: the log has no channel can7 (its channels: can0, can1)"
+
+
+def test_replay_with_the_readmes_map_form_sends_each_channel_where_asked(tmp_path: Path) -> None:
+    log = candump(tmp_path / "d.log", ["can0", "can1"])
+    a, b = uuid.uuid4().hex, uuid.uuid4().hex
+    with can.Bus(interface="virtual", channel=a) as on_a, can.Bus(interface="virtual", channel=b) as on_b:
+        code, _, err = run_cli(
+            ["replay", str(log), "-i", "virtual", "-c", a, "-c", b, "--map", f"1={a}", "--rate", "1e6"]
+        )
+        assert code == 0, err
+        got_a = [on_a.recv(1) for _ in range(20)]
+        got_b = [on_b.recv(1) for _ in range(20)]
+    assert all(m is not None for m in got_a + got_b)
+    assert [m.data[0] % 2 for m in got_a if m is not None] == [1] * 20  # can1's frames: odd k
+    assert [m.data[0] % 2 for m in got_b if m is not None] == [0] * 20
+
+
+# --- 10: user text is never markup -------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "text, printed",
+    [
+        ("Pirelli [old]", "Pirelli [old]"),
+        ("[/]", "[/]"),
+        ("[bold]x", "[bold]x"),
+        ("a\x1b[2Jb", "a\\x1b[2Jb"),
+        ("", "(empty)"),
+        ("back\\", "back\\"),
+    ],
+)
+def test_shown_prints_user_text_literally(text: str, printed: str) -> None:
+    console = Console(record=True, width=200)
+    console.print(f"tag {shown(text)}.")
+    assert console.export_text() == f"tag {printed}.\n"
+
+
+def test_simulate_to_a_path_with_brackets_prints_it_and_exits_0(tmp_path: Path) -> None:
+    out = tmp_path / "d[/]x.log"
+    code, printed, err = run_cli(["simulate", "--scenario", "step_steer", "--out", str(out)])
+    assert code == 0, err
+    assert out.exists()
+    assert "d[/]x.log" in " ".join(printed.split()).replace(" ", "")

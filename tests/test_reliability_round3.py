@@ -108,7 +108,7 @@ def web_server() -> Iterator[str]:
 
 def test_a_web_server_as_scheduler_is_refused_within_the_connect_timeout(web_server: str) -> None:
     started = time.monotonic()
-    with pytest.raises(C2nError, match="sent no Dask handshake in 0.5 s"):
+    with pytest.raises(C2nError, match=r"sent no Dask handshake in 0\.5 s"):
         probe_scheduler(web_server, timeout_s=0.5)
     assert time.monotonic() - started < 5
 
@@ -162,7 +162,8 @@ def test_a_map_naming_a_channel_the_log_lacks_is_one_line_naming_the_logs_channe
     channel = uuid.uuid4().hex
     code, _, err = run_cli(["replay", str(log), "-i", "virtual", "-c", channel, "--map", f"can7={channel}"])
     assert code == 1
-    assert one_line(err) == f"c2n: error: --map can7={channel}: the log has no channel can7 (its channels: can0, can1)"
+    said = f"c2n: error: --map can7={channel}: the log has no channel can7 (its channels: can0, can1)"
+    assert one_line(err) == said
 
 
 def test_replay_with_the_readmes_map_form_sends_each_channel_where_asked(tmp_path: Path) -> None:

@@ -3,10 +3,13 @@ attack through the command line as a user makes it: the exit code, the one line,
 
 import http.server
 import io
+import json
+import math
 import socket
 import threading
 import time
 import uuid
+import warnings
 from collections.abc import Iterator
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
@@ -14,7 +17,12 @@ from pathlib import Path
 import can
 import pytest
 from rich.console import Console
+from scipy.special import stdtrit
 
+from app.campaign.compare import trend
+from app.campaign.manifest import read_manifest
+from app.campaign.outputs import finite
+from app.campaign.session import content_hash, file_warnings
 from app.campaign.work import probe_scheduler
 from app.cli import main
 from app.cli.replay import Router, log_channel
@@ -207,3 +215,75 @@ def test_simulate_to_a_path_with_brackets_prints_it_and_exits_0(tmp_path: Path) 
     assert code == 0, err
     assert out.exists()
     assert "d[/]x.log" in " ".join(printed.split()).replace(" ", "")
+
+
+# --- 8: trends against numeric tags --------------------------------------------------------------
+
+
+def test_a_trend_against_a_date_tag_matches_the_closed_form() -> None:
+    x = [20261124.0, 20261125.0, 20261126.0, 20261124.0, 20261126.0]
+    y = [12.0 + 0.5 * (v - 20261124.0) for v in x]  # exact: the line through every session
+    fitted = trend(x, y, [0.1] * 5)
+    assert fitted is not None
+    assert fitted.slope == pytest.approx(0.5, rel=1e-9)
+    assert fitted.intercept + fitted.slope * 20261124.0 == pytest.approx(12.0, abs=1e-6)
+    # equal weights, no spread about the line: var(slope) = s²/Σ(x − x̄)², a t(k − 2) interval
+    sxx = sum((v - sum(x) / 5) ** 2 for v in x)
+    half = float(stdtrit(3, 0.975)) * 0.1 / math.sqrt(sxx)
+    assert fitted.slope_ci95 == pytest.approx((0.5 - half, 0.5 + half), rel=1e-9)
+
+
+def test_a_trend_against_tags_near_1e200_is_finite_without_a_warning() -> None:
+    x = [1e200, 2e200, 3e200]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fitted = trend(x, [13.0, 14.0, 15.0], [0.1] * 3)
+    assert fitted is not None
+    assert fitted.slope == pytest.approx(1e-200) and fitted.intercept == pytest.approx(12.0)
+    assert trend([-1.7e308, 0.0, 1.7e308], [13.0, 14.0, 15.0], [0.1] * 3) is not None
+
+
+def test_json_never_holds_nan_a_null_and_its_reason_instead() -> None:
+    nulled: list[str] = []
+    assert finite({"a": [1.0, math.nan], "b": {"c": math.inf}}, "", nulled) == {
+        "a": [1.0, None],
+        "b": {"c": None},
+    }
+    assert nulled == ["a[1]", "b.c"]
+
+
+# --- 13 and 15: manifests and campaign options ---------------------------------------------------
+
+
+def test_a_device_in_a_manifest_is_refused_not_hashed_forever(tmp_path: Path) -> None:
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("log,tyre_set\n/dev/zero,A\n")
+    with pytest.raises(C2nError, match=r"line 2 names /dev/zero, which is no file \(a device or a pipe\)"):
+        read_manifest(manifest)
+    with pytest.raises(C2nError, match="not a regular file"):
+        content_hash([Path("/dev/zero")])
+
+
+def test_a_semicolon_separated_manifest_is_read(tmp_path: Path) -> None:
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("log;tyre_set;pressure_kPa\nd.log;Pirelli [old];220\ne.log;;240\n")
+    read = read_manifest(manifest)
+    assert read.tag_names == ("tyre_set", "pressure_kPa")
+    assert [e.tags["tyre_set"] for e in read.entries] == ["Pirelli [old]", ""]
+
+
+@pytest.mark.parametrize("config", ["missing.toml", "broken.toml"])
+def test_a_bad_campaign_config_is_one_line_before_any_work(config: str, tmp_path: Path) -> None:
+    (tmp_path / "broken.toml").write_text("[vehicle\n")
+    candump(tmp_path / "d.log", ["can0"])
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("log\nd.log\n")
+    code, _, err = run_cli(["campaign", str(manifest), "--config", str(tmp_path / config), "--workers", "1"])
+    assert code == 1
+    assert one_line(err).startswith(f"c2n: error: {tmp_path / config}")
+    assert not (tmp_path / "m-campaign").exists()
+
+
+def test_a_truncated_logs_warning_reaches_the_terminal() -> None:
+    row = {"warnings": json.dumps(["/x/d.log: stopped after frame 12: a damaged frame", "no yaw rate"])}
+    assert file_warnings(Path("/x/d.log"), row) == ["/x/d.log: stopped after frame 12: a damaged frame"]

@@ -17,6 +17,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 from app.cli.common import error_console, number
+from app.config import load_config
 from app.errors import UsageError, need, printable
 from app.user_text import shown
 
@@ -84,6 +85,7 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.campaign import outputs, work
     from app.campaign.manifest import read_manifest
+    from app.campaign.session import file_warnings
 
     need("pyarrow", "c2n campaign (results.parquet)", "export")
     need("matplotlib", "c2n campaign (report.html's plots)", "export")
@@ -91,6 +93,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
         need("distributed", "c2n campaign --scheduler", "dask")
 
     manifest = read_manifest(args.manifest)
+    if args.config is not None:  # a missing or broken config fails once, before any work
+        load_config(args.config)
     if args.by is not None and args.by not in manifest.tag_names:
         tags = ", ".join(manifest.tag_names) or "none"
         raise UsageError(f"--by {args.by}: not a column of {args.manifest} (tags: {tags})")
@@ -161,6 +165,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
             f"together the {c.model} one"
         )
     errors = error_console()
+    for entry, row in zip(manifest.entries, rows, strict=True):
+        for warning in file_warnings(entry.log, row):
+            errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     for log, error in comparison.failed:
         errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)
     if comparison.failed:

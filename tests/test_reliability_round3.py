@@ -15,6 +15,7 @@ from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import can
+import numpy as np
 import pytest
 from rich.console import Console
 from scipy.special import stdtrit
@@ -22,11 +23,13 @@ from scipy.special import stdtrit
 from app.campaign.compare import trend
 from app.campaign.manifest import read_manifest
 from app.campaign.outputs import finite
+from app.campaign.repeats import counted_once
 from app.campaign.session import content_hash, file_warnings
 from app.campaign.work import probe_scheduler
 from app.cli import main
 from app.cli.replay import Router, log_channel
 from app.errors import C2nError
+from app.sources.identity import drive_identity, first_of_each
 from app.user_text import shown
 from tests.test_reliability_inputs import config_with
 
@@ -287,3 +290,43 @@ def test_a_bad_campaign_config_is_one_line_before_any_work(config: str, tmp_path
 def test_a_truncated_logs_warning_reaches_the_terminal() -> None:
     row = {"warnings": json.dumps(["/x/d.log: stopped after frame 12: a damaged frame", "no yaw rate"])}
     assert file_warnings(Path("/x/d.log"), row) == ["/x/d.log: stopped after frame 12: a damaged frame"]
+
+
+# --- 7: one drive counted once -------------------------------------------------------------------
+
+
+def small_drive(path: Path, seed: int) -> Path:
+    """Two hundred frames of noise-like data, written in the format ``path``'s suffix says."""
+    rng = np.random.default_rng(seed)
+    with can.Logger(path) as writer:
+        for k in range(200):
+            data = bytes(rng.integers(0, 256, 8, dtype=np.uint8))
+            t = 1.7e9 + k * 0.0013 + rng.uniform(0, 1e-4)
+            writer.on_message_received(
+                can.Message(timestamp=t, arbitration_id=0x7E0 + k % 3, data=data, channel=0)
+            )
+    return path
+
+
+def test_one_drive_as_log_and_as_blf_is_one_drive_another_is_not(tmp_path: Path) -> None:
+    log = small_drive(tmp_path / "a.log", 1)
+    blf = small_drive(tmp_path / "a.blf", 1)
+    other = small_drive(tmp_path / "b.log", 2)
+    assert log.read_bytes() != blf.read_bytes()
+    assert drive_identity(log).same_drive(drive_identity(blf))
+    assert not drive_identity(log).same_drive(drive_identity(other))
+    kept, repeats = first_of_each([log, other, blf])
+    assert kept == [log, other] and repeats == [(blf, log)]
+
+
+def test_a_campaigns_repeated_drive_counts_once_and_is_named(tmp_path: Path) -> None:
+    a, b, c = (small_drive(tmp_path / name, 1) for name in ("a.log", "b.blf", "c.asc"))
+    manifest_path = tmp_path / "m.csv"
+    manifest_path.write_text("log,tyre_set\na.log,A\nb.blf,B\nc.asc,B\n")
+    manifest = read_manifest(manifest_path)
+    rows = [{"c2n": 15.0, "error": None, "drive": drive_identity(p).text} for p in (a, b, c)]
+    rows[2]["error"] = "c.asc: no C2n"  # a row without a result is no first copy
+    out, said = counted_once(manifest, rows)
+    assert out[0]["error"] is None and out[2]["error"] == "c.asc: no C2n"
+    assert said == [f"{b}: the same drive as {a} (line 2): counted once"]
+    assert out[1]["error"] == said[0]

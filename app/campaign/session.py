@@ -97,6 +97,7 @@ def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
+    from app.sources.identity import drive_identity
     from app.sources.logs import LogSource
 
     pipeline = Pipeline(config)
@@ -106,6 +107,7 @@ def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
     result = summary.build(snapshot, config, [str(raw)], source.notes)
     missing = summary.missing_required(snapshot, config)
     row = flatten(result.to_json())
+    row["drive"] = drive_identity(raw).text  # a copy of this drive elsewhere counts once
     row["error"] = printable(f"{raw}: {missing}") if missing else None
     if not missing and result.c2n is None:
         why = snapshot.refusal

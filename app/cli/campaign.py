@@ -85,6 +85,7 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.campaign import outputs, work
     from app.campaign.manifest import read_manifest
+    from app.campaign.repeats import counted_once
     from app.campaign.session import file_warnings
 
     need("pyarrow", "c2n campaign (results.parquet)", "export")
@@ -134,6 +135,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
     elapsed = time.perf_counter() - started
+    rows, repeats = counted_once(manifest, rows)
     columns, table = outputs.table_rows(manifest, rows)
     comparison = outputs.compare(manifest, table, args.by)
     outputs.write_tables(out, *outputs.with_compared(columns, table, comparison))
@@ -170,8 +172,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     for log, error in comparison.failed:
         errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)
-    if comparison.failed:
-        errors.print(
-            f"c2n: {len(comparison.failed)} of {len(rows)} sessions failed (see report.html)", markup=False
-        )
+    failed = len(comparison.failed) - len(repeats)  # a repeat is said above, not a failure
+    if failed:
+        errors.print(f"c2n: {failed} of {len(rows)} sessions failed (see report.html)", markup=False)
     return 0

@@ -29,8 +29,11 @@ from app.campaign.work import probe_scheduler
 from app.cli import main
 from app.cli.replay import Router, log_channel
 from app.errors import C2nError
+from app.results.agreement import Z95, DriveResult, disagreement
+from app.sim.session import write_drive
 from app.sources.identity import drive_identity, first_of_each
 from app.user_text import shown
+from tests.simulated import cached_drive
 from tests.test_reliability_inputs import config_with
 
 
@@ -330,3 +333,40 @@ def test_a_campaigns_repeated_drive_counts_once_and_is_named(tmp_path: Path) -> 
     assert out[0]["error"] is None and out[2]["error"] == "c.asc: no C2n"
     assert said == [f"{b}: the same drive as {a} (line 2): counted once"]
     assert out[1]["error"] == said[0]
+
+
+# --- 6: drives pooled or merged must be one C2n ---------------------------------------------------
+
+
+def test_holm_judges_each_pair_against_the_family_rate() -> None:
+    ci = (-Z95, Z95)  # se 1
+    same = [DriveResult(str(k), 0.0, ci) for k in range(3)]
+    assert disagreement(same) is None
+    # two drives 2.8 se apart: z = 2.8/√2 = 1.98, p = 0.0477 < 0.05 — one pair, so refused
+    assert disagreement([DriveResult("a", 0.0, ci), DriveResult("b", 2.8, (2.8 - Z95, 2.8 + Z95))])
+    # the same pair among three drives: three pairs, Holm's first bar is 0.05/3 — agreed
+    b = DriveResult("b", 2.8, (2.8 - Z95, 2.8 + Z95))
+    three = [DriveResult("a", 0.0, ci), b, DriveResult("c", 1.4, (1.4 - Z95, 1.4 + Z95))]
+    assert disagreement(three) is None
+    far = disagreement([*three, DriveResult("d", 20.0, (20.0 - Z95, 20.0 + Z95))])
+    assert far is not None and "a and d differ" in far and "over 6 pairs" in far
+
+
+@pytest.fixture(scope="module")
+def two_tyre_sets(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    folder = tmp_path_factory.mktemp("tyres")
+    soft, stiff = folder / "soft.blf", folder / "stiff.blf"
+    write_drive(cached_drive("constant_radius", 41, 15.1), soft)
+    write_drive(cached_drive("constant_radius", 43, 20.0), stiff)
+    return soft, stiff
+
+
+@pytest.mark.parametrize("how", ["--pool", "--merge"])
+def test_sweeps_of_two_tyre_sets_are_not_pooled_or_merged(how: str, two_tyre_sets: tuple[Path, Path]) -> None:
+    soft, stiff = two_tyre_sets
+    code, printed, err = run_cli(["analyze", how, str(soft), str(stiff)])
+    assert code == 1
+    line = one_line(err)
+    assert line.startswith(f"c2n: error: the drives disagree, each alone: {soft} 15.")
+    assert f"{stiff} 20." in line or f"{stiff} 19." in line
+    assert "C2n =" not in printed

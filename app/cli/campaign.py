@@ -11,7 +11,7 @@ from concurrent.futures import Executor
 from contextlib import AbstractContextManager
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
@@ -20,6 +20,9 @@ from app.cli.common import error_console, number
 from app.config import load_config
 from app.errors import UsageError, need, printable
 from app.user_text import shown
+
+if TYPE_CHECKING:
+    from app.campaign.outputs import Comparison
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -76,6 +79,31 @@ def _scheduler(text: str) -> str:
             f"{'|'.join(_SCHEMES)}://HOST:PORT, e.g. tcp://10.0.0.5:8786"
         )
     return f"{scheme}://{rest}"
+
+
+def print_comparison(console: Console, comparison: "Comparison", by: str | None) -> None:
+    """The groups, their differences and the sessions compared on their group's model, one line
+    each; every tag and log name printed as the user wrote it (``shown``)."""
+    for name, pooled in comparison.groups.items():
+        low, high = pooled.ci95
+        tyres = comparison.softening.get(name)
+        soften = f", tyres {tyres.shown}" if tyres else ""
+        group = f"{shown(by)} {shown(name)}" if by else "all sessions"
+        console.print(
+            f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
+            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
+        )
+    for d in comparison.differences:
+        console.print(
+            f"  {shown(d.a)} − {shown(d.b)}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad"
+        )
+    for log, c in comparison.switched.items():
+        console.print(
+            f"  {shown(log)}: compared on its {c.model} fit, {c.c2n:.3f} 1/rad "
+            f"[{c.ci95[0]:.3f}, {c.ci95[1]:.3f}] — "
+            f"its own fit chose the {c.own_model} one (t = {c.softening_t:+.1f}), its group's sessions "
+            f"together the {c.model} one"
+        )
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
@@ -146,26 +174,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "
         f"{frames:,} frames analysed); results in {shown(out)}"
     )
-    for name, pooled in comparison.groups.items():
-        low, high = pooled.ci95
-        tyres = comparison.softening.get(name)
-        soften = f", tyres {tyres.shown}" if tyres else ""
-        group = f"{shown(args.by)} {shown(name)}" if args.by else "all sessions"
-        console.print(
-            f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
-            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
-        )
-    for d in comparison.differences:
-        console.print(
-            f"  {shown(d.a)} − {shown(d.b)}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad"
-        )
-    for log, c in comparison.switched.items():
-        console.print(
-            f"  {shown(log)}: compared on its {c.model} fit, {c.c2n:.3f} 1/rad "
-            f"[{c.ci95[0]:.3f}, {c.ci95[1]:.3f}] — "
-            f"its own fit chose the {c.own_model} one (t = {c.softening_t:+.1f}), its group's sessions "
-            f"together the {c.model} one"
-        )
+    print_comparison(console, comparison, args.by)
     errors = error_console()
     for entry, row in zip(manifest.entries, rows, strict=True):
         for warning in file_warnings(entry.log, row):

@@ -50,6 +50,7 @@ def _each_alone(logs: list[Path], config: "Config", merge: bool, console: Consol
     from app.sources.logs import LogSource
 
     alone = []
+    quasi_only = True
     with console.status("each log alone first…"):
         for log in logs:
             pipeline = Pipeline(config)
@@ -59,8 +60,11 @@ def _each_alone(logs: list[Path], config: "Config", merge: bool, console: Consol
             headline = pipeline.snapshot().headline
             if headline is not None:
                 alone.append(DriveResult(str(log), headline.c2n, headline.ci95))
+                quasi_only = quasi_only and headline.method == "quasi-steady"
     if merge and len(alone) < 2:
         return
+    if quasi_only and not merge:  # the pooled run fits each drive's quasi-steady samples alone too
+        return  # and says, with each one's result in the summary, why there is no C2n
     why = disagreement(alone)
     if why is not None:
         fix = "merge the channels of one drive, pool drives that agree" if merge else "pool one set of tyres"

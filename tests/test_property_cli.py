@@ -3,6 +3,7 @@ exit code is 0, 1 or 2, there is never a traceback, and nothing half-written is 
 complete (every output is written aside and renamed into place)."""
 
 import io
+import json
 import uuid
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
@@ -239,3 +240,63 @@ def test_no_output_path_changes_a_file_c2n_did_not_write(desk: dict[str, Path], 
     changed = [p.name for p in kept if after.get(p) != before[p]]
     assert not changed, (argv, changed, err.getvalue())
     assert not Path("-").exists(), argv
+
+
+# -- tags and manifests: what a user types into a spreadsheet ---------------------------------------
+
+TAGS = st.one_of(
+    st.sampled_from(["Pirelli [old]", "Pirelli [new]", "[/]", "[bold]", "\x1b[2J", "", "a\\", "1e308", "-0"]),
+    st.sampled_from(["20261124", "20261125", "1e200", "2e200", "nan", "inf", "220", "240"]),
+    st.text(st.characters(blacklist_categories=["Cs"], blacklist_characters='\r\n\x00,;\t"'), max_size=8),
+)
+
+
+def _row(log: str, c2n: float) -> dict[str, object]:
+    return {"log": log, "error": None, "c2n": c2n, "c2n_ci95.low": c2n - 0.2, "c2n_ci95.high": c2n + 0.2}
+
+
+@st.composite
+def a_manifest(draw: st.DrawFn, root: Path) -> tuple[Path, list[dict[str, object]], str]:
+    """A manifest of 1–6 drives (some listed twice under other names), two tag columns, written
+    with ',' or ';', and the rows the workers would return."""
+    n = draw(st.integers(1, 6))
+    delimiter = draw(st.sampled_from([",", ";"]))
+    folder = root / uuid.uuid4().hex
+    folder.mkdir()
+    lines = [delimiter.join(["log", "tyre_set", "pressure"])]
+    rows = []
+    for k in range(n):
+        name = f"d{k}.log"
+        (folder / name).write_text("")
+        tags = [draw(TAGS), draw(TAGS)]
+        lines.append(delimiter.join([name, *(f'"{t}"' for t in tags)]))
+        rows.append(_row(name, draw(st.floats(5.0, 40.0))))
+    path = folder / "manifest.csv"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path, rows, draw(st.sampled_from(["tyre_set", "pressure"]))
+
+
+@settings(max_examples=60, derandomize=True, deadline=None, database=None)
+@given(data=st.data())
+def test_any_tags_in_a_manifest_are_compared_printed_literally_and_written_as_valid_json(
+    tmp_path_factory: pytest.TempPathFactory, data: st.DataObject
+) -> None:
+    from app.campaign.manifest import read_manifest
+    from app.campaign.outputs import compare, table_rows
+    from app.cli.campaign import print_comparison
+    from app.errors import printable
+
+    path, rows, by = data.draw(a_manifest(tmp_path_factory.getbasetemp()))
+    manifest = read_manifest(path)
+    assert manifest.tag_names == ("tyre_set", "pressure")
+    _, table = table_rows(manifest, rows)
+    comparison = compare(manifest, table, by)
+    console = Console(record=True, width=300)
+    print_comparison(console, comparison, by)  # no MarkupError
+    printed = console.export_text()
+    assert "\x1b" not in printed
+    for name in comparison.groups:  # every group under its own name, brackets and all
+        shown = printable(name) or "(empty)"
+        assert f"{by} {shown}: C2n" in printed
+    text = json.dumps(comparison.to_json(), allow_nan=False)  # raises on NaN or Infinity
+    assert json.loads(text)["sessions"] == len(rows)

@@ -150,12 +150,22 @@ def difference(a: str, pa: Pooled, b: str, pb: Pooled) -> Difference:
 
 def trend(x: Sequence[float], c2n: Sequence[float], se: Sequence[float]) -> Trend | None:
     """C2n = intercept + slope·x over the sessions, random effects (None where x has fewer than
-    two distinct values or there are fewer than three sessions)."""
+    two distinct values, there are fewer than three sessions, or x spans more than a float holds).
+
+    The line is fitted on x centred on its middle and scaled by its half range, u = (x − c)/h in
+    [−1, 1]: on raw x the normal equations of a date tag (20261124 … 20261126) lose every digit
+    the slope needs, and a tag near 1e200 overflows. Slope and intercept are taken back to x
+    exactly: slope = b/h, intercept = a − slope·c."""
     xs, y, s2 = np.asarray(x, float), np.asarray(c2n, float), np.asarray(se, float) ** 2
     k = len(y)
     if k < 3 or len(np.unique(xs)) < 2:
         return None
-    design = np.column_stack([np.ones(k), xs])
+    low, high = float(xs.min()), float(xs.max())
+    centre = low / 2 + high / 2  # halves first: (low + high) may overflow
+    half_range = high / 2 - low / 2
+    if not (math.isfinite(centre) and math.isfinite(half_range) and half_range > 0):
+        return None
+    design = np.column_stack([np.ones(k), (xs - centre) / half_range])
 
     def fit(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         xtw = design.T * weights
@@ -168,7 +178,10 @@ def trend(x: Sequence[float], c2n: Sequence[float], se: Sequence[float]) -> Tren
     projection = np.trace(inverse @ (design.T * w**2) @ design)
     tau2 = max(0.0, (q - (k - 2)) / (w.sum() - projection))
     coef, inverse, q_star = fit(1 / (s2 + tau2))
-    se_slope = math.sqrt(max(1.0, q_star / (k - 2)) * inverse[1, 1])
+    se_slope = math.sqrt(max(1.0, q_star / (k - 2)) * inverse[1, 1]) / half_range
     half = float(stdtrit(k - 2, 0.975)) * se_slope
-    slope = float(coef[1])
-    return Trend(slope, (slope - half, slope + half), float(coef[0]), k)
+    slope = float(coef[1]) / half_range
+    intercept = float(coef[0]) - slope * centre
+    if not all(math.isfinite(v) for v in (slope, half, intercept)):
+        return None
+    return Trend(slope, (slope - half, slope + half), intercept, k)

@@ -9,6 +9,7 @@ kept as text; a tag whose every value is a number is numeric (``numeric_tags``),
 """
 
 import csv
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,10 +44,24 @@ def _number(text: str) -> bool:
         return False
 
 
+_DELIMITERS = ",;\t"  # Excel writes ';' where the decimal mark is a comma
+
+
+def _delimiter(text: str) -> str:
+    """The manifest's separator: the one of ``,``, ``;``, tab that makes a '{LOG}' column of the
+    header (a comma when none does, or a one-column manifest)."""
+    header = text.partition("\n")[0]
+    for delimiter in _DELIMITERS:
+        if LOG in (name.strip() for name in next(csv.reader([header], delimiter=delimiter), [])):
+            return delimiter
+    return ","
+
+
 def read_manifest(path: Path) -> Manifest:
     try:
         with path.open(newline="", encoding="utf-8-sig") as file:  # a BOM from Excel is no column
-            rows = list(csv.reader(file))
+            text = file.read()
+        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=_delimiter(text)))
     except FileNotFoundError:
         raise C2nError(f"{path}: no such manifest — give a CSV with a '{LOG}' column") from None
     except (UnicodeDecodeError, csv.Error) as error:
@@ -74,6 +89,11 @@ def read_manifest(path: Path) -> Manifest:
         if not cells[where]:
             raise C2nError(f"{path}: line {line} names no log")
         log = (path.parent / cells[where]).resolve()
+        if log.exists() and not (log.is_file() or log.is_dir()):
+            raise C2nError(
+                f"{path}: line {line} names {cells[where]}, which is no file (a device or a pipe) — "
+                "name a log file or a session folder"
+            )
         if log in seen:
             raise C2nError(f"{path}: line {line} names {cells[where]} again (line {seen[log]}) — once each")
         seen[log] = line

@@ -136,6 +136,13 @@ class Comparison:
         return {log: c for log, c in self.compared.items() if c.model is not None and c.model != c.own_model}
 
     def to_json(self) -> dict[str, Any]:
+        nulled: list[str] = []
+        out = finite(self._json(), "", nulled)
+        if nulled:  # JSON has no NaN or Infinity: such a number is null, and said so
+            out["not_finite"] = {"fields": nulled, "reason": "the computation overflowed: written as null"}
+        return dict(out)
+
+    def _json(self) -> dict[str, Any]:
         return {
             "by": self.by,
             "sessions": self.n_sessions,
@@ -151,6 +158,18 @@ class Comparison:
             "method": "random effects: DerSimonian–Laird τ², Hartung–Knapp t interval (modified, max(1, q)); "
             "tyre softening decided per group (Stouffer's z of the sessions' a_y³ t, |z| > 2)",
         }
+
+
+def finite(value: Any, where: str, nulled: list[str]) -> Any:
+    """``value`` with every NaN or infinite float replaced by None, its place added to ``nulled``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        nulled.append(where)
+        return None
+    if isinstance(value, dict):
+        return {k: finite(v, f"{where}.{k}" if where else str(k), nulled) for k, v in value.items()}
+    if isinstance(value, list):
+        return [finite(v, f"{where}[{i}]", nulled) for i, v in enumerate(value)]
+    return value
 
 
 class _Session(NamedTuple):

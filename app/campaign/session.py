@@ -9,7 +9,9 @@ error, never an exception: one damaged file must not end a campaign of hundreds.
 import hashlib
 import json
 import logging
+import os
 import resource
+import stat
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -45,12 +47,19 @@ def where(job: Job) -> tuple[Path, Path, Path | None]:
 
 
 def content_hash(paths: list[Path]) -> str:
-    """BLAKE2b over the files' bytes, in order (a log, or a config and its DBCs)."""
+    """BLAKE2b over the files' bytes, in order (a log, or a config and its DBCs). Only regular
+    files, and only the bytes they held when opened: a device (``/dev/zero``) or a pipe would
+    never end, a log still being written would never be the same twice."""
     digest = hashlib.blake2b(digest_size=16)
     for path in paths:
         with path.open("rb") as file:
-            while chunk := file.read(_CHUNK):
+            status = os.fstat(file.fileno())
+            if not stat.S_ISREG(status.st_mode):
+                raise C2nError(f"{path}: not a regular file (a device or a pipe) — name a log file")
+            left = status.st_size
+            while left > 0 and (chunk := file.read(min(_CHUNK, left))):
                 digest.update(chunk)
+                left -= len(chunk)
         digest.update(b"\0")
     return digest.hexdigest()
 
@@ -88,6 +97,7 @@ def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
+    from app.sources.identity import drive_identity
     from app.sources.logs import LogSource
 
     pipeline = Pipeline(config)
@@ -97,6 +107,7 @@ def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
     result = summary.build(snapshot, config, [str(raw)], source.notes)
     missing = summary.missing_required(snapshot, config)
     row = flatten(result.to_json())
+    row["drive"] = drive_identity(raw).text  # a copy of this drive elsewhere counts once
     row["error"] = printable(f"{raw}: {missing}") if missing else None
     if not missing and result.c2n is None:
         why = snapshot.refusal
@@ -123,3 +134,13 @@ def flatten(value: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 
 def _scalar_number(value: object) -> bool:
     return value is None or (isinstance(value, int | float) and not isinstance(value, bool))
+
+
+def file_warnings(log: Path, row: dict[str, Any]) -> list[str]:
+    """The warnings of a session's row about its file itself (damage that ended the reading, a
+    recording given twice): what the terminal says beside results.csv's column."""
+    try:
+        said = json.loads(row.get("warnings") or "[]")
+    except (TypeError, json.JSONDecodeError):
+        return []
+    return [w for w in said if isinstance(w, str) and (str(log) in w or f"{log.name}:" in w)]

@@ -12,6 +12,7 @@ import json
 import multiprocessing
 import os
 import signal
+import socket
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
@@ -81,6 +82,38 @@ def _end_with(parent: multiprocessing.process.BaseProcess) -> None:
     os._exit(1)
 
 
+CONNECT_TIMEOUT_S = 10.0  # a scheduler on a reachable network answers in far less
+_LARGEST_HANDSHAKE = 1 << 20  # bytes: a Dask handshake is a small dict of versions
+
+
+def probe_scheduler(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Raise a C2nError unless a Dask scheduler answers at ``tcp://host:port`` within ``timeout_s``.
+
+    A Dask server writes its handshake as soon as it accepts a connection (a length-prefixed
+    frame); anything else that accepts one (a web server, waiting for a request) would leave
+    ``distributed.Client`` waiting for that handshake with no end."""
+    host, sep, port = address.removeprefix("tcp://").rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isdigit():
+        raise C2nError(f"--scheduler {printable(address)}: want tcp://HOST:PORT")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout_s) as connection:
+            head = connection.recv(8)
+    except TimeoutError:
+        raise C2nError(
+            f"--scheduler {printable(address)}: something accepted the connection but sent no Dask "
+            f"handshake in {timeout_s:g} s — is it a Dask scheduler's address (often port 8786)?"
+        ) from None
+    except OSError as error:
+        reason = error.strerror or type(error).__name__
+        raise C2nError(f"--scheduler {printable(address)}: no Dask scheduler answers ({reason})") from None
+    if len(head) < 8 or not 0 < int.from_bytes(head, "little") <= _LARGEST_HANDSHAKE:
+        raise C2nError(
+            f"--scheduler {printable(address)}: what answers there is not a Dask scheduler "
+            "(its first bytes are no Dask handshake)"
+        )
+
+
 @contextmanager
 def dask_workers(address: str) -> Iterator[cf.Executor]:
     """The workers of a Dask distributed cluster (``distributed.Client(address)``); ``local``
@@ -95,8 +128,10 @@ def dask_workers(address: str) -> Iterator[cf.Executor]:
             )
             stack.enter_context(cluster)
             address = cluster.scheduler_address
+        if address.startswith("tcp://"):
+            probe_scheduler(address)
         try:
-            client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
+            client = Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s")  # type: ignore[no-untyped-call]
         except (OSError, TimeoutError) as error:
             raise C2nError(f"--scheduler {address}: no Dask scheduler answers ({error})") from None
         stack.callback(client.close)

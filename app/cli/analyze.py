@@ -3,7 +3,7 @@
 import argparse
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 
@@ -11,6 +11,9 @@ from app.cli.common import add_config, add_force, error_console
 from app.config import load_config
 from app.errors import NoResultError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
+
+if TYPE_CHECKING:
+    from app.config import Config
 
 _POOL_GAP_S = 10.0  # between drives pooled: no filter, gate or regression run spans it
 
@@ -40,6 +43,42 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     return parser
 
 
+def _each_alone(logs: list[Path], config: "Config", merge: bool, console: Console) -> None:
+    """Each log analysed alone first: drives pooled must agree (``app.results.agreement``), and
+    files merged must be channels of one drive, not whole drives of their own."""
+    from app.pipeline import Pipeline
+    from app.results.agreement import DriveResult, disagreement
+    from app.run_loop import run as run_pipeline
+    from app.sources.logs import LogSource
+
+    alone = []
+    quasi_only = True
+    with console.status("each log alone first…"):
+        for log in logs:
+            pipeline = Pipeline(config)
+            run_pipeline(
+                LogSource([log], triage=pipeline.decoder).items(blocks=True), pipeline, [], blocks=True
+            )
+            headline = pipeline.snapshot().headline
+            if headline is not None:
+                alone.append(DriveResult(str(log), headline.c2n, headline.ci95))
+                quasi_only = quasi_only and headline.method == "quasi-steady"
+    if merge and len(alone) < 2:
+        return
+    if quasi_only and not merge:  # the pooled run fits each drive's quasi-steady samples alone too
+        return  # and says, with each one's result in the summary, why there is no C2n
+    why = disagreement(alone)
+    if why is not None:
+        fix = "merge the channels of one drive, pool drives that agree" if merge else "pool one set of tyres"
+        raise NoResultError(f"{why} — {fix}")
+    if merge:
+        error_console().print(
+            f"c2n: warning: {printable(', '.join(d.name for d in alone))}: each is a whole drive with "
+            "its own C2n — --merge is for the channels of one drive; --pool takes drives",
+            markup=False,
+        )
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     from app.pipeline import Pipeline
@@ -60,6 +99,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             check_readable(log)
         kept, notes = distinct(args.logs)
         drives = [[log] for log in kept]
+    if (args.pool or args.merge) and len(drives[0] if args.merge else drives) > 1:
+        _each_alone(drives[0] if args.merge else [d[0] for d in drives], config, args.merge, console)
     for number, logs in enumerate(drives):
         source = LogSource(logs, merge=args.merge, triage=pipeline.decoder)
         progress = ReadProgress(source, ", ".join(p.name for p in logs))

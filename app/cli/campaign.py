@@ -11,15 +11,20 @@ from concurrent.futures import Executor
 from contextlib import AbstractContextManager
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 from app.cli.common import error_console, number
+from app.config import load_config
 from app.errors import UsageError, need, printable
 from app.output.files import files_together
 from app.output.paths import Output, check
+from app.user_text import shown
+
+if TYPE_CHECKING:
+    from app.campaign.outputs import Comparison
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -41,6 +46,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     where.add_argument(
         "--scheduler",
+        type=_scheduler,
         metavar="ADDRESS",
         help="a Dask distributed scheduler, e.g. tcp://10.0.0.5:8786; 'local': a LocalCluster of one "
         "worker process per CPU, started for the run",
@@ -58,6 +64,50 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     return parser
 
 
+_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")  # the transports a Dask scheduler listens on
+
+
+def _scheduler(text: str) -> str:
+    """An argparse ``type``: 'local' or SCHEME://HOST:PORT with a transport Dask has (a bare
+    HOST:PORT is tcp://, as for distributed.Client); anything else is a usage error."""
+    if text == "local":
+        return text
+    scheme, sep, rest = text.rpartition("://")
+    scheme = scheme if sep else "tcp"
+    host, colon, port = rest.rpartition(":")
+    if scheme not in _SCHEMES or not colon or not host or not port.isdigit():
+        raise argparse.ArgumentTypeError(
+            f"{printable(text)!r} is no scheduler address: want 'local' or "
+            f"{'|'.join(_SCHEMES)}://HOST:PORT, e.g. tcp://10.0.0.5:8786"
+        )
+    return f"{scheme}://{rest}"
+
+
+def print_comparison(console: Console, comparison: "Comparison", by: str | None) -> None:
+    """The groups, their differences and the sessions compared on their group's model, one line
+    each; every tag and log name printed as the user wrote it (``shown``)."""
+    for name, pooled in comparison.groups.items():
+        low, high = pooled.ci95
+        tyres = comparison.softening.get(name)
+        soften = f", tyres {tyres.shown}" if tyres else ""
+        group = f"{shown(by)} {shown(name)}" if by else "all sessions"
+        console.print(
+            f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
+            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
+        )
+    for d in comparison.differences:
+        console.print(
+            f"  {shown(d.a)} − {shown(d.b)}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad"
+        )
+    for log, c in comparison.switched.items():
+        console.print(
+            f"  {shown(log)}: compared on its {c.model} fit, {c.c2n:.3f} 1/rad "
+            f"[{c.ci95[0]:.3f}, {c.ci95[1]:.3f}] — "
+            f"its own fit chose the {c.own_model} one (t = {c.softening_t:+.1f}), its group's sessions "
+            f"together the {c.model} one"
+        )
+
+
 def _interrupt(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
@@ -65,13 +115,17 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.campaign import outputs, work
     from app.campaign.manifest import read_manifest
+    from app.campaign.repeats import counted_once
+    from app.campaign.session import file_warnings
 
     need("pyarrow", "c2n campaign (results.parquet)", "export")
     need("matplotlib", "c2n campaign (report.html's plots)", "export")
-    if args.scheduler:
+    if args.scheduler is not None:
         need("distributed", "c2n campaign --scheduler", "dask")
 
     manifest = read_manifest(args.manifest)
+    if args.config is not None:  # a missing or broken config fails once, before any work
+        load_config(args.config)
     if args.by is not None and args.by not in manifest.tag_names:
         tags = ", ".join(manifest.tag_names) or "none"
         raise UsageError(f"--by {args.by}: not a column of {args.manifest} (tags: {tags})")
@@ -107,7 +161,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             progress.update(task, advance=1, rate=f"{frames / elapsed:,.0f} frames/s")
 
         def workers() -> AbstractContextManager[Executor]:
-            if args.scheduler:
+            if args.scheduler is not None:
                 return work.dask_workers(args.scheduler)
             return work.local_workers(args.workers or os.cpu_count() or 1)
 
@@ -120,6 +174,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
     elapsed = time.perf_counter() - started
+    rows, repeats = counted_once(manifest, rows)
     columns, table = outputs.table_rows(manifest, rows)
     comparison = outputs.compare(manifest, table, args.by)
     with files_together(out, outputs.FILES) as staging:  # an interrupt: the old set or the new
@@ -129,30 +184,16 @@ def run(args: argparse.Namespace, console: Console) -> int:
     cached = sum(1 for row in rows if row.get("cached"))
     console.print(
         f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "
-        f"{frames:,} frames analysed); results in {out}"
+        f"{frames:,} frames analysed); results in {shown(out)}"
     )
-    for name, pooled in comparison.groups.items():
-        low, high = pooled.ci95
-        tyres = comparison.softening.get(name)
-        soften = f", tyres {tyres.shown}" if tyres else ""
-        group = f"{args.by} {name}" if args.by else "all sessions"
-        console.print(
-            f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
-            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
-        )
-    for d in comparison.differences:
-        console.print(f"  {d.a} − {d.b}: {d.c2n:+.3f} [{d.ci95[0]:+.3f}, {d.ci95[1]:+.3f}] 1/rad")
-    for log, c in comparison.switched.items():
-        console.print(
-            f"  {log}: compared on its {c.model} fit, {c.c2n:.3f} 1/rad [{c.ci95[0]:.3f}, {c.ci95[1]:.3f}] — "
-            f"its own fit chose the {c.own_model} one (t = {c.softening_t:+.1f}), its group's sessions "
-            f"together the {c.model} one"
-        )
+    print_comparison(console, comparison, args.by)
     errors = error_console()
+    for entry, row in zip(manifest.entries, rows, strict=True):
+        for warning in file_warnings(entry.log, row):
+            errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     for log, error in comparison.failed:
         errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)
-    if comparison.failed:
-        errors.print(
-            f"c2n: {len(comparison.failed)} of {len(rows)} sessions failed (see report.html)", markup=False
-        )
+    failed = len(comparison.failed) - len(repeats)  # a repeat is said above, not a failure
+    if failed:
+        errors.print(f"c2n: {failed} of {len(rows)} sessions failed (see report.html)", markup=False)
     return 0

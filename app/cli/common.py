@@ -9,7 +9,7 @@ from pathlib import Path
 from rich.console import Console
 
 from app.config import DEFAULT_CONFIG
-from app.errors import UsageError
+from app.errors import UsageError, printable
 
 
 def add_config(parser: argparse.ArgumentParser) -> None:
@@ -54,6 +54,10 @@ def channels(args: argparse.Namespace) -> list[str | int | None]:
     return [int(c) if c.isdigit() else c for c in given] or [None]
 
 
+# python-can arguments that have their own option: a --bus-arg naming one would be given twice
+_OWN_OPTION = {"interface": "-i", "bustype": "-i", "channel": "-c", "bitrate": "-b", "fd": "--fd"}
+
+
 def bus_kwargs(args: argparse.Namespace) -> dict[str, object]:
     options: dict[str, object] = {}
     if args.fd:
@@ -62,8 +66,24 @@ def bus_kwargs(args: argparse.Namespace) -> dict[str, object]:
         key, sep, value = item.partition("=")
         if not sep or not key:
             raise UsageError(f"--bus-arg wants KEY=VALUE, got {item!r}")
+        if key in _OWN_OPTION:
+            raise UsageError(f"--bus-arg {printable(item)}: {key} has its own option, use {_OWN_OPTION[key]}")
         options[key] = int(value) if value.isdigit() else value
     return options
+
+
+def _seed(text: str) -> int:
+    """An argparse ``type``: a seed numpy accepts, 0 to 2³²−1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"{text} is out of range: a seed is 0 to {2**32 - 1}")
+    return value
+
+
+SEED = _seed
 
 
 def error_console() -> Console:

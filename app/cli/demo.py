@@ -14,11 +14,12 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import add_config, number
+from app.cli.common import SEED, add_config, number
 from app.config import Config, load_config
 from app.errors import C2nError
 from app.output import files
 from app.sim.scenarios import SCENARIOS
+from app.user_text import shown
 
 if TYPE_CHECKING:
     import can
@@ -37,7 +38,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         metavar="X",
         help="replay X times faster than driven",
     )
-    parser.add_argument("--seed", type=int, default=2026, metavar="N", help="seed of the simulated drive")
+    parser.add_argument("--seed", type=SEED, default=2026, metavar="N", help="seed of the simulated drive")
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="constant_radius")
     add_config(parser)
     parser.set_defaults(run=run)
@@ -123,7 +124,9 @@ def _replay(
         ):
             player = Player(log, tx, args.speedup, stop)
             pipeline = Pipeline(config)
-            console.print(f"replaying {log.name} ×{args.speedup:g} over virtual bus {channel}", style="dim")
+            console.print(
+                f"replaying {shown(log.name)} ×{args.speedup:g} over virtual bus {channel}", style="dim"
+            )
             player.start()
             try:
                 run_pipeline(

@@ -11,6 +11,7 @@ from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import need, printable
 from app.output.files import folder_atomically
 from app.output.paths import Output, check, config_files
+from app.user_text import shown
 
 FORMATS = ("csv", "parquet", "mf4")  # app.sinks.channels.FORMATS; pyarrow and asammdf load only when used
 
@@ -128,7 +129,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     errors = error_console()
     for warning in result.warnings:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
-    console.print(f"{len(trace):,} rows × {len(trace.channels)} channels → {out}", style="dim")
+    console.print(f"{len(trace):,} rows × {len(trace.channels)} channels → {shown(out)}", style="dim")
     for path in written:
-        console.print(f"  {path.name}", style="dim")
+        console.print(f"  {shown(path.name)}", style="dim")
     return 0

@@ -12,6 +12,7 @@ from app.cli import common
 from app.output.files import write_json
 from app.output.paths import SCORES_JSON, Output
 from app.output.paths import check as guard
+from app.user_text import shown
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -51,7 +52,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         nonlocal done
         done += 1
         said = answer.result.diagnosis if answer.result else f"error: {answer.error}"
-        console.print(f"[{done}/{len(folders)}] {answer.case}: {said}", highlight=False)
+        console.print(f"\\[{done}/{len(folders)}] {shown(answer.case)}: {shown(said)}", highlight=False)
         if answer.result:
             write_json(out / f"{answer.case}.json", answer.result.to_json(), "the case's diagnosis")
 

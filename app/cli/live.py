@@ -19,6 +19,7 @@ from app.cli.common import add_bus, add_config, add_force, bus_kwargs, channels,
 from app.config import load_config
 from app.errors import OutputError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
+from app.user_text import shown
 
 if TYPE_CHECKING:
     import can
@@ -149,7 +150,7 @@ def run(
     # Ctrl-C and SIGTERM both end the session cleanly, also where SIGINT was inherited ignored
     # (a shell starts background jobs so, and Python then leaves it ignored).
     previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
-    console.print(f"c2n live on {title} — Ctrl-C ends the session", style="dim")
+    console.print(f"c2n live on {shown(title)} — Ctrl-C ends the session", style="dim")
     if args.rate != 1.0:
         console.print(
             f"frame times stretched ×{args.rate:g}: the bus carries a replay at that rate", style="dim"
@@ -159,7 +160,7 @@ def run(
         return opener(args.interface, [wanted[index]], args.bitrate, **options)[0]
 
     def bus_changed(text: str) -> None:
-        console.print(Text(f"c2n: {text}", style="bold yellow"), soft_wrap=True)
+        console.print(Text(f"c2n: {printable(text)}", style="bold yellow"), soft_wrap=True)
 
     source = BusSource(
         buses, stop, reopen=reopen, backoff=backoff or Backoff(), clock=clock, on_change=bus_changed
@@ -168,7 +169,7 @@ def run(
     sinks: list[Sink] = [EventPrinter(console)]
     if recorder is not None:
         recorder.on_problem = lambda text: console.print(
-            Text(f"c2n: {text}", style="bold red"), soft_wrap=True
+            Text(f"c2n: {printable(text)}", style="bold red"), soft_wrap=True
         )
         sinks.append(recorder)
     try:
@@ -201,5 +202,5 @@ def run(
     for warning in [*result.warnings, *unwritten]:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     if recorder is not None:
-        console.print(f"session saved in {recorder.folder}", style="dim")
+        console.print(f"session saved in {shown(recorder.folder)}", style="dim")
     return 1 if stopped or unwritten else 0

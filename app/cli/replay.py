@@ -2,6 +2,7 @@
 
 import argparse
 import logging
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -9,7 +10,8 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 
 from app.cli.common import add_bus, bus_kwargs, channels, number
-from app.errors import BusError, C2nError, printable
+from app.errors import BusError, C2nError, UsageError, printable
+from app.user_text import shown
 
 if TYPE_CHECKING:
     import can
@@ -32,12 +34,12 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     parser.add_argument(
         "--loop",
-        type=number(0, 1e9, integer=True),
+        type=number(1, 1e9, integer=True),
         nargs="?",
-        const=0,
+        const=None,
         default=1,
         metavar="N",
-        help="play N times (no N: until Ctrl-C)",
+        help="play N times, N ≥ 1 (--loop alone: until Ctrl-C)",
     )
     parser.add_argument(
         "--map",
@@ -52,28 +54,69 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
 class Router:
-    """Which bus each of the log's channels goes to."""
+    """Which bus each of the log's channels goes to: as ``--map`` says, the others in order of
+    appearance onto the buses no map names (the last of them taking any further channels)."""
 
-    def __init__(self, buses: list["can.BusABC"], names: list[str | int | None], mapping: list[str]) -> None:
-        self.buses = buses
+    def __init__(
+        self,
+        buses: list["can.BusABC"],
+        names: list[str | int | None],
+        mapping: list[str],
+        log_channels: list[str] | None = None,
+    ) -> None:
         self.by_name = {str(name): bus for name, bus in zip(names, buses, strict=True)}
         self.routes: dict[str, can.BusABC] = {}
         for item in mapping:
             source, sep, target = item.partition("=")
-            if not sep or target not in self.by_name:
-                raise C2nError(
-                    f"--map {item!r}: want LOG=BUS with BUS one of the -c channels {list(self.by_name)}"
+            if not sep or not source or target not in self.by_name:
+                raise UsageError(
+                    f"--map {printable(item)}: want LOG=BUS with BUS one of the -c channels "
+                    f"{', '.join(self.by_name)}"
                 )
+            if log_channels is not None:
+                source = log_channel(source, log_channels, item)
             self.routes[source] = self.by_name[target]
+        taken = {id(bus) for bus in self.routes.values()}
+        self.free = [bus for bus in buses if id(bus) not in taken] or buses
+        self.unmapped = 0
 
     def bus_for(self, msg: "can.Message") -> "can.BusABC":
         key = str(msg.channel)
         bus = self.routes.get(key)
         if bus is None:
-            bus = self.buses[min(len(self.routes), len(self.buses) - 1)]
+            bus = self.free[min(self.unmapped, len(self.free) - 1)]
+            self.unmapped += 1
             self.routes[key] = bus
             log.info("log channel %s → %s", key, bus.channel_info)
         return bus
+
+
+def log_channel(given: str, log_channels: list[str], item: str) -> str:
+    """The log's channel a ``--map`` names: itself, or for a bare number N the one channel whose
+    name is letters and N (``1`` is a candump log's ``can1``, a BLF's channel 1 is ``1``)."""
+    if given in log_channels:
+        return given
+    if given.isdigit():
+        named = [c for c in log_channels if (m := _NUMBERED.fullmatch(c)) and int(m[1]) == int(given)]
+        if len(named) == 1:
+            return named[0]
+    have = printable(", ".join(log_channels) or "none")
+    raise C2nError(
+        f"--map {printable(item)}: the log has no channel {printable(given)} (its channels: {have})"
+    )
+
+
+_NUMBERED = re.compile(r"[A-Za-z_]+(\d+)")  # can1, vcan1, slcan_1
+
+
+def channels_of(path: Path) -> list[str]:
+    """The log's channels in order of appearance (one pass over the file)."""
+    from app.sources.logs import LogReport, read_log
+
+    seen: dict[str, None] = {}
+    for msg in read_log(path, LogReport(path)):
+        seen.setdefault(str(msg.channel), None)
+    return list(seen)
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
@@ -87,8 +130,15 @@ def run(args: argparse.Namespace, console: Console) -> int:
     reader = open_log(args.log)  # a missing or unknown file fails before the bus opens
     getattr(reader, "stop", lambda: None)()
     names = channels(args)
-    buses = open_buses(args.interface, names, args.bitrate, **bus_kwargs(args))
-    router = Router(buses, names, args.map)
+    options = bus_kwargs(args)
+    log_channels = channels_of(args.log) if args.map else None  # a map must name the log's channels
+    buses = open_buses(args.interface, names, args.bitrate, **options)
+    try:
+        router = Router(buses, names, args.map, log_channels)
+    except C2nError:
+        for bus in buses:
+            bus.shutdown()
+        raise
     report = LogReport(args.log)
     sent = 0
     progress = Progress(
@@ -103,7 +153,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     )
     task = progress.add_task("", total=args.log.stat().st_size or None, name=args.log.name, sent=0)
     try:
-        messages = looped(lambda: read_log(args.log, report), None if args.loop == 0 else args.loop)
+        messages = looped(lambda: read_log(args.log, report), None if args.loop is None else int(args.loop))
         with progress:
             for msg in paced(messages, args.rate):
                 try:
@@ -118,7 +168,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     finally:
         for bus in buses:
             bus.shutdown()
-    console.print(f"sent {sent} frames from {args.log}", style="dim")
+    console.print(f"sent {sent} frames from {shown(args.log)}", style="dim")
     if report.stopped:
         console.print(
             f"c2n: warning: {printable(f'{args.log}: {report.stopped}')}", style="yellow", markup=False

@@ -15,12 +15,13 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
-from app.cli.common import add_config, add_force, number
+from app.cli.common import SEED, add_config, add_force, number
 from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
 from app.errors import C2nError
 from app.output.paths import Output, check, config_files, never
 from app.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from app.sim.scenarios import SCENARIOS
+from app.user_text import shown
 
 if TYPE_CHECKING:
     from app.sim.pack import CaseResult
@@ -135,7 +136,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     parser.add_argument(
         "--seed",
-        type=int,
+        type=SEED,
         default=0,
         metavar="N",
         help="seed of the noise (and of a pack's or campaign's cases)",
@@ -238,7 +239,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     with console.status(f"simulating the {args.scenario} drive…"):
         drive = simulate_drive(config, options)
         truth = write_drive(drive, out)
-    console.print(f"wrote {out} and {truth.name}: {describe(drive.truth)}")
+    console.print(f"wrote {shown(out)} and {shown(truth.name)}: {describe(drive.truth)}")
     return 0
 
 
@@ -320,7 +321,7 @@ def _run_session(args: argparse.Namespace, console: Console) -> int:
     with console.status(f"simulating the {args.session} session on the {args.model} model…"):
         drive = simulate_standard(config, options)
         truth = write_drive(drive, out)
-    console.print(f"wrote {out} and {truth.name}: {effect.describe()}, {describe(drive.truth)}")
+    console.print(f"wrote {shown(out)} and {shown(truth.name)}: {effect.describe()}, {describe(drive.truth)}")
     return 0
 
 
@@ -336,7 +337,7 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
     def done(case: "CaseResult") -> None:
         # nothing about the effect: whoever makes the pack stays blind too
         progress.console.print(
-            f"{out / case.name}: {case.duration_s:.0f} s of driving, {case.frames:,} frames "
+            f"{shown(out / case.name)}: {case.duration_s:.0f} s of driving, {case.frames:,} frames "
             f"({case.elapsed_s:.1f} s)"
         )
         progress.advance(task)
@@ -356,8 +357,8 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
             only=args.effect,
         )
     console.print(
-        f"wrote {len(result.cases)} cases to {out} in {result.elapsed_s:.1f} s; "
-        f"truth sealed in {result.truth_path}"
+        f"wrote {len(result.cases)} cases to {shown(out)} in {result.elapsed_s:.1f} s; "
+        f"truth sealed in {shown(result.truth_path)}"
     )
     return 0
 
@@ -375,8 +376,9 @@ def _run_campaign(args: argparse.Namespace, console: Console) -> int:
             out, args.campaign, args.seed, args.config, args.workers, lambda spec, s: progress.advance(task)
         )
     console.print(
-        f"wrote {args.campaign} drives and {manifest}; truth sealed in {out / 'sealed' / 'truth.json'} — "
-        f"next: c2n campaign {manifest} --by tyre_set"
+        f"wrote {args.campaign} drives and {shown(manifest)}; "
+        f"truth sealed in {shown(out / 'sealed' / 'truth.json')} — "
+        f"next: c2n campaign {shown(manifest)} --by tyre_set"
     )
     return 0
 

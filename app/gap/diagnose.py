@@ -285,6 +285,8 @@ def fit(
         starts = [np.array(x)[free] / scales_free for x in itertools.product(*(p.starts for p in params))]
         x0 = min(starts, key=cost) if len(starts) > 1 else starts[0]
     x0 = np.clip(x0, low + 1e-9 * (high - low), high - 1e-9 * (high - low))
+    if not np.all(np.isfinite(residual(x0))):
+        raise _diverged()
     result = least_squares(
         residual,
         x0,
@@ -320,6 +322,15 @@ def problem(m: Measured, config: Config) -> Problem:
     return _scaled(pb, base)
 
 
+def _diverged() -> NoResultError:
+    """The bicycle model of the config's car diverges on this drive (e.g. a wheelbase so short
+    that its yaw mode is faster than the 20-ms grid): there is nothing to fit."""
+    return NoResultError(
+        "the config's car cannot follow this drive: its model's response is not finite "
+        "(check [vehicle] wheelbase_m, the axle loads and [tyres] in the config)"
+    )
+
+
 def _scaled(pb: Problem, sim: Simulated) -> Problem:
     """The problem with each channel's unit set: the sideslip and the vehicle speed by their white
     noise (what the effects move, and what the user asks about), the yaw rate by its whole spread
@@ -328,7 +339,10 @@ def _scaled(pb: Problem, sim: Simulated) -> Problem:
     the sideslip and bend the calibration to it."""
     rows = pb.rows
     residual = (sim.r_measured - sim.r)[rows]
-    spread = float(np.sqrt(np.mean(residual**2))) if rows.any() else 1.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        spread = float(np.sqrt(np.mean(residual**2))) if rows.any() else 1.0
+    if not math.isfinite(spread):
+        raise _diverged()
     return replace(
         pb,
         scale_beta=max(pb.sigma_beta, 1e-6),

@@ -16,6 +16,7 @@ from rich.table import Table
 from rich.text import Text
 
 from app.config import OPTICAL_ROLES
+from app.errors import printable
 from app.records import Reason, SteadyState
 from app.sinks.event_printer import result_line
 from app.sinks.sideslip_plot import MIN_HEIGHT as PLOT_MIN_LINES
@@ -147,7 +148,7 @@ class Dashboard(Display):
         then the sideslip plot in what is left); above, the panels, the plot where it fits."""
         width, height = options.max_width, options.height or options.size.height
         heading = Text(no_wrap=True, overflow="ellipsis")
-        heading.append(f" c2n live — {self.title}", style="bold")
+        heading.append(f" c2n live — {printable(self.title)}", style="bold")
         snapshot = self._snapshot
         if snapshot is None:
             heading.append("   waiting for the first frames")
@@ -251,7 +252,8 @@ class Dashboard(Display):
             lines.append(Text(snapshot.replay_hint, style="bold red"))
         if snapshot.status:
             shown = ", ".join(
-                f"{name.partition('.')[2]} {value:g}" for name, value in sorted(snapshot.status.items())
+                f"{printable(name.partition('.')[2])} {value:g}"
+                for name, value in sorted(snapshot.status.items())
             )
             lines.append(Text(f"status: {shown}"))
         for pending in snapshot.pending:
@@ -323,7 +325,9 @@ class Dashboard(Display):
             rate = self._rates.rates.get(key)
             name = snapshot.message_names.get((frame_id, extended), "(unknown)")
             rate_text = f"{rate:.0f}" if rate is not None else "—"
-            rows.append((str(channel), format_id(frame_id, extended), name, str(n), rate_text))
+            rows.append(
+                (printable(str(channel)), format_id(frame_id, extended), printable(name), str(n), rate_text)
+            )
         table = columns(rows, left={2})
         bad = (
             f"total {counts.total}  used {counts.used}  unknown id {counts.unknown_id}  "

@@ -330,35 +330,18 @@ def _check_mf4(path: Path) -> None:
         raise LogFileError(f"{path}: no CAN frames in the file")
 
 
-def _fingerprint(path: Path) -> tuple[int, bytes]:
-    """A file's size and a digest of its first and last MiB: two files that share them are the
-    same recording."""
-    import hashlib
-
-    size = _size(path)
-    digest = hashlib.sha256()
-    with path.open("rb") as file:
-        digest.update(file.read(1 << 20))
-        if size > 2 << 20:
-            file.seek(-(1 << 20), os.SEEK_END)
-            digest.update(file.read())
-    return size, digest.digest()
-
-
 def distinct(paths: Sequence[Path]) -> tuple[list[Path], list[LogReport]]:
-    """The logs with each recording once (the same path, a link to it, or a copy), and a report
-    for each one given again."""
-    kept: list[Path] = []
-    seen: dict[object, Path] = {}
-    repeated = []
-    for path in paths:
-        key = _fingerprint(path)
-        first = seen.get(key)
-        if first is None:
-            seen[key] = path
-            kept.append(path)
-        else:
-            repeated.append(LogReport(path, stopped=f"the same recording as {first}: read once", done=True))
+    """The logs with each drive once (the same path, a link, a copy, or the same frames in
+    another format: ``app.sources.identity``), and a report for each one given again."""
+    from app.sources.identity import first_of_each
+
+    if len(paths) < 2:
+        return list(paths), []
+    kept, repeats = first_of_each(list(paths))
+    repeated = [
+        LogReport(path, stopped=f"the same recording as {first}: read once", done=True)
+        for path, first in repeats
+    ]
     return kept, repeated
 
 

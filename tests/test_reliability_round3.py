@@ -31,7 +31,7 @@ from app.cli.replay import Router, log_channel
 from app.errors import C2nError
 from app.results.agreement import Z95, DriveResult, disagreement
 from app.sim.session import write_drive
-from app.sources.identity import drive_identity, first_of_each
+from app.sources.logs import drive_identity, first_of_each
 from app.user_text import shown
 from tests.simulated import cached_drive
 from tests.test_reliability_inputs import config_with

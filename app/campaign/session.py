@@ -97,8 +97,7 @@ def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
-    from app.sources.identity import drive_identity
-    from app.sources.logs import LogSource
+    from app.sources.logs import LogSource, drive_identity
 
     pipeline = Pipeline(config)
     source = LogSource([raw], triage=pipeline.decoder)

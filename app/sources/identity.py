@@ -14,8 +14,10 @@ kept beside the hash and must agree to within the coarsest of those resolutions 
 
 import hashlib
 import struct
+from collections.abc import Iterable
 from dataclasses import dataclass
-from pathlib import Path
+
+import can
 
 TIME_TOLERANCE_S = 1e-3  # TRC 1.x keeps milliseconds: the coarsest time stamp of the formats read
 
@@ -52,14 +54,13 @@ class DriveIdentity:
 _FRAME = struct.Struct("<I??B")
 
 
-def drive_identity(path: Path) -> DriveIdentity:
-    """The identity of the drive ``path`` holds (the frames read up to any damage)."""
-    from app.sources.logs import LogReport, read_log
-
+def identity_of(messages: Iterable[can.Message]) -> DriveIdentity:
+    """The identity of the drive these frames make (``app.sources.logs.drive_identity`` reads
+    them from a file)."""
     digest = hashlib.blake2b(digest_size=16)
     frames = 0
     first = last = 0.0
-    for msg in read_log(path, LogReport(path)):
+    for msg in messages:
         data = bytes(msg.data or b"")
         digest.update(_FRAME.pack(msg.arbitration_id, msg.is_extended_id, msg.is_remote_frame, len(data)))
         digest.update(data)
@@ -68,17 +69,3 @@ def drive_identity(path: Path) -> DriveIdentity:
         last = msg.timestamp
         frames += 1
     return DriveIdentity(digest.hexdigest(), frames, last - first)
-
-
-def first_of_each(paths: list[Path]) -> tuple[list[Path], list[tuple[Path, Path]]]:
-    """The paths with each drive once, in order, and (repeat, first) for every other copy."""
-    kept: list[tuple[Path, DriveIdentity]] = []
-    repeats: list[tuple[Path, Path]] = []
-    for path in paths:
-        identity = drive_identity(path)
-        first = next((p for p, known in kept if known.same_drive(identity)), None)
-        if first is None:
-            kept.append((path, identity))
-        else:
-            repeats.append((path, first))
-    return [p for p, _ in kept], repeats

@@ -24,6 +24,7 @@ import can
 from app.errors import LogFileError, need, one_line
 from app.sources.blf_bulk import TriagedBLFReader
 from app.sources.blocks import FrameBlock
+from app.sources.identity import DriveIdentity, identity_of
 from app.sources.triage import NotInBulk, Triage
 
 log = logging.getLogger(__name__)
@@ -330,11 +331,28 @@ def _check_mf4(path: Path) -> None:
         raise LogFileError(f"{path}: no CAN frames in the file")
 
 
+def drive_identity(path: Path) -> DriveIdentity:
+    """The identity of the drive ``path`` holds (the frames read up to any damage)."""
+    return identity_of(read_log(path, LogReport(path)))
+
+
+def first_of_each(paths: list[Path]) -> tuple[list[Path], list[tuple[Path, Path]]]:
+    """The paths with each drive once, in order, and (repeat, first) for every other copy."""
+    kept: list[tuple[Path, DriveIdentity]] = []
+    repeats: list[tuple[Path, Path]] = []
+    for path in paths:
+        identity = drive_identity(path)
+        first = next((p for p, known in kept if known.same_drive(identity)), None)
+        if first is None:
+            kept.append((path, identity))
+        else:
+            repeats.append((path, first))
+    return [p for p, _ in kept], repeats
+
+
 def distinct(paths: Sequence[Path]) -> tuple[list[Path], list[LogReport]]:
     """The logs with each drive once (the same path, a link, a copy, or the same frames in
     another format: ``app.sources.identity``), and a report for each one given again."""
-    from app.sources.identity import first_of_each
-
     if len(paths) < 2:
         return list(paths), []
     kept, repeats = first_of_each(list(paths))

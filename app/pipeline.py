@@ -112,6 +112,7 @@ class Pipeline:
             d_m=self.config.d_m,
             g_mps2=self.config.vehicle.gravity_mps2,
             profile=self.profile.view(),
+            settle_s=self.config.detector.settle_s,
         )
 
     def process(self, msg: can.Message) -> Record | None:

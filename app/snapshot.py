@@ -19,6 +19,7 @@ from app.results.combine import Combined
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
 from app.results.sideslip_profile import ProfileView
+from app.results.support import unsteady_crossings
 
 _SENSOR_MAX_HZ = 400.0  # an optical sensor sends at 50–250 Hz; far beyond that is not its own pace
 _HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
@@ -79,6 +80,7 @@ class Snapshot:
     quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's samples alone
     cornering: Cornering = NO_CORNERING  # seconds of cornering, by what the quasi-steady gate made of them
     signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
+    settle_s: float = 1.0  # the steady-state gate's settling time ([detector] settle_s)
 
     @property
     def t0(self) -> float:
@@ -100,6 +102,8 @@ class Snapshot:
             return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady") if not self.drives_disagree else None
         if self.regression is not None and _positive(self.regression.c2n):
             return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
+        if self.unsteady_crossings:
+            return None
         if self.paired is not None and _positive(self.paired.c2n):
             return Headline(self.paired.c2n, self.paired.ci95, "paired crossings")
         if self.combined is not None and _positive(self.combined.c2n):
@@ -125,6 +129,8 @@ class Snapshot:
             return self.sign_problem
         if self.drives_disagree:
             return self.drives_disagree
+        if self.unsteady_crossings and (self.regression is None or not _positive(self.regression.c2n)):
+            return self.unsteady_crossings
         c = self.cornering
         if c.turning_s < 1.0:
             return (
@@ -139,6 +145,11 @@ class Snapshot:
             "circles at 2–4 m/s² with the speed swept slowly through the sign change, or corners held "
             "at 1–4 m/s² at several speeds"
         )
+
+    @property
+    def unsteady_crossings(self) -> str | None:
+        """Why the crossings give no C2n: their sweeps disagree beyond any settled lag."""
+        return unsteady_crossings(self.paired, self.settle_s)
 
     @property
     def drives_disagree(self) -> str | None:

@@ -296,6 +296,8 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     out: list[str] = []
     if snapshot.sign_problem:
         out.append(snapshot.sign_problem)
+    if snapshot.unsteady_crossings:
+        out.append(snapshot.unsteady_crossings)
     if snapshot.odd_sign:
         out.append(snapshot.odd_sign)
     for report in reports:

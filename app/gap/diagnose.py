@@ -790,6 +790,19 @@ class _Judged:
         return self.present and self.importance >= 1.0 and self.reason is None
 
 
+def _units(pb: Problem, ids: np.ndarray, res: dict[str, np.ndarray], name: str | None = None) -> np.ndarray:
+    """Each manoeuvre's held-out gap in one channel (the sideslip on its steady samples), or in
+    all of them on every sample, weighed as the fit weighs them (each channel in its own unit)."""
+    m, rows = pb.measured, pb.rows
+    if name == "sideslip" and (rows & m.steady).sum() * m.dt >= MIN_USABLE_S:
+        return unit_gaps(m.t, res[name], rows & m.steady, ids)
+    if name is not None:
+        return unit_gaps(m.t, res[name], rows, ids)
+    scales = {"sideslip": pb.scale_beta, "yaw": pb.scale_r / YAW_WEIGHT, "speed": pb.scale_u / SPEED_WEIGHT}
+    used = [c for c in _CHANNELS if c != "speed" or pb.has_speed]
+    return np.asarray(np.sum([unit_gaps(m.t, res[c], rows, ids) / scales[c] ** 2 for c in used], axis=0))
+
+
 def _judge(
     pb: Problem,
     config: Config,
@@ -807,21 +820,14 @@ def _judge(
     after = _heldout_residuals(pb, fold, scored.folds)
     own = channel(effect)
 
-    def units(res: dict[str, np.ndarray], name: str | None = None) -> np.ndarray:
-        """Each manoeuvre's held-out gap in one channel, or in all of them weighed as the fit
-        weighs them (each channel in its own unit)."""
-        if name is not None:
-            return unit_gaps(m.t, res[name], rows, ids)
-        scales = {
-            "sideslip": pb.scale_beta,
-            "yaw": pb.scale_r / YAW_WEIGHT,
-            "speed": pb.scale_u / SPEED_WEIGHT,
-        }
-        used = [c for c in _CHANNELS if c != "speed" or pb.has_speed]
-        return np.sum([unit_gaps(m.t, res[c], rows, ids) / scales[c] ** 2 for c in used], axis=0)
-
-    gain = gain_z(units(before, own), units(after, own)) if own == "sideslip" or pb.has_speed else 0.0
-    worse = gain_z(units(before), units(after)) < -Z_TEST  # the fit's own measure, held out
+    gain = (
+        gain_z(_units(pb, ids, before, own), _units(pb, ids, after, own))
+        if own == "sideslip" or pb.has_speed
+        else 0.0
+    )
+    worse = (
+        gain_z(_units(pb, ids, before), _units(pb, ids, after)) < -Z_TEST
+    )  # the fit's own measure, held out
     reason = None
     if scored.at_bound:
         reason = f"its fit ended on a physical bound ({', '.join(scored.at_bound)})"
@@ -846,7 +852,6 @@ def _together(
     """The findings, fitted together: the one that matters most leads; each other one that
     matters is added to the finding of its channel and kept where it shrinks, held out, what that
     one left — else it is confounded with it."""
-    m = pb.measured
     findings: list[_Judged] = []
     joint: dict[str, Added] = {}
     for j in sorted((j for j in judged if j.matters), key=lambda j: -j.importance):
@@ -857,7 +862,7 @@ def _together(
         added = add_to(pb, ho, lead.scored, j.scored.candidate)
         both = _heldout_residuals(pb, ho.fold, added.folds)
         own = channel(j.effect)
-        gain = gain_z(unit_gaps(m.t, lead.after[own], pb.rows, ids), unit_gaps(m.t, both[own], pb.rows, ids))
+        gain = gain_z(_units(pb, ids, lead.after, own), _units(pb, ids, both, own))
         if gain > Z_TEST and not added.fit.at_bound():
             findings.append(j)
             joint[j.effect] = added

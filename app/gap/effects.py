@@ -5,10 +5,14 @@ tolerances — decided in the data's own units.
 (the sideslip at the sensor; the vehicle speed signal for a speed scale or a late bus) beyond
 what the drive's own spread allows: the held-out gap is split by manoeuvre, each manoeuvre's
 share compared with and without the effect, and the mean gain must stand ``Z_TEST`` standard
-errors above zero (a one-sided test at ``CONFIDENCE``). The manoeuvres carry the model's own
-misfit — the floor a bicycle model leaves on a real car — so that floor, not a constant, is
-what an effect must beat. It may not make the other channels' held-out gap worse by the same
-test, and its fit must end inside its physical bounds.
+errors above zero (a one-sided test at ``CONFIDENCE``, shared among the candidates). The
+manoeuvres carry the model's own misfit — the floor a bicycle model leaves on a real car — so
+that floor, not a constant, is what an effect must beat. A sideslip effect is tested on the steady
+samples (every effect of the vocabulary that moves the sideslip acts in steady state, while the
+transients carry what a bicycle model lacks: the tyres' relaxation, the body's roll); the speed
+signal's on every sample (a late bus shows where the speed changes). It may not make the
+channels' held-out gap together (weighed as the fit weighs them) worse by the same test, and its
+fit must end inside its physical bounds.
 
 **Matters.** A present effect is a finding when what it does exceeds a tolerance of the config's
 ``[gap]`` section: C2n moved by more than ``c2n_pct`` on a single crossing or on the headline
@@ -33,7 +37,11 @@ from app.gap.measured import Measured
 
 CONFIDENCE = 0.95  # the one statistical constant: intervals cover this much, a test errs 1 − it
 Z_INTERVAL = float(norm.ppf(0.5 + CONFIDENCE / 2))  # two-sided: a 95 % interval is ±1.96 σ
-Z_TEST = float(norm.ppf(CONFIDENCE))  # one-sided: a gain (or a loss) beyond 1.645 σ
+TESTS = 8  # the candidate effects each drive is tested for (the vocabulary but "none")
+# one-sided, the error shared among the candidates tested (Bonferroni): a drive with nothing
+# wrong names a spurious effect in at most 1 − CONFIDENCE of drives, not in 1 − CONFIDENCE of
+# every candidate's tests (eight of them would name one in a third of clean drives)
+Z_TEST = float(norm.ppf(1.0 - (1.0 - CONFIDENCE) / TESTS))  # 2.50 σ
 
 SPEED_CHANNEL = frozenset({"speed_scale_error", "signal_latency"})
 

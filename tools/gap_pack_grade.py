@@ -31,6 +31,7 @@ from typing import Any
 SIZE_SHARE = 0.3  # the bar: a size within 30 % of the truth (or inside its interval)
 
 # effects every drive of a car with Magic-Formula tyres and ply steer carries
+OFFSETS = {"sensor_yaw_misalignment", "tyre_ply_steer"}  # one offset of the sideslip, either way
 ALWAYS_HELD = {"load_transfer_nonlinearity", "tyre_ply_steer"}
 
 
@@ -108,7 +109,10 @@ def grade_json(g: dict[str, Any], truth: dict[str, Any]) -> dict[str, Any]:
     false = [
         e["effect"]
         for e in findings
-        if e["effect"] not in held or not size_ok(e["effect"], e, held[e["effect"]])
+        if e["effect"] not in held
+        or not (
+            size_ok(e["effect"], e, held[e["effect"]]) or (e["effect"] in OFFSETS and offset_ok(e, truth))
+        )
     ]
     ok = not false
     said = ", ".join(

@@ -71,6 +71,8 @@ SPEED_WEIGHT = 0.5  # the vehicle speed signal: it tells the speed scale and the
 DEFAULT_ROLL_AXIS_HEIGHT_M = 0.10  # at the sensor, where the config does not say: a saloon's roll centres
 LINEAR_AY_MPS2 = 4.5  # the bicycle model's tyres are linear: beyond this it is not compared
 MAX_EVALUATIONS = 200  # model runs per fit (the Jacobian's are extra)
+FIT_TOLERANCE = 1e-6  # a fit stops when its cost or its parameters (in their typical sizes) move
+# by less than this share: a millionth of a typical size, far inside any interval it reports
 _STRAIGHT_RADPS, _TURNING_RADPS = 0.015, 0.03
 _T = TypeVar("_T")
 _MIN_MANOEUVRE_S = 2.0
@@ -283,6 +285,8 @@ def fit(
         loss="soft_l1",
         f_scale=ROBUST_SCALE,
         max_nfev=MAX_EVALUATIONS,
+        ftol=FIT_TOLERANCE,
+        xtol=FIT_TOLERANCE,
     )
     values = tuple(float(v) for v in full(result.x) * scales)
     return Fit(params, values, float(result.cost), result.jac, result.fun)
@@ -517,11 +521,15 @@ def _score(
     params = (*nuisance_params, *candidate.params)
     effect_starts = list(itertools.product(*(p.starts for p in candidate.params)))
     nominal = tuple(p.nominal for p in nuisance_params)
-    fits = [
-        fit(pb, params, pb.rows, start=_best_start(pb, params, pb.rows, [(*base, *e) for e in effect_starts]))
-        for base in (calibrated, nominal)
-    ]
-    everything = min(fits, key=lambda f: f.cost)
+
+    def from_(base: tuple[float, ...]) -> Fit:
+        return fit(
+            pb, params, pb.rows, start=_best_start(pb, params, pb.rows, [(*base, *e) for e in effect_starts])
+        )
+
+    everything = from_(calibrated)
+    if everything.at_bound():  # a large effect may have bent the calibration: start again from the config
+        everything = min((everything, from_(nominal)), key=lambda f: f.cost)
     folds = [fit(pb, params, pb.rows & (ho.fold != k), start=everything.values) for k in (0, 1)]
     sims = [pb.simulate(combine(f.fields())) for f in folds]
     parts = list(zip(sims, ho.held, strict=True))
@@ -854,6 +862,7 @@ def _together(
     one left — else it is confounded with it."""
     findings: list[_Judged] = []
     joint: dict[str, Added] = {}
+    order = {c.effect: k for k, c in enumerate(CANDIDATES)}
     for j in sorted((j for j in judged if j.matters), key=lambda j: -j.importance):
         lead = next((f for f in findings if channel(f.effect) == channel(j.effect)), None)
         if lead is None:
@@ -867,8 +876,14 @@ def _together(
             findings.append(j)
             joint[j.effect] = added
         else:
-            lead.confounded.append(j.effect)
-            j.confounded.append(lead.effect)
+            if order[j.effect] < order[lead.effect]:  # the drive cannot tell them apart: the
+                findings[findings.index(lead)] = j  # vocabulary's order names one (as in DESIGN)
+                j.confounded.extend([lead.effect, *lead.confounded])
+                lead.confounded.clear()
+                lead, j = j, lead
+            else:
+                lead.confounded.append(j.effect)
+            j.confounded = [lead.effect]
             j.reason = (
                 f"the drive cannot tell it from {lead.effect} (added to it, a held-out gain of "
                 f"{gain:.1f} standard errors)"
@@ -1107,8 +1122,9 @@ def _verdict(diagnosis: str, lead: Effect | None, ho: Heldout, confounded: list[
             "(see where it lies)"
         )
     unit = "°" if lead.channel == "sideslip" else " m/s"
+    where = "sideslip" if lead.channel == "sideslip" else "vehicle speed signal"
     text = (
-        f"{diagnosis}: held-out {lead.channel} gap {lead.heldout_before:.4f}{unit} → "
+        f"{diagnosis}: held-out {where} gap {lead.heldout_before:.4f}{unit} → "
         f"{lead.heldout_after:.4f}{unit} (shrink {max(lead.shrink_heldout, 0.0):.0%}, "
         f"{lead.gain_sigmas:.1f} standard errors)"
     )

@@ -46,7 +46,18 @@ from app.gap.candidates import (
     nuisances,
     separating_manoeuvre,
 )
-from app.gap.effects import Z_TEST, C2nShift, c2n_shift, channel, gain_z, importance, own_size, unit_gaps
+from app.gap.effects import (
+    MIN_CROSSING_S,
+    Z_TEST,
+    C2nShift,
+    c2n_shift,
+    channel,
+    gain_z,
+    importance,
+    near_crossings,
+    own_size,
+    unit_gaps,
+)
 from app.gap.measured import Measured
 from app.gap.model import Mods, Prepared, Simulated, prepare, simulate
 from app.gap.model import run as run_model
@@ -941,6 +952,7 @@ def _effect(j: _Judged, config: Config) -> Effect:
 def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     pb = problem(m, config)
     pb, calibration = calibrate(pb, nuisances(config))
+    _refuse_without_crossings(pb, calibration)
     calibrated = pb.simulate(calibration.mods())
     ids = manoeuvres(m)
     fold = folds(m, ids)
@@ -1045,6 +1057,25 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         },
     )
     return Diagnosis(result, residuals)
+
+
+def _refuse_without_crossings(pb: Problem, calibration: Calibration) -> None:
+    """The report says what each effect does to C2n read from zero crossings: a drive without
+    steady turning near the crossing's speed, both ways, cannot say it — refused, naming the
+    manoeuvre."""
+    m = pb.measured
+    c2n = calibration.values[[p.name for p in calibration.params].index("c2n_per_rad")]
+    near = near_crossings(m, pb.rows, pb.d_m, c2n, pb.params.g)
+    r = np.nan_to_num(m.r)
+    seconds = [float((near & (np.sign(r) == side)).sum() * m.dt) for side in (1.0, -1.0)]
+    if min(seconds) < MIN_CROSSING_S:
+        u0 = math.sqrt(pb.params.g * pb.d_m * c2n)
+        raise NoResultError(
+            f"no steady cornering near the sideslip's sign change ({seconds[0]:.0f} s left, "
+            f"{seconds[1]:.0f} s right within ±50 % of u0² = g·d·C2n, u0 ≈ {u0:.1f} m/s, "
+            f"|a_y| ≤ {LINEAR_AY_MPS2:g} m/s²): what an effect does to C2n cannot be judged — drive "
+            "constant-radius sweeps through u0, left and right"
+        )
 
 
 def _shrink_with(pb: Problem, ho: Heldout, added: Added) -> float:

@@ -98,6 +98,17 @@ def gain_z(before: np.ndarray, after: np.ndarray) -> float:
     return mean / se
 
 
+MIN_CROSSING_S = 2.0  # of steady turning near a crossing per direction: a manoeuvre's least
+
+
+def near_crossings(m: Measured, rows: np.ndarray, d_m: float, c2n: float, g: float) -> np.ndarray:
+    """The steady turning samples near a crossing's speed (u² from half to one and a half times
+    g·d·C2n): where the zero-crossing method reads C2n."""
+    u, r = np.nan_to_num(m.u_optical), np.nan_to_num(m.r)
+    turning = rows & m.steady & (u > 0) & (np.abs(r) > 1e-3)
+    return np.asarray(turning & (np.abs(u * u / (g * d_m * c2n) - 1.0) <= 0.5))
+
+
 @dataclass(frozen=True)
 class C2nShift:
     crossing: float | None  # % on a single crossing (the worse turn direction), None: no crossing
@@ -111,12 +122,11 @@ def c2n_shift(m: Measured, rows: np.ndarray, delta: np.ndarray, d_m: float, c2n:
     (u² from half to one and a half times g·d·C2n), per turn direction; a single crossing is the
     worse direction's RMS, the headline the two directions' mean (pairing cancels an offset)."""
     u, r = np.nan_to_num(m.u_optical), np.nan_to_num(m.r)
-    turning = rows & m.steady & (u > 0) & (np.abs(r) > 1e-3)
-    near = turning & (np.abs(u * u / (g * d_m * c2n) - 1.0) <= 0.5)
+    near = near_crossings(m, rows, d_m, c2n, g)
     per_side = []
     for side in (1.0, -1.0):
         inside = near & (np.sign(r) == side)
-        if inside.sum() < 10:
+        if inside.sum() * m.dt < MIN_CROSSING_S:
             continue
         shift = 100.0 * delta[inside] * (u[inside] / r[inside]) / d_m
         per_side.append((float(np.mean(shift)), float(np.sqrt(np.mean(shift**2)))))

@@ -56,6 +56,7 @@ from app.gap.effects import (
     importance,
     near_crossings,
     own_size,
+    test_units,
     unit_gaps,
 )
 from app.gap.measured import Measured
@@ -785,7 +786,7 @@ def _heldout_residuals(pb: Problem, fold: np.ndarray, fits: Sequence[Fit]) -> di
     return {name: np.where(fold == 0, a, b) for name, (a, b) in channels.items()}
 
 
-@dataclass
+@dataclass(eq=False)  # one candidate's judgement: compared by identity
 class _Judged:
     """A candidate as the held-out test and the tolerances judge it."""
 
@@ -830,12 +831,14 @@ def _judge(
     bases: dict[str, dict[str, np.ndarray]],
     scored: Scored,
     ci95: tuple[tuple[float, float], ...],
+    before: dict[str, np.ndarray] | None = None,
 ) -> _Judged:
     """One candidate: present (its held-out gain beyond the drive's spread, no channel worse),
     and what it does to C2n and in its own unit."""
     m, rows, fold = pb.measured, pb.rows, bases["fold"]["fold"]
     effect = scored.candidate.effect
-    before = bases["rival" if scored.rival_gap is not None else "none"]
+    if before is None:
+        before = bases["rival" if scored.rival_gap is not None else "none"]
     after = _heldout_residuals(pb, fold, scored.folds)
     own = channel(effect)
 
@@ -866,7 +869,13 @@ def _judge(
 
 
 def _together(
-    pb: Problem, ho: Heldout, ids: np.ndarray, judged: list[_Judged]
+    pb: Problem,
+    config: Config,
+    calibration: Calibration,
+    ho: Heldout,
+    ids: np.ndarray,
+    bases: dict[str, dict[str, np.ndarray]],
+    judged: list[_Judged],
 ) -> tuple[list[_Judged], dict[str, Added]]:
     """The findings, fitted together: the one that matters most leads; each other one that
     matters is added to the finding of its channel and kept where it shrinks, held out, what that
@@ -899,7 +908,53 @@ def _together(
                 f"the drive cannot tell it from {lead.effect} (added to it, a held-out gain of "
                 f"{gain:.1f} standard errors)"
             )
+    if findings:
+        findings += _beside(pb, config, calibration, ho, ids, bases, judged, findings, joint)
     return findings, joint
+
+
+def _beside(
+    pb: Problem,
+    config: Config,
+    calibration: Calibration,
+    ho: Heldout,
+    ids: np.ndarray,
+    bases: dict[str, dict[str, np.ndarray]],
+    judged: list[_Judged],
+    findings: list[_Judged],
+    joint: dict[str, Added],
+) -> list[_Judged]:
+    """A candidate whose fit alone bent a nuisance to its bound (making room for an effect it
+    does not have: the finding's) is fitted again beside the finding of its channel, or the first
+    one, and judged on what that finding left."""
+    more = []
+    for k, j in enumerate(judged):
+        bent = set(j.scored.at_bound) - {p.name for p in j.scored.candidate.params}
+        if j in findings or j.confounded or not bent:
+            continue
+        lead = next((f for f in findings if channel(f.effect) == channel(j.effect)), findings[0])
+        added = add_to(pb, ho, lead.scored, j.scored.candidate)
+        sims = [pb.simulate(combine(f.fields())) for f in added.folds]
+        parts = list(zip(sims, ho.held, strict=True))
+        s = lead.scored
+        scored = Scored(
+            j.scored.candidate,
+            added.fit,
+            added.folds,
+            s.gap_after,
+            _pooled(pb.rms_beta_deg, parts),
+            s.yaw_after,
+            _pooled(pb.rms_yaw_degps, parts),
+            s.speed_after,
+            _pooled(pb.rms_speed_mps, parts),
+        )
+        ci95 = _intervals(pb, added.fit)[-len(j.scored.candidate.params) :]
+        again = _judge(pb, config, calibration, ids, bases, scored, ci95, before=lead.after)
+        judged[k] = again
+        if again.matters:
+            more.append(again)
+            joint[again.effect] = added
+    return more
 
 
 def _judged_text(j: _Judged, config: Config) -> str:
@@ -968,8 +1023,9 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     for rival in held.values():  # one rival nuisance at most
         bases["rival"] = _heldout_residuals(pb, fold, rival.baseline)
     pairs = sorted(_scores(pb, calibration, ho, rivals, workers), key=lambda p: -p[0].shrink)
-    judged = [_judge(pb, config, calibration, ids, bases, s, ci) for s, ci in pairs]
-    findings, joint = _together(pb, ho, ids, judged)
+    units = test_units(ids)
+    judged = [_judge(pb, config, calibration, units, bases, s, ci) for s, ci in pairs]
+    findings, joint = _together(pb, config, calibration, ho, units, bases, judged)
     lead = findings[0] if findings else None
     best = lead.scored if lead is not None else None
     after_sim = calibrated
@@ -1061,14 +1117,14 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
 
 def _refuse_without_crossings(pb: Problem, calibration: Calibration) -> None:
     """The report says what each effect does to C2n read from zero crossings: a drive without
-    steady turning near the crossing's speed, both ways, cannot say it — refused, naming the
+    steady turning near the crossing's speed, either way, cannot say it — refused, naming the
     manoeuvre."""
     m = pb.measured
     c2n = calibration.values[[p.name for p in calibration.params].index("c2n_per_rad")]
     near = near_crossings(m, pb.rows, pb.d_m, c2n, pb.params.g)
     r = np.nan_to_num(m.r)
     seconds = [float((near & (np.sign(r) == side)).sum() * m.dt) for side in (1.0, -1.0)]
-    if min(seconds) < MIN_CROSSING_S:
+    if max(seconds) < MIN_CROSSING_S:
         u0 = math.sqrt(pb.params.g * pb.d_m * c2n)
         raise NoResultError(
             f"no steady cornering near the sideslip's sign change ({seconds[0]:.0f} s left, "

@@ -125,7 +125,7 @@ def effect_lines(result: GapResult) -> list[str]:
         mark = "MATTERS" if e.matters else "within tolerance" if not e.confounded_with else "confounded"
         out.append(
             f"    {e.effect:<27} {mark}: {sizes}; {e.channel} {e.heldout_before:.4f} → "
-            f"{e.heldout_after:.4f}{unit} ({e.gain_sigmas:.1f} standard errors); {moves}"
+            f"{e.heldout_after:.4f}{unit} (gain z = {e.gain_sigmas:.1f}); {moves}"
         )
         if e.matters:
             out.append(f"      what to do: {e.action}")

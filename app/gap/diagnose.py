@@ -793,7 +793,7 @@ class _Judged:
     scored: Scored
     ci95: tuple[tuple[float, float], ...]
     after: dict[str, np.ndarray]  # held-out residuals with it
-    gain: float  # in its own channel, standard errors
+    gain: float  # in its own channel: the signed-rank test as a normal quantile
     present: bool
     reason: str | None  # why it is not present, or not a finding
     shift: C2nShift
@@ -854,9 +854,7 @@ def _judge(
     if scored.at_bound:
         reason = f"its fit ended on a physical bound ({', '.join(scored.at_bound)})"
     elif gain <= Z_TEST:
-        reason = (
-            f"its held-out gain in the {own} is {gain:.1f} standard errors: within the drive's own spread"
-        )
+        reason = f"its held-out gain in the {own} is z = {gain:.1f}: within the drive's own spread"
     elif worse:
         reason = "it makes the held-out gap of the channels together worse"
     c2n = calibration.values[[p.name for p in calibration.params].index("c2n_per_rad")]
@@ -906,7 +904,7 @@ def _together(
             j.confounded = [lead.effect]
             j.reason = (
                 f"the drive cannot tell it from {lead.effect} (added to it, a held-out gain of "
-                f"{gain:.1f} standard errors)"
+                f"z = {gain:.1f})"
             )
     if findings:
         findings += _beside(pb, config, calibration, ho, ids, bases, judged, findings, joint)
@@ -1213,7 +1211,7 @@ def _verdict(diagnosis: str, lead: Effect | None, ho: Heldout, confounded: list[
     text = (
         f"{diagnosis}: held-out {where} gap {lead.heldout_before:.4f}{unit} → "
         f"{lead.heldout_after:.4f}{unit} (shrink {max(lead.shrink_heldout, 0.0):.0%}, "
-        f"{lead.gain_sigmas:.1f} standard errors)"
+        f"gain z = {lead.gain_sigmas:.1f})"
     )
     twin = NUISANCE_TWINS.get(diagnosis)
     if twin:

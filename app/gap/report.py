@@ -195,7 +195,7 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
                         "channel",
                         "size [95 %]",
                         "held-out gap of its channel",
-                        "gain [standard errors]",
+                        "held-out gain z",
                         "C2n % (crossing / headline)",
                         "judged",
                         "what to do",

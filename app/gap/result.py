@@ -104,7 +104,7 @@ class C2nEffect:
 class Effect:
     """One effect the drive holds: its size and 95 % interval (fitted beside the nuisances), the
     held-out gap of its own channel without and with it, how far the held-out test puts its gain
-    above the drive's own spread (in standard errors), what it does to C2n, and whether that is
+    above the drive's own spread (a normal quantile), what it does to C2n, and whether that is
     beyond the config's tolerance (``matters``) or within it."""
 
     effect: str
@@ -114,7 +114,7 @@ class Effect:
     shrink_heldout: float  # of its own channel's held-out gap
     heldout_before: float  # that gap, deg (sideslip) or m/s (speed)
     heldout_after: float
-    gain_sigmas: float  # the held-out gain over its standard error (manoeuvres as samples)
+    gain_sigmas: float  # the held-out gain, per manoeuvre ranked (Wilcoxon), as a normal quantile
     c2n_effect_pct: C2nEffect
     matters: bool
     judged: str  # why it matters, or "within tolerance" and of what

@@ -793,7 +793,7 @@ class _Judged:
     scored: Scored
     ci95: tuple[tuple[float, float], ...]
     after: dict[str, np.ndarray]  # held-out residuals with it
-    gain: float  # in its own channel: the signed-rank test as a normal quantile
+    gain: float  # in its own channel, over its standard error
     present: bool
     reason: str | None  # why it is not present, or not a finding
     shift: C2nShift

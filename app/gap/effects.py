@@ -4,9 +4,8 @@ tolerances — decided in the data's own units.
 **Present.** An effect is present when adding it shrinks the held-out gap of its own channel
 (the sideslip at the sensor; the vehicle speed signal for a speed scale or a late bus) beyond
 what the drive's own spread allows: the held-out gap is split by manoeuvre, each manoeuvre's
-share compared with and without the effect, and the gain must stand ``Z_TEST`` above zero
-(Wilcoxon's signed ranks as a normal quantile: a one-sided test at ``CONFIDENCE``, shared among
-the candidates). The
+share compared with and without the effect, and the mean gain must stand ``Z_TEST`` standard
+errors above zero (a one-sided test at ``CONFIDENCE``, shared among the candidates). The
 manoeuvres carry the model's own misfit — the floor a bicycle model leaves on a real car — so
 that floor, not a constant, is what an effect must beat. A sideslip effect is tested on the steady
 samples (every effect of the vocabulary that moves the sideslip acts in steady state, while the
@@ -31,7 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import norm, wilcoxon
+from scipy.stats import norm
 
 from app.config import Config
 from app.gap.measured import Measured
@@ -104,18 +103,17 @@ def unit_gaps(t: np.ndarray, residual: np.ndarray, rows: np.ndarray, ids: np.nda
 
 
 def gain_z(before: np.ndarray, after: np.ndarray) -> float:
-    """How far the held-out gain (before − after, per manoeuvre) stands above zero, as the normal
-    quantile of Wilcoxon's signed-rank test (one-sided): manoeuvres differ in length and kind, so
-    their gains differ in size by more than by chance, and their ranks, not their sizes, are what
-    can be compared. Manoeuvres without held-out samples do not count; a gain of either sign at
-    random reads about 0, a loss below it."""
+    """How many standard errors the held-out gain (before − after, per manoeuvre) stands above
+    zero; manoeuvres without held-out samples do not count."""
     seen = (before > 0) | (after > 0)
     d = (before - after)[seen]
-    d = d[d != 0]
     if len(d) < 3:
         return 0.0
-    p = float(wilcoxon(d, alternative="greater").pvalue)
-    return float(norm.isf(p))
+    se = float(np.std(d, ddof=1)) / math.sqrt(len(d))
+    mean = float(np.mean(d))
+    if se <= 0.0:
+        return math.copysign(math.inf, mean) if mean else 0.0
+    return mean / se
 
 
 MIN_CROSSING_S = 2.0  # of steady turning near a crossing per direction: a manoeuvre's least

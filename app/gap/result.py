@@ -114,7 +114,7 @@ class Effect:
     shrink_heldout: float  # of its own channel's held-out gap
     heldout_before: float  # that gap, deg (sideslip) or m/s (speed)
     heldout_after: float
-    gain_sigmas: float  # the held-out gain, per manoeuvre ranked (Wilcoxon), as a normal quantile
+    gain_sigmas: float  # the held-out gain over its standard error (manoeuvres as samples)
     c2n_effect_pct: C2nEffect
     matters: bool
     judged: str  # why it matters, or "within tolerance" and of what

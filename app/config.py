@@ -79,6 +79,20 @@ class Calibration:
 
 
 @dataclass(frozen=True)
+class GapSettings:
+    """What ``c2n gap`` counts as mattering: an effect found in a drive is a finding when it moves
+    C2n or its own channel by more than these, else "within tolerance" (README, "The sim-to-real
+    gap", says where each default comes from), and whether CommonRoad's camber-step nuisance is
+    calibrated."""
+
+    c2n_pct: float = 0.5  # a tyre rig's repeatability on C2n, ± %
+    sideslip_deg: float = 0.1  # an optical sideslip sensor's angle accuracy (Kistler S-Motion sheet)
+    speed_pct: float = 1.0  # a wheel-speed signal: the rolling radius moves ~1 % with wear and pressure
+    latency_s: float = 0.1  # a vehicle bus's signal ages a few 10–20 ms cycles; beyond, it is late
+    turn_force: bool = False  # calibrate a lateral force that follows the turn (a camber step)
+
+
+@dataclass(frozen=True)
 class DetectorSettings:
     """Steady-state gate and crossing detection; see README for what each limit protects."""
 
@@ -140,6 +154,10 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("calibration", "yaw_rate_scale_pct"): (0.0, 10.0, _CLOSED),
     ("calibration", "speed_scale_pct"): (0.0, 10.0, _CLOSED),
     ("calibration", "d_tolerance_mm"): (0.0, 100.0, _CLOSED),
+    ("gap", "c2n_pct"): (0.0, 100.0, _OPEN),
+    ("gap", "sideslip_deg"): (0.0, 10.0, _OPEN),
+    ("gap", "speed_pct"): (0.0, 100.0, _OPEN),
+    ("gap", "latency_s"): (0.0, 10.0, _OPEN),
     ("detector", "ay_max_mps2"): (0.0, 20.0, _OPEN),
     ("detector", "sweep_max_mps2"): (0.0, 10.0, _OPEN),
     ("detector", "speed_min_mps"): (0.0, 100.0, _CLOSED),
@@ -226,6 +244,7 @@ class Config:
     detector: DetectorSettings
     filter: FilterSettings
     calibration: Calibration = Calibration()
+    gap: GapSettings = GapSettings()
 
     @property
     def d_m(self) -> float:
@@ -244,6 +263,7 @@ _SECTIONS = {
     "detector",
     "filter",
     "calibration",
+    "gap",
 }
 
 
@@ -275,12 +295,13 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     detector = _dataclass_from(path, "detector", DetectorSettings, _section(path, table, "detector"))
     filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
     calibration = _dataclass_from(path, "calibration", Calibration, _section(path, table, "calibration"))
+    gap = _dataclass_from(path, "gap", GapSettings, _section(path, table, "gap"))
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(
         path, table, "beta_status", ("beta",), dbcs
     )
-    return Config(path, vehicle, tyres, dbcs, roles, status, detector, filter_settings, calibration)
+    return Config(path, vehicle, tyres, dbcs, roles, status, detector, filter_settings, calibration, gap)
 
 
 def _section(path: Path, table: dict[str, Any], name: str, required: bool = False) -> dict[str, Any]:
@@ -319,7 +340,7 @@ def _dataclass_from(path: Path, section: str, cls: type[Any], table: dict[str, A
                 )
             continue
         values[f.name] = _typed(path, section, f.name, table[f.name], hints[f.name])
-        if isinstance(values[f.name], int | float):
+        if isinstance(values[f.name], int | float) and not isinstance(values[f.name], bool):
             _check_range(path, section, f.name, float(values[f.name]))
     return cls(**values)
 
@@ -333,6 +354,8 @@ def _typed(path: Path, section: str, key: str, value: Any, hint: Any) -> Any:
             return value
         if option is str and isinstance(value, str):
             return value
+        if option is bool and isinstance(value, bool):
+            return value
         if typing.get_origin(option) is Literal and value in typing.get_args(option):
             return value
     wanted = " or ".join(_type_name(o) for o in options if o is not type(None))
@@ -342,7 +365,9 @@ def _typed(path: Path, section: str, key: str, value: Any, hint: Any) -> Any:
 def _type_name(option: Any) -> str:
     if typing.get_origin(option) is Literal:
         return " | ".join(repr(v) for v in typing.get_args(option))
-    return {float: "a number", int: "an integer", str: "a string"}.get(option, str(option))
+    return {float: "a number", int: "an integer", str: "a string", bool: "true or false"}.get(
+        option, str(option)
+    )
 
 
 def _load_dbcs(path: Path, table: dict[str, Any], dbc_dir: Path | None) -> tuple[Dbc, ...]:

@@ -203,6 +203,15 @@ def test_a_yawed_sensor_head_is_named_and_sized(tmp_path: Path) -> None:
     assert best["params"]["misalignment_deg"] == pytest.approx(0.5, abs=0.02)
     assert result["shrink_heldout"] > 0.7
     assert result["located"][0]["share"] > 0
+    # the effects list: the head first, sized with an interval that holds the truth, in the
+    # sideslip, beyond the drive's spread; it moves single crossings, the paired headline hardly
+    head = result["effects"][0]
+    assert head["effect"] == "sensor_yaw_misalignment" and head["matters"] and head["channel"] == "sideslip"
+    low, high = head["ci95"]["misalignment_deg"]
+    assert low < head["params"]["misalignment_deg"] < high and high - low < 0.1
+    assert head["gain_sigmas"] > 2.5 and head["shrink_heldout"] > 0.7
+    assert abs(head["c2n_effect_pct"]["crossing"]) > 10 * abs(head["c2n_effect_pct"]["headline"])
+    assert result["tolerances"]["c2n_pct"] == 0.5
 
 
 def test_a_drive_the_model_explains_is_none(tmp_path: Path) -> None:
@@ -212,10 +221,11 @@ def test_a_drive_the_model_explains_is_none(tmp_path: Path) -> None:
     assert result["confounded_with"] == ["roll_steer"]
     assert "tyre rig" in result["separate_by"]["roll_steer"]
     assert "roll steer would be inside the calibrated c2n_per_rad" in result["verdict"]
-    # a force that follows the turn, which this drive does not have, is held at nothing
-    turn = result["calibration"]["turn_force_pct"]
-    assert turn["fitted"] == 0.0 and turn["ci95"][0] < 0.0 < turn["ci95"][1]
+    # the camber step is CommonRoad's option, not calibrated on a config that does not ask for it
+    assert "turn_force_pct" not in result["calibration"]
     assert result["shrink_heldout"] == 0.0
+    # nothing found matters: every effect listed is within tolerance, with its size
+    assert all(not e["matters"] and "within tolerance" in e["judged"] for e in result["effects"])
     assert result["c2n"]["sim"] == pytest.approx(load_config().tyres.c2n_per_rad, rel=0.01)
 
 
@@ -387,6 +397,8 @@ def test_a_speed_scale_error_is_named_from_the_vehicle_speed_signal(tmp_path: Pa
     named = next(c for c in result.candidates if c.named)
     assert named.params["speed_scale_pct"] == pytest.approx(3.0, abs=0.1)
     assert result.shrink_heldout >= 0.0 and "vehicle speed signal" in result.verdict
+    [scale] = [e for e in result.effects if e.effect == "speed_scale_error"]
+    assert scale.channel == "speed" and scale.matters and scale.c2n_effect_pct.headline in (0.0, None)
 
 
 def test_an_effect_beside_the_dominant_one_is_secondary(tmp_path: Path) -> None:
@@ -418,6 +430,7 @@ def test_the_gap_command_says_what_it_found_and_what_to_do(tmp_path: Path) -> No
     assert out.startswith("gap: sensor_yaw_misalignment")
     assert "what it means: the sensor head is yawed 0.3" in out
     assert "steering-wheel centre offset" in out and "C2n (rear axle)" in out
+    assert "sensor_yaw_misalignment     MATTERS: misalignment_deg +0.3" in out and "what to do:" in out
     result = json.loads((tmp_path / "g.json").read_text())
     assert set(result) >= {
         "diagnosis",
@@ -428,7 +441,19 @@ def test_the_gap_command_says_what_it_found_and_what_to_do(tmp_path: Path) -> No
         "candidates",
         "c2n",
         "shrink_heldout",
+        "effects",
     }
+    for effect in result["effects"]:
+        assert set(effect) >= {
+            "effect",
+            "channel",
+            "params",
+            "ci95",
+            "shrink_heldout",
+            "c2n_effect_pct",
+            "matters",
+        }
+        assert set(effect["c2n_effect_pct"]) == {"crossing", "headline"}
     assert set(result["calibration"]["c2n_per_rad"]) == {"nominal", "fitted", "ci95", "at_bound", "held"}
     assert all(c["at_bound"] == [] or not c["named"] for c in result["candidates"])
 
@@ -490,3 +515,66 @@ def test_a_slope_is_said_to_fall_where_its_gravity_points(downhill_deg: float, s
     grade, d = 2.5, math.radians(downhill_deg)
     text = slope.action((-grade * math.cos(d), grade * math.sin(d)))
     assert "slopes 2.5 %" in text and said in text
+
+
+def test_a_constant_sideslip_offset_moves_a_crossing_by_r_delta_over_d_and_pairing_cancels_it() -> None:
+    """A crossing on radius R reads C2n·(1 + R·Δ/d) with Δ added to the sideslip: 0.02° at R = 30 m,
+    d = 1 m is 1.05 %; left and right turns move opposite ways, so the paired headline stays."""
+    from app.gap.effects import c2n_shift
+
+    n, d, c2n, g, radius = 400, 1.0, 15.0, 9.81, 30.0
+    u = np.full(n, math.sqrt(g * d * c2n))  # at the crossing's speed
+    r = np.r_[np.full(n // 2, u[0] / radius), np.full(n // 2, -u[0] / radius)]
+    m = Measured.__new__(Measured)
+    object.__setattr__(m, "u_optical", u)
+    object.__setattr__(m, "r", r)
+    object.__setattr__(m, "steady", np.ones(n, dtype=bool))
+    object.__setattr__(m, "dt", 0.02)
+    delta = np.full(n, math.radians(0.02))
+    shift = c2n_shift(m, np.ones(n, dtype=bool), delta, d, c2n, g)
+    expected = 100 * radius * math.radians(0.02) / d
+    assert abs(shift.crossing or 0.0) == pytest.approx(expected, rel=1e-3)
+    assert shift.headline == pytest.approx(0.0, abs=1e-6)
+    # a sensor 5 cm off (Δ = Δd·κ) moves every crossing and the headline by Δd/d alike
+    shift = c2n_shift(m, np.ones(n, dtype=bool), 0.05 * r / u, d, c2n, g)
+    assert shift.crossing == pytest.approx(5.0, rel=1e-3) and shift.headline == pytest.approx(5.0, rel=1e-3)
+
+
+def test_the_held_out_gain_counts_manoeuvres_as_samples() -> None:
+    """Per manoeuvre, a gain equal everywhere stands infinitely far above zero; gains of ±1 around
+    a mean of 0.5 over 16 manoeuvres stand 0.5/(σ/4) standard errors above it."""
+    from app.gap.effects import Z_TEST, gain_z, unit_gaps
+
+    t = np.arange(0.0, 16.0, 0.02)
+    ids = (t // 1.0).astype(int)  # 16 one-second manoeuvres
+    res = np.ones_like(t)
+    per_unit = unit_gaps(t, res, np.ones(len(t), dtype=bool), ids)
+    assert per_unit == pytest.approx(np.full(16, 50.0))  # one block of 50 samples of 1: 50²/50
+    assert gain_z(per_unit, per_unit / 2) == math.inf
+    d = np.where(np.arange(16) % 2 == 0, 1.5, -0.5)
+    assert gain_z(d + 10, np.full(16, 10.0)) == pytest.approx(0.5 / (np.std(d, ddof=1) / 4))
+    assert 2.4 < Z_TEST < 2.6  # 95 % shared among the eight candidates
+
+
+def test_the_camber_step_is_calibrated_only_where_the_config_asks(tmp_path: Path) -> None:
+    from app.gap.candidates import nuisances
+
+    assert "turn_force_pct" not in {p.name for p in nuisances(load_config())}
+    commonroad = load_config(REPO / "config" / "commonroad_vehicle2.toml")
+    assert commonroad.gap.turn_force and "turn_force_pct" in {p.name for p in nuisances(commonroad)}
+
+
+@pytest.mark.parametrize(
+    ("line", "says"),
+    [
+        ("c2n_pct = -1", "[gap] c2n_pct = -1.0 is out of range"),
+        ("turn_force = 1", "[gap] turn_force must be true or false"),
+        ("sideslip = 0.1", "unknown key 'sideslip' in [gap]"),
+    ],
+)
+def test_a_bad_gap_tolerance_is_one_line_naming_it(tmp_path: Path, line: str, says: str) -> None:
+    text = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', f'"{REPO}/dbc/')
+    path = tmp_path / "bad.toml"
+    path.write_text(text + f"\n[gap]\n{line}\n")
+    code, _, err = run_cli(["gap", str(tmp_path / "none.blf"), "--config", str(path)])
+    assert code == 1 and says in err and "Traceback" not in err

@@ -16,6 +16,9 @@
    process, and what an install of c2n weighs, alone and with each extra: the files of every
    distribution it needs, from this venv's records, and the launch-to-first-frame time of
    ``c2n live`` (``startup``);
+8. gap: ``c2n gap`` on a simulated 10-minute standard session (two-track model, a test day), in a
+   fresh process with its CPU count, reading the log included, per 10 minutes of driving; and the
+   diagnosis alone, the log read once (``gap``, not in the default set: ``--only gap``).
 7. campaign: ``c2n campaign`` on simulated drives: frames/s per worker on 1 and 2 local workers
    against a lone analysis of the same files, the re-run with nothing changed, and the workers'
    peak RSS (``campaign``, not in the default set: ``--only campaign``).
@@ -25,6 +28,7 @@ times, and 96 background ids at about 81 Hz each, 9,009 frames/s in all.
 
     python tools/bench.py [--runs 5] [--only kernel,parts,live,cpu,offline,memory,startup] [--hours 8]
     python tools/bench.py --only campaign [--campaign-sessions 8]
+    python tools/bench.py --only gap [--runs 3]
 """
 
 import argparse
@@ -522,6 +526,39 @@ def campaign_figures(sessions: int) -> dict[str, float]:
     return figures
 
 
+# -- 8. gap -----------------------------------------------------------------------------------------
+
+
+def gap_figures(runs: int) -> dict[str, list[float]]:
+    """``c2n gap`` on one simulated standard session (written once): the whole command per 10
+    minutes of driving, and the diagnosis alone, ``runs`` times each."""
+    from app.config import load_config
+    from app.gap.diagnose import diagnose
+    from app.gap.measured import measure
+    from app.sim.standard import StandardOptions, simulate_standard
+
+    config = load_config()
+    drive = simulate_standard(config, StandardOptions(seed=8))
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "session.blf"
+        with can.Logger(str(log)) as writer:
+            for message in drive.messages:
+                writer.on_message_received(message)
+        minutes = float(drive.messages[-1].timestamp - drive.messages[0].timestamp) / 60.0
+        whole = []
+        for _ in range(runs):
+            started = time.perf_counter()
+            subprocess.run([str(C2N), "gap", str(log)], check=True, capture_output=True)
+            whole.append((time.perf_counter() - started) * 10.0 / minutes)
+        measured = measure([log], config)
+        alone = []
+        for _ in range(runs):
+            started = time.perf_counter()
+            diagnose(measured, config, workers=os.cpu_count() or 1)
+            alone.append((time.perf_counter() - started) * 10.0 / minutes)
+    return {"c2n gap, s per 10 min": whole, "diagnosis alone, s per 10 min": alone}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -606,6 +643,10 @@ def main() -> None:
         print(f"   2 workers / 1 worker                 {summary(scale, '×', digits=2)}  (goal ≥ 1.7×)")
         rerun = [r["re-run with nothing changed, s"] / r["2 worker(s), first run s"] for r in runs]
         print(f"   re-run / first run                   {summary(rerun, '%', 100, 1)}  (goal ≤ 5 %)")
+    if "gap" in only:
+        for name, values in gap_figures(max(args.runs, 3)).items():
+            goal = "  (goal ≤ 10 s on 2 cores)" if name.startswith("c2n gap") else ""
+            print(f"8. {name:30s}{summary(values, 's', digits=1)}{goal}")
     if "startup" in only:
         for argv in ([str(C2N), "--help"], [str(C2N), "analyze", "--help"]):
             starts = startup(argv, max(args.runs, 3))

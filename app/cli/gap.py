@@ -84,15 +84,7 @@ def lines(result: GapResult) -> list[str]:
     out = [f"gap: {result.verdict.replace(result.diagnosis, result.diagnosis + also, 1)}"]
     if result.action:
         out.append(f"  what it means: {result.action}")
-    for other in result.secondary:
-        out.append(
-            f"  also {other.effect} (shrinks what is left by {other.shrink_heldout:.0%}): {other.action}"
-        )
-    if result.secondary and result.shrink_heldout_with_secondary > result.shrink_heldout:
-        out.append(
-            f"  with {result.secondary[0].effect} beside it the held-out sideslip gap shrinks by "
-            f"{result.shrink_heldout_with_secondary:.0%} in all"
-        )
+    out.extend(effect_lines(result))
     out.append("  calibrated (the config's value → this drive's, 95 %):")
     for name, value in result.calibration.items():
         label, unit = _CALIBRATION_LABELS.get(name, (name, ""))
@@ -115,4 +107,38 @@ def lines(result: GapResult) -> list[str]:
             f"  residual concentrates in {row.where}: {100 * row.share:.0f} % of it in "
             f"{100 * row.samples_share:.0f} % of the samples (mean {row.mean_deg:+.3f}°)"
         )
+    return out
+
+
+def effect_lines(result: GapResult) -> list[str]:
+    """Every effect the drive holds, findings first: its size and 95 % interval, the held-out gap
+    of its own channel without and with it, what it does to C2n, and the judgement."""
+    if not result.effects:
+        return ["  no effect found beyond the drive's own spread"]
+    tolerances = result.tolerances or {}
+    out = [
+        "  effects found (size [95 %]; held-out gap of its channel; C2n on a single crossing / the "
+        f"headline; tolerance ±{tolerances.get('c2n_pct', 0.5):g} % of C2n):"
+    ]
+    for e in result.effects:
+        sizes = ", ".join(
+            f"{name} {value:+.4g} [{e.ci95[name][0]:.4g}, {e.ci95[name][1]:.4g}]"
+            for name, value in e.params.items()
+        )
+        unit = "°" if e.channel == "sideslip" else " m/s"
+        c2n = e.c2n_effect_pct
+        moves = (
+            f"C2n {c2n.crossing:+.2f} % / {c2n.headline:+.2f} %"
+            if c2n.crossing is not None and c2n.headline is not None
+            else "C2n: no steady crossing"
+        )
+        mark = "MATTERS" if e.matters else "within tolerance" if not e.confounded_with else "confounded"
+        out.append(
+            f"    {e.effect:<27} {mark}: {sizes}; {e.channel} {e.heldout_before:.4f} → "
+            f"{e.heldout_after:.4f}{unit} (gain z = {e.gain_sigmas:.1f}); {moves}"
+        )
+        if e.matters:
+            out.append(f"      what to do: {e.action}")
+        elif e.confounded_with:
+            out.append(f"      {e.judged}")
     return out

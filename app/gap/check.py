@@ -78,9 +78,10 @@ def default_workers() -> int:
 
 
 def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
-    """Per generator and over all: the confusion matrix, the accuracy (the effect, or the truth
-    within the diagnosis's confounded group: a named effect's, or the effects a verdict of "none"
-    says the calibration absorbs), false alarms on 'none', named effects that made the
+    """Per generator and over all: the confusion matrix, the accuracy (the effect named anywhere
+    in the report — the diagnosis, a finding, its confounded group, or listed within tolerance —
+    and no finding the truth does not hold; a verdict of "none" with the truth among the effects it
+    says the calibration absorbs counts too), false alarms on 'none', named effects that made the
     held-out gap worse, and the named effects' held-out shrink (of the gap each was named by: the
     sideslip's, or the vehicle speed signal's), alone and with the first secondary effect listed
     beside it. A sealed case without an answer (its log gone)
@@ -93,7 +94,17 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
         result = answer.result
         said = result.diagnosis if result else "error"
         group = list(result.confounded_with) if result else []
+        findings = [e for e in result.effects if e.matters] if result else []
+        # named anywhere in the report: a finding, one the drive cannot tell from a finding, or
+        # listed within tolerance with its size; and no finding the truth does not hold
+        listed = {e.effect for e in result.effects} if result else set()
+        named = {e.effect for e in findings} | {c for e in findings for c in e.confounded_with} | listed
+        false = [
+            e.effect for e in findings if e.effect != true_effect and true_effect not in e.confounded_with
+        ]
         ok = said == true_effect or (true_effect != "none" and said != "unexplained" and true_effect in group)
+        if true_effect != "none":
+            ok = (ok or true_effect in named) and not false
         rows.append(
             {
                 "case": case,
@@ -102,6 +113,7 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
                 "size": sealed["effect"]["size"],
                 "diagnosis": said,
                 "confounded_with": group,
+                "false_findings": false,
                 "correct": ok,
                 "shrink_heldout": result.shrink_heldout if result else None,
                 "shrink_heldout_with_secondary": result.shrink_heldout_with_secondary if result else None,

@@ -12,12 +12,11 @@ shrinks once that effect is added — checked on manoeuvres the fit did not see.
    folds; the nuisances, alone and with each effect, are fitted on one fold and the sideslip and
    yaw-rate gaps measured on the other (the gap: the residual's 1-s means with the white noise
    taken out of their squares).
-4. **Name only what shrinks the gap the user asked about.** An effect is named when its fit is
-   inside its physical bounds, it shrinks the held-out sideslip gap by at least ``MIN_SHRINK`` and
-   by more than the gap's noise, and it does not make the yaw-rate gap worse. Otherwise the verdict
-   is ``none`` when the calibrated model is within noise of the drive, else ``unexplained``.
-   Effects within ``CONFOUNDED_SHARE`` of the best are confounded with it; effects that shrink
-   what the best one leaves are ``secondary``.
+4. **Judge each effect in the data's own units** (``app.gap.effects``): present when its held-out
+   gain, manoeuvre by manoeuvre, stands beyond the drive's own spread; a finding when what it does
+   to C2n or in its own unit exceeds the config's ``[gap]`` tolerances. The findings are fitted
+   together; ``diagnosis`` names the one that matters most, ``none`` when none does and the
+   calibrated model is within the sideslip tolerance of the drive, else ``unexplained``.
 """
 
 import itertools
@@ -47,13 +46,28 @@ from app.gap.candidates import (
     nuisances,
     separating_manoeuvre,
 )
+from app.gap.effects import (
+    MIN_CROSSING_S,
+    Z_TEST,
+    C2nShift,
+    c2n_shift,
+    channel,
+    gain_z,
+    importance,
+    near_crossings,
+    own_size,
+    test_units,
+    unit_gaps,
+)
 from app.gap.measured import Measured
 from app.gap.model import Mods, Prepared, Simulated, prepare, simulate
 from app.gap.model import run as run_model
 from app.gap.result import (
     BeforeAfter,
+    C2nEffect,
     Calibrated,
     CandidateScore,
+    Effect,
     GapC2n,
     GapNoise,
     GapResult,
@@ -66,20 +80,11 @@ GAP_BLOCK_S = 1.0  # the sideslip gap is measured on 1-s means
 ROBUST_SCALE = 3.0  # residuals beyond this many channel scales count less (soft L1)
 YAW_WEIGHT = 1.0  # the yaw rate carries the driver's corrections the model cannot follow
 SPEED_WEIGHT = 0.5  # the vehicle speed signal: it tells the speed scale and the bus's lag
-MIN_SHRINK = 0.3  # a named effect shrinks the held-out sideslip gap by at least this share ...
-MIN_DROP_DEG = 0.004  # ... and by at least this much ...
-DROP_NOISE = 2.0  # ... and by this many times the gap's own noise
-NONE_GAP_DEG = 0.02  # a calibrated model this close to the drive leaves nothing to explain
-YAW_TOLERANCE = 0.25  # a named effect may not make the held-out yaw-rate gap worse by more than
-# this share of the yaw rate's spread (its misfit no effect can remove varies between fits)
-SPEED_MIN_SHRINK = 0.5  # an effect seen in the vehicle speed signal shrinks its gap by this ...
-SPEED_MIN_DROP_MPS = 0.02  # ... and by this much
-CONFOUNDED_SHARE = 0.8  # candidates reaching this share of the best shrink are confounded
-RIVAL_SHARE = 0.85  # an effect a nuisance imitates leaves at most this share of the nuisance's gap
-SECONDARY_SHRINK = 0.2  # a secondary effect shrinks what the dominant one left by this share
 DEFAULT_ROLL_AXIS_HEIGHT_M = 0.10  # at the sensor, where the config does not say: a saloon's roll centres
 LINEAR_AY_MPS2 = 4.5  # the bicycle model's tyres are linear: beyond this it is not compared
 MAX_EVALUATIONS = 200  # model runs per fit (the Jacobian's are extra)
+FIT_TOLERANCE = 1e-6  # a fit stops when its cost or its parameters (in their typical sizes) move
+# by less than this share: a millionth of a typical size, far inside any interval it reports
 _STRAIGHT_RADPS, _TURNING_RADPS = 0.015, 0.03
 _T = TypeVar("_T")
 _MIN_MANOEUVRE_S = 2.0
@@ -294,6 +299,8 @@ def fit(
         loss="soft_l1",
         f_scale=ROBUST_SCALE,
         max_nfev=MAX_EVALUATIONS,
+        ftol=FIT_TOLERANCE,
+        xtol=FIT_TOLERANCE,
     )
     values = tuple(float(v) for v in full(result.x) * scales)
     return Fit(params, values, float(result.cost), result.jac, result.fun)
@@ -540,11 +547,15 @@ def _score(
     params = (*nuisance_params, *candidate.params)
     effect_starts = list(itertools.product(*(p.starts for p in candidate.params)))
     nominal = tuple(p.nominal for p in nuisance_params)
-    fits = [
-        fit(pb, params, pb.rows, start=_best_start(pb, params, pb.rows, [(*base, *e) for e in effect_starts]))
-        for base in (calibrated, nominal)
-    ]
-    everything = min(fits, key=lambda f: f.cost)
+
+    def from_(base: tuple[float, ...]) -> Fit:
+        return fit(
+            pb, params, pb.rows, start=_best_start(pb, params, pb.rows, [(*base, *e) for e in effect_starts])
+        )
+
+    everything = from_(calibrated)
+    if everything.at_bound():  # a large effect may have bent the calibration: start again from the config
+        everything = min((everything, from_(nominal)), key=lambda f: f.cost)
     folds = [fit(pb, params, pb.rows & (ho.fold != k), start=everything.values) for k in (0, 1)]
     sims = [pb.simulate(combine(f.fields())) for f in folds]
     parts = list(zip(sims, ho.held, strict=True))
@@ -585,116 +596,32 @@ def _pooled(
     return math.sqrt(total / n) if n else 0.0
 
 
-def none_gap(ho: Heldout) -> float:
-    """The held-out sideslip gap below which the calibrated model leaves nothing to explain."""
-    return max(NONE_GAP_DEG, 3.0 * ho.noise)
-
-
-def shrinks_sideslip(s: Scored, ho: Heldout) -> bool:
-    """The held-out sideslip gap shrinks by MIN_SHRINK and beyond the gap's noise."""
-    return s.shrink >= MIN_SHRINK and s.gap_before - s.gap_after >= max(MIN_DROP_DEG, DROP_NOISE * ho.noise)
-
-
-def shrinks_speed(s: Scored, ho: Heldout) -> bool:
-    """The vehicle speed signal's held-out gap shrinks (a speed scale or a late bus shows there
-    first; the calibration cannot absorb it) while the sideslip gap does not grow — named so only
-    when the calibrated model leaves no sideslip gap to explain: the sideslip is what the user
-    asks about, and a gap there left unexplained is the verdict."""
-    return (
-        ho.gap <= none_gap(ho)
-        and s.speed_shrink >= SPEED_MIN_SHRINK
-        and s.speed_before - s.speed_after >= SPEED_MIN_DROP_MPS
-        and s.gap_after <= s.gap_before + 0.1 * ho.noise  # equal fits differ by less than noise
-    )
-
-
-def why_not(s: Scored, ho: Heldout) -> str | None:
-    """The test a candidate fails to be named, or None when it passes every one."""
-    if s.at_bound:
-        return f"its fit ended on a physical bound ({', '.join(s.at_bound)})"
-    if s.rival_gap is not None and s.gap_after > RIVAL_SHARE * s.rival_gap:
-        rival = RIVAL_NUISANCE[s.candidate.effect]
-        return (
-            f"the calibrated {rival} explains the drive as well (held-out sideslip gap "
-            f"{s.rival_gap:.4f}° against {s.gap_after:.4f}°)"
-        )
-    if not (shrinks_sideslip(s, ho) or shrinks_speed(s, ho)):
-        drop = s.gap_before - s.gap_after
-        return f"it shrinks the held-out sideslip gap by {s.shrink:.0%} ({drop:+.4f}°): within noise"
-    if s.yaw_after > s.yaw_before + YAW_TOLERANCE * ho.yaw_spread:
-        return f"it makes the held-out yaw-rate gap worse ({s.yaw_before:.4f} → {s.yaw_after:.4f} °/s)"
-    if s.speed_after > s.speed_before * (1.0 + YAW_TOLERANCE) + SPEED_MIN_DROP_MPS:
-        worse = f"{s.speed_before:.3f} → {s.speed_after:.3f} m/s"
-        return f"it makes the vehicle speed signal's held-out gap worse ({worse})"
-    return None
-
-
-def rank(s: Scored, ho: Heldout) -> tuple[bool, float]:
-    """Effects that shrink the sideslip gap come first, by how much (to a hundredth: closer than
-    that they are confounded, and the vocabulary's order decides which is named); then those seen
-    only in the vehicle speed signal."""
-    sideslip = shrinks_sideslip(s, ho)
-    return (sideslip, round(s.shrink if sideslip else s.speed_shrink, 2))
-
-
 @dataclass(frozen=True)
 class Added:
-    """A candidate added to the dominant effect: its held-out sideslip gap, and the joint fit on
-    every sample (nuisances, the dominant effect, this one)."""
+    """A candidate added to a leading effect: the joint fits per training fold (what the held-out
+    test compares) and on every sample (nuisances, the leading effect, this one)."""
 
     candidate: Candidate
-    gap: float
-    speed: float  # the vehicle speed signal's held-out gap
+    folds: tuple[Fit, ...]
     fit: Fit
-    shrink: float  # of what the dominant effect left
 
     @property
     def own_values(self) -> tuple[float, ...]:
         return self.fit.values[-len(self.candidate.params) :]
 
-    @property
-    def bounded(self) -> bool:
-        """The fit ended on a bound: of this effect or of a nuisance (bent to make room for it)."""
-        return bool(self.fit.at_bound())
 
-
-def add_to(pb: Problem, calibration: Calibration, ho: Heldout, best: Scored, other: Candidate) -> Added:
-    """``other`` fitted beside the dominant effect (and the nuisances) on each training fold,
-    scored on the held-out one, and on every sample."""
+def add_to(pb: Problem, ho: Heldout, best: Scored, other: Candidate) -> Added:
+    """``other`` fitted beside the leading effect (and the nuisances) on each training fold and
+    on every sample."""
     params = (*best.fit.params, *other.params)
     starts = list(itertools.product(*(p.starts for p in other.params)))
-    sims = []
+    folds = []
     for k in (0, 1):
         rows = pb.rows & (ho.fold != k)
         start = _best_start(pb, params, rows, [(*best.folds[k].values, *s) for s in starts])
-        sims.append(pb.simulate(combine(fit(pb, params, rows, start=start).fields())))
-    parts = list(zip(sims, ho.held, strict=True))
-    gap, speed = _pooled(pb.rms_beta_deg, parts), _pooled(pb.rms_speed_mps, parts)
+        folds.append(fit(pb, params, rows, start=start))
     start = _best_start(pb, params, pb.rows, [(*best.fit.values, *s) for s in starts])
-    everything = fit(pb, params, pb.rows, start=start)
-    shrink = 1.0 - gap / best.gap_after if best.gap_after > 0 else 0.0
-    return Added(other, gap, speed, everything, shrink)
-
-
-def secondary(ho: Heldout, best: Scored, added: list[Added]) -> list[Added]:
-    """The effects that shrink what the dominant one leaves, beyond noise and inside their
-    bounds, ranked."""
-
-    def sideslip(a: Added) -> bool:
-        drop = best.gap_after - a.gap
-        return a.shrink >= SECONDARY_SHRINK and drop >= max(MIN_DROP_DEG, DROP_NOISE * ho.noise)
-
-    def speed(a: Added) -> bool:  # as for the dominant effect: once the sideslip is explained
-        shrink = 1.0 - a.speed / best.speed_after if best.speed_after > 0 else 0.0
-        return (
-            best.gap_after <= none_gap(ho)
-            and shrink >= SPEED_MIN_SHRINK
-            and best.speed_after - a.speed >= SPEED_MIN_DROP_MPS
-            and a.gap <= best.gap_after + 0.1 * ho.noise
-        )
-
-    keep = [a for a in added if (sideslip(a) or speed(a)) and not a.bounded]
-    return sorted(keep, key=lambda a: (sideslip(a), a.shrink), reverse=True)
+    return Added(other, tuple(folds), fit(pb, params, pb.rows, start=start))
 
 
 def _params(params: Sequence[Param], values: Sequence[float]) -> dict[str, float]:
@@ -810,53 +737,43 @@ def _map(work: Callable[[int], _T], n: int, workers: int) -> list[_T]:
 
 
 _Gaps = tuple[float, float, float, float, float, float]  # sideslip, yaw rate, speed: before, after
-_Numbers = tuple[tuple[float, ...], float, tuple[tuple[float, ...], ...], _Gaps, float | None]
+_Numbers = tuple[
+    tuple[float, ...],
+    float,
+    tuple[tuple[float, ...], ...],
+    _Gaps,
+    float | None,
+    tuple[tuple[float, float], ...],
+]
 
 
 def _scores(
     pb: Problem, calibration: Calibration, ho: Heldout, rivals: dict[str, Heldout], workers: int
-) -> list[Scored]:
-    """Every candidate scored (in ``workers`` processes); one a nuisance imitates also against
-    the calibrated model with that nuisance held (``rivals``)."""
+) -> list[tuple[Scored, tuple[tuple[float, float], ...]]]:
+    """Every candidate scored (in ``workers`` processes), with its effect's 95 % intervals; one a
+    nuisance imitates also against the calibrated model with that nuisance held (``rivals``)."""
 
     def numbers(index: int) -> _Numbers:
         """What crosses the process edge: plain numbers (the candidates hold functions)."""
-        s = score(pb, calibration, ho, CANDIDATES[index], rivals.get(CANDIDATES[index].effect))
+        candidate = CANDIDATES[index]
+        s = score(pb, calibration, ho, candidate, rivals.get(candidate.effect))
         return (
             s.fit.values,
             s.fit.cost,
             tuple(f.values for f in s.folds),
             (s.gap_before, s.gap_after, s.yaw_before, s.yaw_after, s.speed_before, s.speed_after),
             s.rival_gap,
+            _intervals(pb, s.fit)[-len(candidate.params) :],
         )
 
     out = []
-    for candidate, (values, cost, fold_values, gaps, rival_gap) in zip(
+    for candidate, (values, cost, fold_values, gaps, rival_gap, ci95) in zip(
         CANDIDATES, _map(numbers, len(CANDIDATES), workers), strict=True
     ):  # the rival held where it was (rival_gap), else free beside the effect
         nuisance_params = calibration.params_for(candidate.effect, rival_free=rival_gap is None)
         params = (*nuisance_params, *candidate.params)
         fits = tuple(Fit(params, v, 0.0) for v in fold_values)
-        out.append(Scored(candidate, Fit(params, values, cost), fits, *gaps, rival_gap))
-    return out
-
-
-def _added(
-    pb: Problem, calibration: Calibration, ho: Heldout, best: Scored, others: list[Scored], workers: int
-) -> list[Added]:
-    """Every other candidate added to the dominant one, but its confounded twins (they explain
-    the same thing) — in ``workers`` processes."""
-    tried = [s.candidate for s in others if s is not best and s.shrink < CONFOUNDED_SHARE * best.shrink]
-
-    def numbers(index: int) -> tuple[float, float, tuple[float, ...], float]:
-        a = add_to(pb, calibration, ho, best, tried[index])
-        return a.gap, a.speed, a.fit.values, a.fit.cost
-
-    params = best.fit.params
-    out = []
-    for candidate, (gap, speed, values, cost) in zip(tried, _map(numbers, len(tried), workers), strict=True):
-        shrink = 1.0 - gap / best.gap_after if best.gap_after > 0 else 0.0
-        out.append(Added(candidate, gap, speed, Fit((*params, *candidate.params), values, cost), shrink))
+        out.append((Scored(candidate, Fit(params, values, cost), fits, *gaps, rival_gap), ci95))
     return out
 
 
@@ -868,58 +785,281 @@ def diagnose(m: Measured, config: Config, workers: int = 1) -> Diagnosis:
         return _diagnose(m, config, workers)
 
 
+_CHANNELS = ("sideslip", "yaw", "speed")
+
+
+def _heldout_residuals(pb: Problem, fold: np.ndarray, fits: Sequence[Fit]) -> dict[str, np.ndarray]:
+    """Each channel's residual where it is held out: fold k's samples from the fit on the other."""
+    m = pb.measured
+    sims = [pb.simulate(combine(f.fields())) for f in fits]
+    channels = {
+        "sideslip": [m.beta - s.beta for s in sims],
+        "yaw": [s.r_measured - s.r for s in sims],
+        "speed": [m.u_vehicle - s.speed_reading for s in sims],
+    }
+    return {name: np.where(fold == 0, a, b) for name, (a, b) in channels.items()}
+
+
+@dataclass(eq=False)  # one candidate's judgement: compared by identity
+class _Judged:
+    """A candidate as the held-out test and the tolerances judge it."""
+
+    scored: Scored
+    ci95: tuple[tuple[float, float], ...]
+    after: dict[str, np.ndarray]  # held-out residuals with it
+    gain: float  # in its own channel, over its standard error
+    present: bool
+    reason: str | None  # why it is not present, or not a finding
+    shift: C2nShift
+    size: tuple[float, float] | None
+    importance: float
+    confounded: list[str]
+
+    @property
+    def effect(self) -> str:
+        return self.scored.candidate.effect
+
+    @property
+    def matters(self) -> bool:
+        return self.present and self.importance >= 1.0 and self.reason is None
+
+
+def _units(pb: Problem, ids: np.ndarray, res: dict[str, np.ndarray], name: str | None = None) -> np.ndarray:
+    """Each manoeuvre's held-out gap in one channel (the sideslip on its steady samples), or in
+    all of them on every sample, weighed as the fit weighs them (each channel in its own unit)."""
+    m, rows = pb.measured, pb.rows
+    if name == "sideslip" and (rows & m.steady).sum() * m.dt >= MIN_USABLE_S:
+        return unit_gaps(m.t, res[name], rows & m.steady, ids)
+    if name is not None:
+        return unit_gaps(m.t, res[name], rows, ids)
+    scales = {"sideslip": pb.scale_beta, "yaw": pb.scale_r / YAW_WEIGHT, "speed": pb.scale_u / SPEED_WEIGHT}
+    used = [c for c in _CHANNELS if c != "speed" or pb.has_speed]
+    return np.asarray(np.sum([unit_gaps(m.t, res[c], rows, ids) / scales[c] ** 2 for c in used], axis=0))
+
+
+def _judge(
+    pb: Problem,
+    config: Config,
+    calibration: Calibration,
+    ids: np.ndarray,
+    bases: dict[str, dict[str, np.ndarray]],
+    scored: Scored,
+    ci95: tuple[tuple[float, float], ...],
+    before: dict[str, np.ndarray] | None = None,
+) -> _Judged:
+    """One candidate: present (its held-out gain beyond the drive's spread, no channel worse),
+    and what it does to C2n and in its own unit."""
+    m, rows, fold = pb.measured, pb.rows, bases["fold"]["fold"]
+    effect = scored.candidate.effect
+    if before is None:
+        before = bases["rival" if scored.rival_gap is not None else "none"]
+    after = _heldout_residuals(pb, fold, scored.folds)
+    own = channel(effect)
+
+    gain = (
+        gain_z(_units(pb, ids, before, own), _units(pb, ids, after, own))
+        if own == "sideslip" or pb.has_speed
+        else 0.0
+    )
+    worse = (
+        gain_z(_units(pb, ids, before), _units(pb, ids, after)) < -Z_TEST
+    )  # the fit's own measure, held out
+    reason = None
+    if scored.at_bound:
+        reason = f"its fit ended on a physical bound ({', '.join(scored.at_bound)})"
+    elif gain <= Z_TEST:
+        reason = f"its held-out gain in the {own} is z = {gain:.1f}: within the drive's own spread"
+    elif worse:
+        reason = "it makes the held-out gap of the channels together worse"
+    c2n = calibration.values[[p.name for p in calibration.params].index("c2n_per_rad")]
+    delta = pb.simulate(combine(scored.fit.fields())).beta - pb.simulate(scored.without_effect()).beta
+    shift = c2n_shift(m, rows, delta, pb.d_m, c2n, pb.params.g)
+    size = own_size(effect, _params(scored.candidate.params, scored.effect_values), config)
+    return _Judged(
+        scored, ci95, after, gain, reason is None, reason, shift, size, importance(shift, size, config), []
+    )
+
+
+def _together(
+    pb: Problem,
+    config: Config,
+    calibration: Calibration,
+    ho: Heldout,
+    ids: np.ndarray,
+    bases: dict[str, dict[str, np.ndarray]],
+    judged: list[_Judged],
+) -> tuple[list[_Judged], dict[str, Added]]:
+    """The findings, fitted together: the one that matters most leads; each other one that
+    matters is added to the finding of its channel and kept where it shrinks, held out, what that
+    one left — else it is confounded with it."""
+    findings: list[_Judged] = []
+    joint: dict[str, Added] = {}
+    order = {c.effect: k for k, c in enumerate(CANDIDATES)}
+    for j in sorted((j for j in judged if j.matters), key=lambda j: -j.importance):
+        lead = next((f for f in findings if channel(f.effect) == channel(j.effect)), None)
+        if lead is None:
+            findings.append(j)
+            continue
+        added = add_to(pb, ho, lead.scored, j.scored.candidate)
+        both = _heldout_residuals(pb, ho.fold, added.folds)
+        own = channel(j.effect)
+        gain = gain_z(_units(pb, ids, lead.after, own), _units(pb, ids, both, own))
+        if gain > Z_TEST and not added.fit.at_bound():
+            findings.append(j)
+            joint[j.effect] = added
+        else:
+            if order[j.effect] < order[lead.effect]:  # the drive cannot tell them apart: the
+                findings[findings.index(lead)] = j  # vocabulary's order names one (as in DESIGN)
+                j.confounded.extend([lead.effect, *lead.confounded])
+                lead.confounded.clear()
+                lead, j = j, lead
+            else:
+                lead.confounded.append(j.effect)
+            j.confounded = [lead.effect]
+            j.reason = (
+                f"the drive cannot tell it from {lead.effect} (added to it, a held-out gain of "
+                f"z = {gain:.1f})"
+            )
+    if findings:
+        findings += _beside(pb, config, calibration, ho, ids, bases, judged, findings, joint)
+    return findings, joint
+
+
+def _beside(
+    pb: Problem,
+    config: Config,
+    calibration: Calibration,
+    ho: Heldout,
+    ids: np.ndarray,
+    bases: dict[str, dict[str, np.ndarray]],
+    judged: list[_Judged],
+    findings: list[_Judged],
+    joint: dict[str, Added],
+) -> list[_Judged]:
+    """A candidate whose fit alone bent a nuisance to its bound (making room for an effect it
+    does not have: the finding's) is fitted again beside the finding of its channel, or the first
+    one, and judged on what that finding left."""
+    more = []
+    for k, j in enumerate(judged):
+        bent = set(j.scored.at_bound) - {p.name for p in j.scored.candidate.params}
+        if j in findings or j.confounded or not bent:
+            continue
+        lead = next((f for f in findings if channel(f.effect) == channel(j.effect)), findings[0])
+        added = add_to(pb, ho, lead.scored, j.scored.candidate)
+        sims = [pb.simulate(combine(f.fields())) for f in added.folds]
+        parts = list(zip(sims, ho.held, strict=True))
+        s = lead.scored
+        scored = Scored(
+            j.scored.candidate,
+            added.fit,
+            added.folds,
+            s.gap_after,
+            _pooled(pb.rms_beta_deg, parts),
+            s.yaw_after,
+            _pooled(pb.rms_yaw_degps, parts),
+            s.speed_after,
+            _pooled(pb.rms_speed_mps, parts),
+        )
+        ci95 = _intervals(pb, added.fit)[-len(j.scored.candidate.params) :]
+        again = _judge(pb, config, calibration, ids, bases, scored, ci95, before=lead.after)
+        judged[k] = again
+        if again.matters:
+            more.append(again)
+            joint[again.effect] = added
+    return more
+
+
+def _judged_text(j: _Judged, config: Config) -> str:
+    """Why an effect matters, or what it is within."""
+    parts = []
+    if j.shift.crossing is not None:
+        parts.append(
+            f"C2n {j.shift.crossing:+.2f} % on a single crossing, {j.shift.headline:+.2f} % on the headline"
+        )
+    if j.size is not None:
+        parts.append(f"size {j.size[0]:.4g} against a tolerance of {j.size[1]:.4g}")
+    what = "; ".join(parts) or "no effect on C2n"
+    if not j.present:
+        return f"not present: {j.reason}"
+    if j.reason is not None:
+        return j.reason
+    if j.matters:
+        return f"matters: {what} (tolerance ±{config.gap.c2n_pct:g} % of C2n)"
+    return f"within tolerance: {what} (tolerance ±{config.gap.c2n_pct:g} % of C2n)"
+
+
+def _effect(j: _Judged, config: Config) -> Effect:
+    s, own = j.scored, channel(j.effect)
+    before, after = (s.gap_before, s.gap_after) if own == "sideslip" else (s.speed_before, s.speed_after)
+    names = [p.name for p in s.candidate.params]
+    action = s.candidate.action(s.effect_values)
+    if j.shift.crossing is not None and own == "sideslip":
+        action += (
+            f" (single crossings move {j.shift.crossing:+.1f} %, the headline {j.shift.headline:+.1f} %)"
+        )
+    if not j.matters:
+        action = f"within tolerance: nothing to do ({_judged_text(j, config)})"
+    return Effect(
+        effect=j.effect,
+        channel=own,
+        params=_params(s.candidate.params, s.effect_values),
+        ci95={n: (round(lo, 5), round(hi, 5)) for n, (lo, hi) in zip(names, j.ci95, strict=True)},
+        shrink_heldout=round(1.0 - after / before if before > 0 else 0.0, 4),
+        heldout_before=round(before, 5),
+        heldout_after=round(after, 5),
+        gain_sigmas=round(j.gain, 2),
+        c2n_effect_pct=C2nEffect(j.shift.crossing, j.shift.headline),
+        matters=j.matters,
+        judged=_judged_text(j, config),
+        confounded_with=tuple(j.confounded),
+        action=action,
+    )
+
+
 def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     pb = problem(m, config)
     pb, calibration = calibrate(pb, nuisances(config))
+    _refuse_without_crossings(pb, calibration)
     calibrated = pb.simulate(calibration.mods())
     ids = manoeuvres(m)
     fold = folds(m, ids)
     ho = heldout(pb, calibration, fold)
-    held = {rival: heldout(pb, calibration, fold, effect) for effect, rival in RIVAL_NUISANCE.items()}
-    rivals = {effect: held[rival] for effect, rival in RIVAL_NUISANCE.items()}
-    scored = sorted(_scores(pb, calibration, ho, rivals, workers), key=lambda s: -s.shrink)
-    reasons = {s.candidate.effect: why_not(s, ho) for s in scored}
-    order = {c.effect: k for k, c in enumerate(CANDIDATES)}
-    eligible = sorted(
-        (s for s in scored if reasons[s.candidate.effect] is None),
-        key=lambda s: (*rank(s, ho), -order[s.candidate.effect]),
-        reverse=True,
-    )
-    best = eligible[0] if eligible else None
-    confounded: list[str] = []
-    extra: list[Secondary] = []
-    added: list[Added] = []
+    names = {p.name for p in calibration.params}
+    held = {
+        rival: heldout(pb, calibration, fold, effect)
+        for effect, rival in RIVAL_NUISANCE.items()
+        if rival in names
+    }
+    rivals = {effect: held[rival] for effect, rival in RIVAL_NUISANCE.items() if rival in held}
+    bases = {"none": _heldout_residuals(pb, fold, ho.baseline), "fold": {"fold": fold}}
+    for rival in held.values():  # one rival nuisance at most
+        bases["rival"] = _heldout_residuals(pb, fold, rival.baseline)
+    pairs = sorted(_scores(pb, calibration, ho, rivals, workers), key=lambda p: -p[0].shrink)
+    units = test_units(ids)
+    judged = [_judge(pb, config, calibration, units, bases, s, ci) for s, ci in pairs]
+    findings, joint = _together(pb, config, calibration, ho, units, bases, judged)
+    lead = findings[0] if findings else None
+    best = lead.scored if lead is not None else None
     after_sim = calibrated
     beside = calibration.fit  # the nuisances as reported: calibrated beside the effects named
-    if best is not None:
-        route, size = rank(best, ho)
-        confounded = [
-            s.candidate.effect
-            for s in eligible[1:]
-            if rank(s, ho)[0] == route and rank(s, ho)[1] >= CONFOUNDED_SHARE * size
-        ]
-        after_sim = pb.simulate(combine(best.fit.fields()))
-        added = secondary(ho, best, _added(pb, calibration, ho, best, scored, workers))
-        # beside the dominant effect (and the first secondary one), with its Jacobian
-        joint = added[0].fit if added else best.fit
-        beside = fit(pb, joint.params, pb.rows, start=joint.values)
-        extra = [
-            Secondary(
-                a.candidate.effect,
-                _params(a.candidate.params, a.own_values),
-                round(a.shrink, 4),
-                a.candidate.action(a.own_values),
-            )
-            for a in added
-        ]
-        diagnosis = best.candidate.effect
+    confounded: list[str] = []
+    if lead is not None and best is not None:
+        diagnosis = lead.effect
+        confounded = list(lead.confounded)
+        last = joint.get(findings[-1].effect)
+        after_sim = pb.simulate(combine((last.fit if last else best.fit).fields()))
+        joint_fit = last.fit if last else best.fit
+        beside = fit(pb, joint_fit.params, pb.rows, start=joint_fit.values)
     else:
-        diagnosis = "none" if ho.gap <= none_gap(ho) else "unexplained"
+        diagnosis = "none" if ho.gap <= config.gap.sideslip_deg else "unexplained"
         if diagnosis == "none":
             confounded = [*HIDDEN_BY_CALIBRATION, *hidden_by_rivals(calibration)]
-    # the effect's own part of the sideslip: the fit beside it, with and without it
+    effects = [_effect(j, config) for j in findings] + [
+        _effect(j, config)
+        for j in sorted((j for j in judged if j.present and j not in findings), key=lambda j: -j.importance)
+    ]
     without = pb.simulate(best.without_effect()) if best is not None else calibrated
-    effect_delta = after_sim.beta - without.beta
+    effect_delta = pb.simulate(combine(best.fit.fields())).beta - without.beta if best is not None else 0.0
     residuals = Residuals(
         t=m.t,
         ay=np.nan_to_num(m.u_optical * m.r),
@@ -928,14 +1068,21 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         after=np.degrees(m.beta - after_sim.beta),
         rows=pb.rows,
     )
+    sideslip_joint = [
+        joint[f.effect] for f in findings if f.effect in joint and channel(f.effect) == "sideslip"
+    ]
+    total = _shrink_with(pb, ho, sideslip_joint[-1]) if sideslip_joint and best is not None else None
+    own_shrink = effects[0].shrink_heldout if lead is not None else 0.0
     c2n_index = [p.name for p in calibration.params].index("c2n_per_rad")
     result = GapResult(
         diagnosis=diagnosis,
         confounded_with=tuple(confounded),
-        secondary=tuple(extra),
+        secondary=tuple(
+            Secondary(e.effect, e.params, e.shrink_heldout, e.action) for e in effects[1 : len(findings)]
+        ),
         calibration=_calibrated(pb, calibration, beside),
         located=tuple(locate(pb, calibrated, fold)),
-        candidates=tuple(_candidate_score(s, best, reasons) for s in scored),
+        candidates=tuple(_candidate_score(j, findings) for j in judged),
         c2n=GapC2n(
             nominal=config.tyres.c2n_per_rad,
             calibrated=round(beside.values[c2n_index], 4),
@@ -945,18 +1092,16 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
             corrected=_r(method_c2n(pb, m.beta - effect_delta)) if best is not None else None,
             pipeline=m.summary.c2n,
         ),
-        shrink_heldout=round(max(_named_shrink(best, ho), 0.0), 4) if best is not None else 0.0,
-        shrink_heldout_with_secondary=round(max(_total_shrink(best, ho, added), 0.0), 4)
-        if best is not None
-        else 0.0,
+        shrink_heldout=round(max(own_shrink, 0.0), 4),
+        shrink_heldout_with_secondary=round(max(own_shrink, total if total is not None else 0.0), 4),
         heldout_rms_deg=BeforeAfter(
             round(best.gap_before if best else ho.gap, 5), round(best.gap_after if best else ho.gap, 5)
         ),
         heldout_yaw_rms_degps=BeforeAfter(
             round(best.yaw_before if best else ho.yaw, 5), round(best.yaw_after if best else ho.yaw, 5)
         ),
-        verdict=_verdict(diagnosis, best, ho, confounded),
-        action=best.candidate.action(best.effect_values) if best is not None else None,
+        verdict=_verdict(diagnosis, effects[0] if lead is not None else None, ho, confounded, config),
+        action=effects[0].action if lead is not None else None,
         separate_by={
             other: {**HIDDEN_BY_CALIBRATION, **HIDDEN_BY_RIVAL}[other]
             if best is None
@@ -970,8 +1115,42 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         ),
         manoeuvres=len(np.unique(ids)),
         speed_input=m.speed_source,
+        effects=tuple(effects),
+        tolerances={
+            "c2n_pct": config.gap.c2n_pct,
+            "sideslip_deg": config.gap.sideslip_deg,
+            "speed_pct": config.gap.speed_pct,
+            "latency_s": config.gap.latency_s,
+            "d_mm": config.calibration.d_tolerance_mm,
+        },
     )
     return Diagnosis(result, residuals)
+
+
+def _refuse_without_crossings(pb: Problem, calibration: Calibration) -> None:
+    """The report says what each effect does to C2n read from zero crossings: a drive without
+    steady turning near the crossing's speed, either way, cannot say it — refused, naming the
+    manoeuvre."""
+    m = pb.measured
+    c2n = calibration.values[[p.name for p in calibration.params].index("c2n_per_rad")]
+    near = near_crossings(m, pb.rows, pb.d_m, c2n, pb.params.g)
+    r = np.nan_to_num(m.r)
+    seconds = [float((near & (np.sign(r) == side)).sum() * m.dt) for side in (1.0, -1.0)]
+    if max(seconds) < MIN_CROSSING_S:
+        u0 = math.sqrt(pb.params.g * pb.d_m * c2n)
+        raise NoResultError(
+            f"no steady cornering near the sideslip's sign change ({seconds[0]:.0f} s left, "
+            f"{seconds[1]:.0f} s right within ±50 % of u0² = g·d·C2n, u0 ≈ {u0:.1f} m/s, "
+            f"|a_y| ≤ {LINEAR_AY_MPS2:g} m/s²): what an effect does to C2n cannot be judged — drive "
+            "constant-radius sweeps through u0, left and right"
+        )
+
+
+def _shrink_with(pb: Problem, ho: Heldout, added: Added) -> float:
+    """The held-out sideslip gap's shrink with the findings fitted together."""
+    sims = [pb.simulate(combine(f.fields())) for f in added.folds]
+    gap = _pooled(pb.rms_beta_deg, list(zip(sims, ho.held, strict=True)))
+    return 1.0 - gap / ho.gap if ho.gap > 0 else 0.0
 
 
 def _calibrated(pb: Problem, calibration: Calibration, beside: Fit) -> dict[str, Calibrated]:
@@ -1000,22 +1179,8 @@ def _calibrated(pb: Problem, calibration: Calibration, beside: Fit) -> dict[str,
     return out
 
 
-def _named_shrink(best: Scored, ho: Heldout) -> float:
-    """The shrink of the gap the effect was named by: the sideslip's, or (an effect seen only in
-    the vehicle speed signal) that signal's."""
-    return best.shrink if shrinks_sideslip(best, ho) else best.speed_shrink
-
-
-def _total_shrink(best: Scored, ho: Heldout, added: list[Added]) -> float:
-    """The held-out sideslip gap's shrink with the first secondary effect beside the dominant one
-    (a real drive carries several): the dominant effect's own where none is listed, or where it was
-    named by the vehicle speed signal."""
-    if not added or not shrinks_sideslip(best, ho) or best.gap_before <= 0:
-        return _named_shrink(best, ho)
-    return max(_named_shrink(best, ho), 1.0 - added[0].gap / best.gap_before)
-
-
-def _candidate_score(s: Scored, best: Scored | None, reasons: dict[str, str | None]) -> CandidateScore:
+def _candidate_score(j: _Judged, findings: list[_Judged]) -> CandidateScore:
+    s = j.scored
     return CandidateScore(
         effect=s.candidate.effect,
         params=_params(s.candidate.params, s.effect_values),
@@ -1025,8 +1190,8 @@ def _candidate_score(s: Scored, best: Scored | None, reasons: dict[str, str | No
         heldout_yaw_rms_before=round(s.yaw_before, 5),
         heldout_yaw_rms_after=round(s.yaw_after, 5),
         shrink_heldout=round(s.shrink, 4),
-        named=s is best,
-        why_not=None if s is best else reasons[s.candidate.effect] or "a stronger candidate was named",
+        named=j in findings,
+        why_not=None if j in findings else j.reason or "within tolerance",
     )
 
 
@@ -1037,32 +1202,31 @@ def hidden_by_rivals(calibration: Calibration) -> list[str]:
     return [effect for effect, rival in RIVAL_NUISANCE.items() if rival in free and effect in HIDDEN_BY_RIVAL]
 
 
-def _verdict(diagnosis: str, best: Scored | None, ho: Heldout, confounded: list[str]) -> str:
+def _verdict(diagnosis: str, lead: Effect | None, ho: Heldout, confounded: list[str], config: Config) -> str:
     """The diagnosis in a sentence: what was found, and what the held-out test showed."""
-    if best is None and diagnosis == "none":
+    if lead is None and diagnosis == "none":
         twins = {**NUISANCE_TWINS, **RIVAL_NUISANCE}
         inside: dict[str, list[str]] = {}
         for effect in confounded:
             inside.setdefault(twins[effect], []).append(f"a {effect.replace('_', ' ')}")
         hidden = "; ".join(f"{' or '.join(e)} would be inside the calibrated {n}" for n, e in inside.items())
         return (
-            f"none: the calibrated model is within {ho.gap:.4f}° of the drive's sideslip (held out); "
-            f"no effect shrinks it beyond noise ({hidden})"
+            f"none: the calibrated model is within {ho.gap:.4f}° of the drive's sideslip (held out; "
+            f"tolerance {config.gap.sideslip_deg:g}°); no effect found matters ({hidden})"
         )
-    if best is None:
+    if lead is None:
         return (
-            f"unexplained: the calibrated model leaves a held-out sideslip gap of {ho.gap:.4f}° that no "
-            "candidate effect shrinks beyond noise inside its physical bounds (see where it lies)"
+            f"unexplained: the calibrated model leaves a held-out sideslip gap of {ho.gap:.4f}°, beyond "
+            f"the sensor's {config.gap.sideslip_deg:g}°, that no candidate effect found matters for "
+            "(see where it lies)"
         )
+    unit = "°" if lead.channel == "sideslip" else " m/s"
+    where = "sideslip" if lead.channel == "sideslip" else "vehicle speed signal"
     text = (
-        f"{diagnosis}: held-out sideslip gap {best.gap_before:.4f}° → {best.gap_after:.4f}° "
-        f"(shrink {max(best.shrink, 0.0):.0%})"
+        f"{diagnosis}: held-out {where} gap {lead.heldout_before:.4f}{unit} → "
+        f"{lead.heldout_after:.4f}{unit} (shrink {max(lead.shrink_heldout, 0.0):.0%}, "
+        f"gain z = {lead.gain_sigmas:.1f})"
     )
-    if not shrinks_sideslip(best, ho):
-        text += (
-            f"; seen in the vehicle speed signal, {best.speed_before:.3f} → {best.speed_after:.3f} m/s "
-            "held out (the sideslip does not depend on it)"
-        )
     twin = NUISANCE_TWINS.get(diagnosis)
     if twin:
         text += f"; in steady state it is indistinguishable from a calibrated {twin}"

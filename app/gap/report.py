@@ -113,7 +113,7 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
             ("what it means", text(result.action)),
             ("confounded with", text(", ".join(result.confounded_with) or None)),
             ("held-out shrink", text(result.shrink_heldout)),
-            ("with the secondary effect beside it", text(result.shrink_heldout_with_secondary)),
+            ("with the other findings beside it", text(result.shrink_heldout_with_secondary)),
             (
                 "held-out sideslip gap",
                 f"{text(result.heldout_rms_deg.before)}° → {text(result.heldout_rms_deg.after)}°",
@@ -142,9 +142,18 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
         )
         for name, value in result.calibration.items()
     ]
-    secondary_rows = [
-        (text(s.effect), html.escape(_sizes(s.params)), f"{100 * s.shrink_heldout:.0f} %", text(s.action))
-        for s in result.secondary
+    effect_rows = [
+        (
+            text(e.effect),
+            text(e.channel),
+            html.escape(_intervals(e.params, e.ci95)),
+            f"{text(e.heldout_before)} → {text(e.heldout_after)} ({100 * e.shrink_heldout:.0f} %)",
+            text(e.gain_sigmas),
+            f"{text(e.c2n_effect_pct.crossing)} / {text(e.c2n_effect_pct.headline)}",
+            "<strong>matters</strong>" if e.matters else text(e.judged),
+            text(e.action),
+        )
+        for e in result.effects
     ]
     separate = [(html.escape(other), html.escape(how)) for other, how in result.separate_by.items()]
     candidate_rows = [
@@ -178,14 +187,24 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
                 ),
             ),
             section(
-                "Secondary effects (each added to the dominant one)",
+                "Effects the drive holds (fitted beside the nuisances; judged against the config's "
+                f"tolerances: {html.escape(_sizes(result.tolerances or {}))})",
                 table(
-                    ("effect", "fitted", "shrink of what is left", "what it means"),
-                    secondary_rows,
-                    (False,) * 4,
+                    (
+                        "effect",
+                        "channel",
+                        "size [95 %]",
+                        "held-out gap of its channel",
+                        "held-out gain z",
+                        "C2n % (crossing / headline)",
+                        "judged",
+                        "what to do",
+                    ),
+                    effect_rows,
+                    (False, False, False, False, True, False, False, False),
                 )
-                if secondary_rows
-                else "<p>—</p>",
+                if effect_rows
+                else "<p>no effect beyond the drive's own spread</p>",
             ),
             section(
                 "Which manoeuvre would separate the confounded effects",
@@ -223,3 +242,7 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
 
 def _sizes(params: Mapping[str, float]) -> str:
     return ", ".join(f"{k} = {v:g}" for k, v in params.items())
+
+
+def _intervals(params: Mapping[str, float], ci95: Mapping[str, tuple[float, float]]) -> str:
+    return ", ".join(f"{k} = {v:g} [{ci95[k][0]:g}, {ci95[k][1]:g}]" for k, v in params.items())

@@ -91,6 +91,38 @@ class GapNoise:
 
 
 @dataclass(frozen=True)
+class C2nEffect:
+    """What an effect does to C2n read from zero crossings, %: a single crossing's (the worse
+    turn direction), and the headline's (left and right paired); None where the drive has no
+    steady turning near a crossing's speed."""
+
+    crossing: float | None
+    headline: float | None
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect the drive holds: its size and 95 % interval (fitted beside the nuisances), the
+    held-out gap of its own channel without and with it, how far the held-out test puts its gain
+    above the drive's own spread (a normal quantile), what it does to C2n, and whether that is
+    beyond the config's tolerance (``matters``) or within it."""
+
+    effect: str
+    channel: str  # "sideslip" (at the sensor) or "speed" (the vehicle speed signal)
+    params: Mapping[str, float]
+    ci95: Mapping[str, tuple[float, float]]
+    shrink_heldout: float  # of its own channel's held-out gap
+    heldout_before: float  # that gap, deg (sideslip) or m/s (speed)
+    heldout_after: float
+    gain_sigmas: float  # the held-out gain over its standard error (manoeuvres as samples)
+    c2n_effect_pct: C2nEffect
+    matters: bool
+    judged: str  # why it matters, or "within tolerance" and of what
+    confounded_with: tuple[str, ...]  # effects the drive cannot tell from it
+    action: str  # what its size means and what to do
+
+
+@dataclass(frozen=True)
 class GapResult:
     diagnosis: str  # an effect, "none", or "unexplained"
     confounded_with: tuple[str, ...]
@@ -109,6 +141,8 @@ class GapResult:
     noise: GapNoise
     manoeuvres: int
     speed_input: str
+    effects: tuple[Effect, ...] = ()  # every effect present, the one that matters most first
+    tolerances: Mapping[str, float] | None = None  # the config's [gap] tolerances judged against
 
     def to_json(self) -> dict[str, Any]:
         """The file's content: JSON types only, in the file's key order."""

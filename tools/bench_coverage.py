@@ -116,12 +116,32 @@ def main() -> None:
     parser.add_argument("--kinds", default=",".join([*CASES, "dev"]), help="bench_accuracy's cases a–m, dev")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--tape-mm", type=float, default=None, help="as tools/bench_accuracy.py's")
+    parser.add_argument(
+        "--rows", type=Path, help="append each drive's row to this JSON-lines file as it ends"
+    )
+    parser.add_argument(
+        "--summarise", type=Path, nargs="+", help="print the tables of rows files, run nothing"
+    )
     args = parser.parse_args()
     kinds = args.kinds.split(",")
-    jobs = [(k, seed, args.tape_mm) for k in kinds for seed in range(9 if k == "dev" else args.sessions)]
     started = time.perf_counter()
-    with ProcessPoolExecutor(args.workers) as pool:
-        rows = list(pool.map(drive, jobs))
+    if args.summarise:
+        rows = [json.loads(line) for path in args.summarise for line in path.read_text().splitlines() if line]
+        kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
+    else:
+        jobs = [  # seed by seed, every kind in each: a run cut short still has every kind
+            (k, seed, args.tape_mm)
+            for seed in range(max(9, args.sessions))
+            for k in kinds
+            if seed < (9 if k == "dev" else args.sessions)
+        ]
+        rows = []
+        with ProcessPoolExecutor(args.workers) as pool:
+            for row in pool.map(drive, jobs):
+                rows.append(row)
+                if args.rows:
+                    with args.rows.open("a") as file:
+                        file.write(json.dumps(row) + "\n")
     print("kind  estimator  fits  |error| % median worst  cover  half%  warn  held open by (most often)")
     for kind in kinds:
         for name in ("cascade", "marginal"):

@@ -10,6 +10,8 @@ from app.config import load_config
 from app.errors import ConfigError
 from app.results.marginal import Priors, Term, posterior
 from app.results.regression import _TERMS, SampleRegression
+from app.sinks import summary
+from tests.simulated import cached_drive, run_pipeline
 
 G = 9.81
 MARGINAL = Priors(estimator="marginal")
@@ -108,3 +110,16 @@ def test_the_config_chooses_the_estimator(tmp_path) -> None:  # type: ignore[no-
     assert config.priors == replace(Priors(), estimator="marginal", slope_pct=1.0)
     with pytest.raises(ConfigError, match=r"\[priors\] estimator must be 'cascade' \| 'marginal'"):
         load_config(bad)
+
+
+def test_the_pipeline_reads_a_simulated_drive_with_the_marginal_regression(config) -> None:  # type: ignore[no-untyped-def]
+    """End to end: the config's choice reaches the pipeline, whose regression is the marginal one,
+    its C2n near the drive's truth, and the result file builds."""
+    drive = cached_drive("radii", seed=3)
+    pipeline = run_pipeline(replace(config, priors=MARGINAL), drive)
+    snapshot = pipeline.snapshot()
+    fit = snapshot.fit
+    assert fit is not None and fit.estimator == "marginal"
+    assert fit.c2n == pytest.approx(drive.truth["c2n"], rel=0.02)
+    result = summary.build(snapshot, config, ["drive.blf"], [])
+    assert result.regression is not None and result.regression.c2n == pytest.approx(fit.c2n, rel=1e-3)

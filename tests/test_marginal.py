@@ -86,6 +86,20 @@ def test_linear_circles_read_c2n_within_the_interval_without_a_softening_warning
     assert inside >= 8 and level >= 8  # 95 %: 8 or more of 10 with probability 0.99
 
 
+def test_the_result_reads_in_typed_groups() -> None:
+    regression = SampleRegression(
+        G, d_tape_m=1.1, wheelbase_m=2.7, priors=replace(MARGINAL, turn_force_pct=3.0)
+    )
+    _drive(regression, 14.0, 1.1, [8.0, 10.0, 12.0], 4)
+    fit = regression.fit()
+    assert fit is not None
+    assert (fit.d.m, fit.d.ci95, fit.d.held) == (fit.d_m, fit.d_ci95, False)
+    assert fit.softening is None and fit.model == "linear"  # linear tyres: no softening reported
+    turn = fit.turn_force
+    assert turn is not None and turn.pct == fit.turn_force_pct and turn.ci95_pct is not None
+    assert turn.ci95_pct[0] <= 0.0 <= turn.ci95_pct[1]  # none in the drive: its interval holds zero
+
+
 def test_one_speed_leaves_c2n_to_the_tape_and_says_so() -> None:
     """At one speed a_y = u²·κ: d and C2n cannot be told apart, so d's prior (the tape) holds C2n's
     interval open — a finer tape narrows it."""

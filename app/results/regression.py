@@ -88,6 +88,7 @@ from typing import Literal
 
 import numpy as np
 
+from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
 from app.results.marginal import Posterior, Priors, Term, posterior
 
 _TERMS = (  # the columns each block keeps; a fit takes a subset
@@ -187,6 +188,30 @@ class RegressionFit:
     held_open_by: str | None = None  # marginal: the term contributing most to C2n's variance (a
     # drive that cannot separate it from a_y), and the share of the variance it holds
     held_open_share: float | None = None
+
+    @property
+    def slope(self) -> SlopeResult | None:
+        if self.slope_pct is None or self.slope_ci95_pct is None or self.slope_downhill_deg is None:
+            return None
+        return SlopeResult(self.slope_pct, self.slope_ci95_pct, self.slope_downhill_deg, self.tilt)
+
+    @property
+    def softening(self) -> SofteningResult | None:
+        if self.softening_per_mps2_2 is None:
+            return None
+        return SofteningResult(self.softening_per_mps2_2, self.softening_se_per_mps2_2, self.softening_t)
+
+    @property
+    def turn_force(self) -> TurnForceResult | None:
+        if self.turn_force_pct is None:
+            return None
+        return TurnForceResult(
+            self.turn_force_pct, self.turn_force_ci95_pct, self.turn_step_rad, self.turn_step_se_rad
+        )
+
+    @property
+    def d(self) -> DResult:
+        return DResult(self.d_m, self.d_ci95, self.d_fixed, self.c2n_per_tape_cm_pct)
 
 
 class SampleRegression:

@@ -76,12 +76,12 @@ def _graded(fit: RegressionFit | None, truth: float, d_tape_m: float) -> dict[st
         return None
     low, high = fit.c2n_ci95
     return {
-        "error": 100.0 * (fit.c2n / truth - 1.0),
-        "covers": low <= truth <= high,
-        "half": 50.0 * (high - low) / truth,
+        "error": float(100.0 * (fit.c2n / truth - 1.0)),  # plain floats and bools: a JSON row
+        "covers": bool(low <= truth <= high),
+        "half": float(50.0 * (high - low) / truth),
         "held": fit.held_open_by,
         "softening": fit.model == "softening",
-        "d_apart": not fit.d_fixed and not fit.d_ci95[0] <= d_tape_m <= fit.d_ci95[1],
+        "d_apart": bool(not fit.d_fixed and not fit.d_ci95[0] <= d_tape_m <= fit.d_ci95[1]),
     }
 
 

@@ -15,6 +15,7 @@ from typing import Any, Literal
 
 from app.dbc import ChannelSpec, Dbc, load_dbc
 from app.errors import ConfigError
+from app.results.marginal import Priors
 from app.units import ROLE_UNITS, known_units, si_factor
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "mondeo.toml"
@@ -158,6 +159,15 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("gap", "sideslip_deg"): (0.0, 10.0, _OPEN),
     ("gap", "speed_pct"): (0.0, 100.0, _OPEN),
     ("gap", "latency_s"): (0.0, 10.0, _OPEN),
+    ("priors", "confidence"): (0.0, 1.0, _OPEN),
+    ("priors", "head_yaw_deg"): (0.0, 10.0, _OPEN),
+    ("priors", "slope_pct"): (0.0, 20.0, _OPEN),
+    ("priors", "load_transfer_per_g"): (0.0, 2.0, _OPEN),
+    ("priors", "softening_per_mps2_2"): (0.0, 0.1, _OPEN),
+    ("priors", "gyro_bias_degps"): (0.0, 10.0, _OPEN),
+    ("priors", "yaw_inertia_wheelbases"): (0.0, 10.0, _OPEN),
+    ("priors", "two_wheels_wheelbases2"): (0.0, 10.0, _OPEN),
+    ("priors", "turn_force_pct"): (0.0, 20.0, _CLOSED),
     ("detector", "ay_max_mps2"): (0.0, 20.0, _OPEN),
     ("detector", "sweep_max_mps2"): (0.0, 10.0, _OPEN),
     ("detector", "speed_min_mps"): (0.0, 100.0, _CLOSED),
@@ -245,6 +255,7 @@ class Config:
     filter: FilterSettings
     calibration: Calibration = Calibration()
     gap: GapSettings = GapSettings()
+    priors: Priors = field(default_factory=Priors)  # the regression's ([priors] estimator = "marginal")
 
     @property
     def d_m(self) -> float:
@@ -264,6 +275,7 @@ _SECTIONS = {
     "filter",
     "calibration",
     "gap",
+    "priors",
 }
 
 
@@ -296,12 +308,15 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
     calibration = _dataclass_from(path, "calibration", Calibration, _section(path, table, "calibration"))
     gap = _dataclass_from(path, "gap", GapSettings, _section(path, table, "gap"))
+    priors = _dataclass_from(path, "priors", Priors, _section(path, table, "priors"))
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(
         path, table, "beta_status", ("beta",), dbcs
     )
-    return Config(path, vehicle, tyres, dbcs, roles, status, detector, filter_settings, calibration, gap)
+    return Config(
+        path, vehicle, tyres, dbcs, roles, status, detector, filter_settings, calibration, gap, priors
+    )
 
 
 def _section(path: Path, table: dict[str, Any], name: str, required: bool = False) -> dict[str, Any]:

@@ -345,6 +345,7 @@ class Pipeline:
             transient=transient,
             scale_se=config.calibration.fit_se,
             wheelbase_m=config.vehicle.wheelbase_m or WHEELBASE_M,
+            priors=config.priors if config.priors.estimator == "marginal" else None,
         )
 
     def _refit(self) -> None:

@@ -81,9 +81,10 @@ SESSIONS = {
 }
 
 
-def session(job: tuple[str, str, int, float, float | None]) -> dict[str, Any]:
-    """One seeded session of a case; ``tape_mm`` (h–m): the tape's error, None: the config's tolerance."""
-    case, scenario, seed, optical_hz, tape_mm = job
+def simulated(
+    case: str, scenario: str, seed: int, optical_hz: float, tape_mm: float | None
+) -> tuple[Config, Any, float]:
+    """One seeded session of a case: its config, the drive and the true C2n it is graded on."""
     truth = float(np.random.default_rng(10_000 + seed).uniform(10.0, 19.0))
     options = dict(CASES[case][1])
     sensor = {"optical_hz": optical_hz} | options.pop("sensor", {})
@@ -146,6 +147,13 @@ def session(job: tuple[str, str, int, float, float | None]) -> dict[str, Any]:
         drive = simulate_drive(
             config, DriveOptions(scenario=scenario, seed=seed, c2n=truth, sensor=sensor, **options)
         )
+    return config, drive, truth
+
+
+def session(job: tuple[str, str, int, float, float | None]) -> dict[str, Any]:
+    """One seeded session of a case; ``tape_mm`` (h–m): the tape's error, None: the config's tolerance."""
+    case, scenario, seed, optical_hz, tape_mm = job
+    config, drive, truth = simulated(case, scenario, seed, optical_hz, tape_mm)
     pipeline = Pipeline(config)
     started = time.perf_counter()
     for message in drive.messages:

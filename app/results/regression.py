@@ -88,6 +88,9 @@ from typing import Literal
 
 import numpy as np
 
+from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
+from app.results.marginal import Posterior, Priors, Term, posterior
+
 _TERMS = (  # the columns each block keeps; a fit takes a subset
     "psi0",  # 1: the head's yaw on the car
     "d",  # κ
@@ -181,6 +184,34 @@ class RegressionFit:
     c2n_linear_ci95: tuple[float, float] | None = None
     c2n_softening_ci95: tuple[float, float] | None = None
     scale_se: float = 0.0  # C2n's relative error from the sensors' scales, in its intervals
+    estimator: Literal["cascade", "marginal"] = "cascade"  # terms chosen by tests, or all with priors
+    held_open_by: str | None = None  # marginal: the term contributing most to C2n's variance (a
+    # drive that cannot separate it from a_y), and the share of the variance it holds
+    held_open_share: float | None = None
+
+    @property
+    def slope(self) -> SlopeResult | None:
+        if self.slope_pct is None or self.slope_ci95_pct is None or self.slope_downhill_deg is None:
+            return None
+        return SlopeResult(self.slope_pct, self.slope_ci95_pct, self.slope_downhill_deg, self.tilt)
+
+    @property
+    def softening(self) -> SofteningResult | None:
+        if self.softening_per_mps2_2 is None:
+            return None
+        return SofteningResult(self.softening_per_mps2_2, self.softening_se_per_mps2_2, self.softening_t)
+
+    @property
+    def turn_force(self) -> TurnForceResult | None:
+        if self.turn_force_pct is None:
+            return None
+        return TurnForceResult(
+            self.turn_force_pct, self.turn_force_ci95_pct, self.turn_step_rad, self.turn_step_se_rad
+        )
+
+    @property
+    def d(self) -> DResult:
+        return DResult(self.d_m, self.d_ci95, self.d_fixed, self.c2n_per_tape_cm_pct)
 
 
 class SampleRegression:
@@ -196,8 +227,11 @@ class SampleRegression:
         transient: bool = False,
         scale_se: float = 0.0,
         wheelbase_m: float | None = None,
+        priors: Priors | None = None,
     ) -> None:
         self.g = g
+        self.priors = priors  # None: the cascade of tests; else one model, every term with its prior
+        self.wheelbase_m = wheelbase_m or 2.7
         # where most samples turn tighter than TIGHT_WHEELBASES of these, d is held at the tape's
         self._tight_curvature = 1.0 / (TIGHT_WHEELBASES * wheelbase_m) if wheelbase_m else math.inf
         self._tight_n = 0
@@ -212,6 +246,7 @@ class SampleRegression:
         capacity = 256
         self._xtx = np.zeros((capacity, _K, _K))
         self._xty = np.zeros((capacity, _K))
+        self._yty = np.zeros(capacity)
         self._run = np.zeros(capacity, dtype=np.int64)
         self._log = np.zeros(capacity, dtype=np.int64)
         self._n = np.zeros(capacity, dtype=np.int64)
@@ -274,18 +309,18 @@ class SampleRegression:
         self._tight_n += abs(kappa) > self._tight_curvature
         self._open.append((kappa, ay, v_meas / u, heading, r_dot, u_dot, u))
 
-    def _open_stats(self) -> tuple[np.ndarray, np.ndarray]:
+    def _open_stats(self) -> tuple[np.ndarray, np.ndarray, float]:
         kappa, ay, beta, heading, r_dot, u_dot, u = np.array(self._open).T
         sin, cos = np.sin(heading), np.cos(heading)
         columns = [np.ones_like(ay), kappa, ay, ay**3, sin, cos, ay * sin, ay * cos]
         columns += [r_dot, ay * u_dot, np.sign(kappa), u, 1.0 / u, kappa * kappa * ay]
         x = np.column_stack(columns)
-        return x.T @ x, x.T @ beta
+        return x.T @ x, x.T @ beta, float(beta @ beta)
 
     def _close_block(self) -> None:
         if not self._open:
             return
-        xtx, xty = self._open_stats()
+        xtx, xty, yty = self._open_stats()
         if self._blocks >= self.max_blocks:
             self._merge_pairs()
         if self._blocks == len(self._n):
@@ -293,6 +328,7 @@ class SampleRegression:
         i = self._blocks
         self._xtx[i] = xtx
         self._xty[i] = xty
+        self._yty[i] = yty
         self._run[i] = self._run_id
         self._log[i] = self._log_id
         self._n[i] = len(self._open)
@@ -303,6 +339,7 @@ class SampleRegression:
         size = 2 * len(self._n)
         self._xtx = np.resize(self._xtx, (size, _K, _K))
         self._xty = np.resize(self._xty, (size, _K))
+        self._yty = np.resize(self._yty, size)
         self._run = np.resize(self._run, size)
         self._log = np.resize(self._log, size)
         self._n = np.resize(self._n, size)
@@ -311,12 +348,12 @@ class SampleRegression:
         """Halve the resolution of the history: block statistics add, so nothing is lost but
         the finest autocorrelation detail."""
         half = self._blocks // 2
-        for array in (self._xtx, self._xty, self._n):
+        for array in (self._xtx, self._xty, self._yty, self._n):
             array[:half] = array[0 : 2 * half : 2] + array[1 : 2 * half : 2]
         self._run[:half] = self._run[0 : 2 * half : 2]
         self._log[:half] = self._log[0 : 2 * half : 2]
         if self._blocks % 2:
-            for array in (self._xtx, self._xty, self._n, self._run, self._log):
+            for array in (self._xtx, self._xty, self._yty, self._n, self._run, self._log):
                 array[half] = array[self._blocks - 1]
         self._blocks = half + self._blocks % 2
 
@@ -347,20 +384,146 @@ class SampleRegression:
             and 100.0 * abs(_turn(fit, self.g)) >= (TURN_MIN_HELD_PCT if held else SLOPE_MIN_PCT)
         )
 
+    def _fit_marginal(
+        self,
+        priors: Priors,
+        xtx: np.ndarray,
+        xty: np.ndarray,
+        yty: np.ndarray,
+        run: np.ndarray,
+        log: np.ndarray,
+    ) -> RegressionFit | None:
+        """One model, every nuisance with its prior (``marginal.py``); C2n's interval carries what
+        the drive cannot tell apart, and names the term that holds it open most."""
+        n, logs = self.n_samples, len(np.unique(log))
+        offsets, speeds = [0], [(int(Term.U), int(Term.INV_U))]
+        if logs > 1:  # each drive its own ψ0 and its own gyro's bias
+            xtx, xty, offsets, speeds = _per_log(xtx, xty, log)
+        start = _solve(xtx, xty, run, [*offsets, Term.D, Term.AY], n)
+        if start is None and self.d_tape_m is not None:  # one speed: d at the tape's to start
+            start = _solve(xtx, xty - self.d_tape_m * xtx[:, :, Term.D], run, [*offsets, Term.AY], n)
+        if start is None:
+            return None
+        b_ay = start.coef[start.terms.index(Term.AY)]
+        slope_terms = (
+            [Term.SIN, Term.COS, Term.AY_SIN, Term.AY_COS] if logs == 1 else []
+        )  # headings: per drive
+        turn = [Term.TURN] if priors.turn_force_pct > 0 else []
+        own = [Term.D, Term.AY, Term.AY3, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
+        post: Posterior | None = None
+        bias_terms: list[int] = []
+        for _ in range(3):  # the priors' scale and the bias's column follow a_y's coefficient
+            sd = _prior_sd(priors, self.g, b_ay, self.wheelbase_m)
+            wide_xtx, wide_xty = xtx, xty
+            if self.d_tape_m is not None:  # a yaw-rate bias b moves β by b·(k·u − d/u), k = −b_ay
+                combos = [{u: -b_ay, inv_u: -self.d_tape_m} for u, inv_u in speeds]
+                wide_xtx, wide_xty, bias_terms = _combined(xtx, xty, combos)
+            terms = [*offsets, *own, *bias_terms]
+            mean = np.zeros(len(terms))
+            spread = np.array(
+                [
+                    sd[Term.PSI0]
+                    if t in offsets
+                    else math.radians(priors.gyro_bias_degps)
+                    if t in bias_terms
+                    else (self.d_tape_se_m if self.d_tape_m is not None else math.inf)
+                    if t == Term.D
+                    else sd[t]
+                    for t in terms
+                ]
+            )
+            if self.d_tape_m is not None:
+                mean[terms.index(Term.D)] = self.d_tape_m
+            post = posterior(wide_xtx, wide_xty, yty, run, [int(t) for t in terms], mean, spread, n)
+            if post is None:
+                return None
+            b_ay = post.value(Term.AY)
+        assert post is not None
+        return self._marginal_result(priors, post, bias_terms, len(run), logs)
+
+    def _marginal_result(
+        self, priors: Priors, post: Posterior, bias_terms: list[int], blocks: int, logs: int
+    ) -> RegressionFit | None:
+        b_ay = post.value(Term.AY)
+        if b_ay >= 0:  # no stiffness
+            return None
+        from scipy.special import stdtrit
+
+        q = float(stdtrit(max(blocks - len(post.terms), 1), 0.5 + priors.confidence / 2.0))
+        c2n = -1.0 / (self.g * b_ay)
+        c2n_se = math.hypot(post.se(Term.AY) / (self.g * b_ay * b_ay), self.scale_se * abs(c2n))
+        c2n_ci = (c2n - q * c2n_se, c2n + q * c2n_se)
+        fit = _Solution(post.terms, post.coef, post.cov)
+
+        def ci(term: int) -> tuple[float, float]:
+            return (post.value(term) - q * post.se(term), post.value(term) + q * post.se(term))
+
+        t3 = post.value(Term.AY3) / post.se(Term.AY3) if post.se(Term.AY3) > 0 else 0.0
+        softens = abs(t3) > q and post.value(Term.AY3) * b_ay > 0  # reported where the data show it
+        slope = _slope(fit, c2n, q) if Term.SIN in post.terms else None
+        slope_shown = slope is not None and _wald(fit, [Term.SIN, Term.COS]) > _SLOPE_WALD
+        turn = Term.TURN in post.terms
+        bias = _bias(fit, bias_terms[0], q) if bias_terms else None
+        held = post.held_open_by(Term.AY)
+        names = {t.value: t.name.lower() for t in Term}
+        return RegressionFit(
+            c2n=c2n,
+            c2n_se=c2n_se,
+            c2n_ci95=c2n_ci,
+            d_m=post.value(Term.D),
+            d_ci95=ci(Term.D),
+            psi0_rad=post.value(Term.PSI0),
+            psi0_ci95=ci(Term.PSI0),
+            model="softening" if softens else "linear",
+            softening_t=t3,
+            softening_per_mps2_2=-post.value(Term.AY3) * self.g * c2n if softens else None,
+            softening_se_per_mps2_2=post.se(Term.AY3) * self.g * abs(c2n) if softens else None,
+            c2n_linear_model=c2n,
+            c2n_softening_model=c2n,
+            n_samples=self.n_samples,
+            n_blocks=blocks,
+            ay_range=(self._ay_min, self._ay_max),
+            curvature_range=(self._kappa_min, self._kappa_max),
+            speed_range=(self._u_min, self._u_max),
+            seconds=self._seconds,
+            logs=logs,
+            transient_terms=True,
+            tilt=_tilt(fit) if slope_shown else None,
+            slope_pct=slope[0] if slope and slope_shown else None,
+            slope_ci95_pct=slope[1] if slope and slope_shown else None,
+            slope_downhill_deg=slope[2] if slope and slope_shown else None,
+            turn_force_pct=100.0 * _turn(fit, self.g) if turn else None,
+            turn_force_ci95_pct=_turn_ci(fit, self.g, q) if turn else None,
+            turn_step_rad=post.value(Term.TURN) if turn else None,
+            turn_step_se_rad=post.se(Term.TURN) if turn else None,
+            yaw_bias_degps=bias[0] if bias else None,
+            yaw_bias_ci95_degps=bias[1] if bias else None,
+            c2n_linear_ci95=c2n_ci,
+            c2n_softening_ci95=c2n_ci,
+            scale_se=self.scale_se,
+            estimator="marginal",
+            held_open_by=names.get(held[0], "psi0" if held[0] >= _K else None) if held else None,
+            held_open_share=held[1] if held else None,
+        )
+
     def fit(self) -> RegressionFit | None:
         """The fit over every sample so far, or None while the data cannot support one."""
         b = self._blocks
         xtx, xty, run, log = self._xtx[:b], self._xty[:b], self._run[:b], self._log[:b]
+        yty = self._yty[:b]
         if self._open:  # the block being filled counts too, without closing it
-            open_xtx, open_xty = self._open_stats()
+            open_xtx, open_xty, open_yty = self._open_stats()
             xtx = np.concatenate([xtx, open_xtx[None]])
             xty = np.concatenate([xty, open_xty[None]])
+            yty = np.append(yty, open_yty)
             run = np.append(run, self._run_id)
             log = np.append(log, self._log_id)
             b += 1
         n = self.n_samples
         if n < self.min_samples or b < 10 or self._ay_max - self._ay_min < 0.5:
             return None
+        if self.priors is not None:
+            return self._fit_marginal(self.priors, xtx, xty, yty, run, log)
         # ψ0 is free where the curvature varies within the drives: else it is d·κ's double
         spread_k = sum(_within(xtx[log == k]) for k in np.unique(log))
         psi0_free = spread_k >= 0.04 * xtx[:, 1, 1].sum() > 0
@@ -756,3 +919,23 @@ def _solve(xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, terms: list[int], 
     k = len(terms)
     cov = inverse @ meat @ inverse * n / max(n - k, 1)
     return _Solution(terms, coef, cov)
+
+
+def _prior_sd(priors: Priors, g: float, b_ay: float, wheelbase_m: float) -> dict[int, float]:
+    """Each term's prior standard deviation in its coefficient's units; ratios to a_y's coefficient
+    scaled with ``b_ay`` (−1/(g·C2n)) from the fit before."""
+    k = abs(b_ay)
+    grade = priors.slope_pct / 100.0
+    return {
+        Term.PSI0: math.radians(priors.head_yaw_deg),
+        Term.AY: math.inf,
+        Term.AY3: k * priors.softening_per_mps2_2,
+        Term.SIN: grade * k * g,  # g_y/(g·C2n) = g·s·sin(D − ψ)·|b_ay|
+        Term.COS: grade * k * g,
+        Term.AY_SIN: grade * k * priors.load_transfer_per_g,
+        Term.AY_COS: grade * k * priors.load_transfer_per_g,
+        Term.R_DOT: k * priors.yaw_inertia_wheelbases * wheelbase_m,
+        Term.AY_U_DOT: k * priors.load_transfer_per_g / g,
+        Term.TURN: priors.turn_force_pct / 100.0 * k * g,
+        Term.K2_AY: k * (priors.two_wheels_wheelbases2 * wheelbase_m) ** 2,
+    }

@@ -1,0 +1,162 @@
+"""One model for every steady sample: each nuisance term enters with a Gaussian prior, none is chosen.
+
+The cascade in ``regression.py`` tries a term, keeps it where a test passes and then reports the
+chosen model's interval as if it had been fixed in advance. Here every term the physics allows is
+in the model at once, each with a prior from physics or a data sheet (``Priors``); the posterior is
+closed-form (a ridge regression whose penalties are the priors' precisions), so a term the drive
+cannot separate from C2n widens C2n's interval by as much as its prior allows, and
+``held_open_by`` names the term that contributes most to that width.
+
+The noise: the samples' variance σ² is estimated from the residuals with the fit's effective
+degrees of freedom (n − tr(XᵀX·A⁻¹)), and inflated by the samples' autocorrelation (the Newey–West
+long-run variance of the block scores against σ²·XᵀX). The covariance is the sandwich
+A⁻¹(M + σ⁴Λ)A⁻¹ — the prior counted as pseudo-observations of the coefficients, the data's scores
+M as in the least-squares fit — so it is the textbook posterior σ²A⁻¹ where the noise is white.
+
+Several priors are on a ratio to a_y's coefficient (the slope's pull is g_y/(g·C2n), the softening
+s·a_y² multiplies it): they are scaled with a_y's coefficient from the fit before, and the fit is
+repeated until it settles (three passes take it to 1e-6 on the benches' drives).
+"""
+
+import math
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Literal
+
+import numpy as np
+
+
+class Term(IntEnum):
+    """The regression's columns by name (their order in ``SampleRegression``'s block statistics)."""
+
+    PSI0 = 0  # 1: the head's yaw on the car
+    D = 1  # κ
+    AY = 2  # a_y = u·r: −1/(g·C2n)
+    AY3 = 3  # a_y³: the tyres' softening
+    SIN = 4  # sin ψ, cos ψ: a slope's pull at the heading ψ
+    COS = 5
+    AY_SIN = 6  # a_y·sin ψ, a_y·cos ψ: the slope's load transfer
+    AY_COS = 7
+    R_DOT = 8  # ṙ: the yaw inertia's share of the rear force
+    AY_U_DOT = 9  # a_y·u̇: braking's load transfer
+    TURN = 10  # sign(κ): a force that follows the turn's direction (a camber step)
+    U = 11  # u and 1/u: a yaw-rate bias combines them
+    INV_U = 12
+    K2_AY = 13  # κ²·a_y: the axle's two wheels on a tight turn
+
+
+@dataclass(frozen=True)
+class Priors:
+    """The policy of the marginal fit: its confidence level and each nuisance's prior standard
+    deviation (mean zero unless said), each from physics or a data sheet, never from a bench."""
+
+    # which regression gives the result: "cascade" (terms chosen by tests, today's default) or
+    # "marginal" (this one)
+    estimator: Literal["cascade", "marginal"] = "cascade"
+    confidence: float = 0.95
+    # the head's yaw on the car: mounted by eye against the body, ±1° at 95 %
+    head_yaw_deg: float = 0.5
+    # a test pad's grade, each of its two components: ISO 4138 asks for a test surface within 2 %
+    # in any direction, and drainage slopes of 1–2 % are common
+    slope_pct: float = 2.0
+    # how much the rear axle's stiffness changes per unit of longitudinal acceleration in g (a slope's
+    # gravity along the heading, braking): the load moved to it, h/l, with cornering stiffness about
+    # proportional to load — a car's centre of gravity at 0.5 m over a 2.5–3 m wheelbase: 0.2
+    load_transfer_per_g: float = 0.2
+    # the tyres' softening s in α = a_y/(g·C2n)·(1 + s·a_y²), (m/s²)⁻²: a Magic-Formula tyre loses
+    # 3–4 % of its stiffness by 4 m/s² (s ≈ 0.002); 0.004 holds twice that within one σ
+    softening_per_mps2_2: float = 0.004
+    # the yaw-rate gyro's bias after zeroing at standstill, °/s: a MEMS automotive yaw-rate sensor's
+    # data sheet quotes ±0.3 °/s over temperature; a day's drift is within it
+    gyro_bias_degps: float = 0.15
+    # the yaw inertia's share of the rear force: I_z·ṙ/l over the rear's share of m·a_y, a lever of
+    # about the front's distance a — at most a wheelbase (units of a_y's coefficient per m)
+    yaw_inertia_wheelbases: float = 1.0
+    # the axle's two wheels on a tight turn: slips and loads apart by shares of (κ·track)², so a
+    # term κ²·a_y of at most a wheelbase² times a_y's coefficient
+    two_wheels_wheelbases2: float = 1.0
+    # a rear force that follows the turn's direction, % of the axle's weight: 0 leaves it out (real
+    # cars); CommonRoad's Pacejka tyres carry a camber step of 2–3 %
+    turn_force_pct: float = 0.0
+
+
+@dataclass(frozen=True)
+class Posterior:
+    """The coefficients' posterior mean and covariance over ``terms`` (indices into the statistics'
+    columns), the noise variance, and the degrees of freedom left."""
+
+    terms: list[int]
+    coef: np.ndarray
+    cov: np.ndarray
+    sigma2: float
+    dof: float
+
+    def index(self, term: int) -> int:
+        return self.terms.index(term)
+
+    def value(self, term: int) -> float:
+        return float(self.coef[self.terms.index(term)])
+
+    def se(self, term: int) -> float:
+        i = self.terms.index(term)
+        return math.sqrt(max(float(self.cov[i, i]), 0.0))
+
+    def held_open_by(self, term: int) -> tuple[int, float] | None:
+        """The term whose uncertainty contributes most to ``term``'s variance: how much of it would
+        go were that term known exactly (cov²/var), and that share of the variance."""
+        i = self.terms.index(term)
+        total = float(self.cov[i, i])
+        best: tuple[int, float] | None = None
+        for j, other in enumerate(self.terms):
+            if j == i or self.cov[j, j] <= 0 or total <= 0:
+                continue
+            share = float(self.cov[i, j]) ** 2 / float(self.cov[j, j]) / total
+            if best is None or share > best[1]:
+                best = (other, share)
+        return best
+
+
+def posterior(
+    xtx: np.ndarray,
+    xty: np.ndarray,
+    yty: np.ndarray,
+    run: np.ndarray,
+    terms: list[int],
+    prior_mean: np.ndarray,
+    prior_sd: np.ndarray,
+    n: int,
+) -> Posterior | None:
+    """The Gaussian-prior regression over block statistics (blocks × k × k, blocks × k, blocks) on
+    the ``terms`` columns; ``prior_sd`` inf for a flat prior. None where the posterior is improper."""
+    sub_xtx = xtx[:, terms][:, :, terms]
+    sub_xty = xty[:, terms]
+    data, rhs, yy = sub_xtx.sum(axis=0), sub_xty.sum(axis=0), float(yty.sum())
+    precision = np.where(
+        np.isfinite(prior_sd), 1.0 / np.square(np.where(np.isfinite(prior_sd), prior_sd, 1.0)), 0.0
+    )
+    sigma2 = max(yy / n, 1e-30)  # an upper bound to start: y's mean square
+    for _ in range(3):  # σ² from the residuals, then its autocorrelation, then once more
+        a = data + sigma2 * np.diag(precision)
+        try:
+            inverse = np.linalg.inv(a)
+        except np.linalg.LinAlgError:
+            return None
+        if not np.all(np.isfinite(inverse)) or np.linalg.cond(a) > 1e14:
+            return None
+        coef, used = inverse @ (rhs + sigma2 * precision * prior_mean), sigma2
+        residual = yy - 2.0 * coef @ rhs + coef @ data @ coef
+        dof = max(n - float(np.trace(data @ inverse)), 1.0)
+        white = max(residual / dof, 1e-30)
+        meat = _newey_west(sub_xty - sub_xtx @ coef, run)
+        inflation = float(np.trace(inverse @ meat)) / (white * float(np.trace(inverse @ data)))
+        sigma2 = white * max(inflation, 1.0)
+    cov = inverse @ (meat * n / dof + used * used * np.diag(precision)) @ inverse
+    return Posterior(terms, coef, cov, used, dof)
+
+
+def _newey_west(scores: np.ndarray, run: np.ndarray) -> np.ndarray:
+    """Σ sᵀs over blocks with Bartlett weights 1 and ½: a block and its neighbour in the same run."""
+    meat = scores.T @ scores
+    same_run = run[1:] == run[:-1]
+    cross = scores[1:][same_run].T @ scores[:-1][same_run]
+    return np.asarray(meat + 0.5 * (cross + cross.T))

@@ -1,0 +1,139 @@
+"""The marginal regression: every nuisance with its prior, closed-form posterior."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from app.config import load_config
+from app.errors import ConfigError
+from app.results.marginal import Priors, Term, posterior
+from app.results.regression import _TERMS, SampleRegression
+from app.sinks import summary
+from tests.simulated import cached_drive, run_pipeline
+
+G = 9.81
+MARGINAL = Priors(estimator="marginal")
+
+
+def test_terms_are_named_in_the_statistics_order() -> None:
+    assert [t.name.lower() for t in Term] == list(_TERMS)
+
+
+def _blocks(x: np.ndarray, y: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    starts = range(0, len(y), size)
+    xtx = np.array([x[s : s + size].T @ x[s : s + size] for s in starts])
+    xty = np.array([x[s : s + size].T @ y[s : s + size] for s in starts])
+    yty = np.array([y[s : s + size] @ y[s : s + size] for s in starts])
+    return xtx, xty, yty, np.zeros(len(xtx), dtype=np.int64)
+
+
+def test_posterior_is_the_ridge_closed_form_with_its_noise_variance() -> None:
+    rng = np.random.default_rng(1)
+    x = np.column_stack([np.ones(4000), rng.normal(size=4000), rng.normal(size=4000)])
+    y = x @ np.array([0.5, -1.0, 2.0]) + rng.normal(scale=0.3, size=4000)
+    xtx, xty, yty, run = _blocks(x, y, 10)
+    mean, sd = np.array([0.0, 0.0, 1.5]), np.array([0.2, math.inf, 0.1])
+    post = posterior(xtx, xty, yty, run, [0, 1, 2], mean, sd, 4000)
+    assert post is not None
+    precision = np.diag([1 / 0.04, 0.0, 1 / 0.01])
+    a = x.T @ x + post.sigma2 * precision
+    expected = np.linalg.solve(a, x.T @ y + post.sigma2 * precision @ mean)
+    np.testing.assert_allclose(post.coef, expected, rtol=1e-9)
+    assert post.sigma2 == pytest.approx(0.09, rel=0.15)  # white noise: no inflation beyond σ²
+
+
+def test_a_flat_prior_is_least_squares_and_a_sharp_one_holds_the_prior_mean() -> None:
+    rng = np.random.default_rng(2)
+    x = np.column_stack([np.ones(300), rng.normal(size=300)])
+    y = x @ np.array([0.2, 3.0]) + rng.normal(scale=0.1, size=300)
+    xtx, xty, yty, run = _blocks(x, y, 10)
+    flat = posterior(xtx, xty, yty, run, [0, 1], np.zeros(2), np.array([math.inf, math.inf]), 300)
+    sharp = posterior(xtx, xty, yty, run, [0, 1], np.array([0.0, 7.0]), np.array([math.inf, 1e-5]), 300)
+    assert flat is not None and sharp is not None
+    np.testing.assert_allclose(flat.coef, np.linalg.lstsq(x, y, rcond=None)[0], rtol=1e-9)
+    assert sharp.value(1) == pytest.approx(7.0, abs=1e-3)
+
+
+def _drive(regression: SampleRegression, c2n: float, d: float, speeds: list[float], seed: int) -> None:
+    """Steady circles on a level pad: each radius both ways, at each speed, 100 Hz, sideslip noise
+    1 mrad, the heading integrated."""
+    rng = np.random.default_rng(seed)
+    t, heading = 0.0, 0.0
+    for radius in (40.0, 80.0):
+        for side in (1.0, -1.0):
+            for u in speeds:
+                r = side * u / radius
+                for _ in range(2000):  # 20 s: most of a circle
+                    beta = d * r / u - u * r / (G * c2n) + 0.002
+                    regression.add(t, u, r, u * (beta + rng.normal(scale=0.001)), heading)
+                    t, heading = t + 0.01, heading + 0.01 * r
+                t += 1.0
+
+
+def test_linear_circles_read_c2n_within_the_interval_without_a_softening_warning() -> None:
+    inside = level = 0
+    for seed in range(10):
+        regression = SampleRegression(G, d_tape_m=1.1, wheelbase_m=2.7, priors=MARGINAL)
+        _drive(regression, 14.0, 1.1, [8.0, 10.0, 12.0], seed)
+        fit = regression.fit()
+        assert fit is not None and fit.estimator == "marginal"
+        assert fit.c2n == pytest.approx(14.0, rel=0.02)
+        assert fit.model == "linear"
+        level += fit.tilt is None  # a slope is reported where its Wald χ² passes 95 %: 1 in 20 by chance
+        inside += fit.c2n_ci95[0] <= 14.0 <= fit.c2n_ci95[1]
+    assert inside >= 8 and level >= 8  # 95 %: 8 or more of 10 with probability 0.99
+
+
+def test_the_result_reads_in_typed_groups() -> None:
+    regression = SampleRegression(
+        G, d_tape_m=1.1, wheelbase_m=2.7, priors=replace(MARGINAL, turn_force_pct=3.0)
+    )
+    _drive(regression, 14.0, 1.1, [8.0, 10.0, 12.0], 4)
+    fit = regression.fit()
+    assert fit is not None
+    assert (fit.d.m, fit.d.ci95, fit.d.held) == (fit.d_m, fit.d_ci95, False)
+    assert fit.softening is None and fit.model == "linear"  # linear tyres: no softening reported
+    turn = fit.turn_force
+    assert turn is not None and turn.pct == fit.turn_force_pct and turn.ci95_pct is not None
+    assert turn.ci95_pct[0] <= 0.0 <= turn.ci95_pct[1]  # none in the drive: its interval holds zero
+
+
+def test_one_speed_leaves_c2n_to_the_tape_and_says_so() -> None:
+    """At one speed a_y = u²·κ: d and C2n cannot be told apart, so d's prior (the tape) holds C2n's
+    interval open — a finer tape narrows it."""
+    widths = []
+    for tape_se in (0.01, 0.001):
+        regression = SampleRegression(G, d_tape_m=1.1, d_tape_se_m=tape_se, wheelbase_m=2.7, priors=MARGINAL)
+        _drive(regression, 14.0, 1.1, [10.0], 3)
+        fit = regression.fit()
+        assert fit is not None
+        assert fit.held_open_by == "d"
+        widths.append(fit.c2n_ci95[1] - fit.c2n_ci95[0])
+    assert widths[1] < 0.5 * widths[0]
+
+
+def test_the_config_chooses_the_estimator(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    base = load_config().path.read_text()
+    good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
+    source = load_config().path.parent
+    for path, text in ((good, 'estimator = "marginal"\nslope_pct = 1.0'), (bad, 'estimator = "bayes"')):
+        path.write_text(base.replace("../dbc/", f"{source}/../dbc/") + f"\n[priors]\n{text}\n")
+    config = load_config(good)
+    assert config.priors == replace(Priors(), estimator="marginal", slope_pct=1.0)
+    with pytest.raises(ConfigError, match=r"\[priors\] estimator must be 'cascade' \| 'marginal'"):
+        load_config(bad)
+
+
+def test_the_pipeline_reads_a_simulated_drive_with_the_marginal_regression(config) -> None:  # type: ignore[no-untyped-def]
+    """End to end: the config's choice reaches the pipeline, whose regression is the marginal one,
+    its C2n near the drive's truth, and the result file builds."""
+    drive = cached_drive("radii", seed=3)
+    pipeline = run_pipeline(replace(config, priors=MARGINAL), drive)
+    snapshot = pipeline.snapshot()
+    fit = snapshot.fit
+    assert fit is not None and fit.estimator == "marginal"
+    assert fit.c2n == pytest.approx(drive.truth["c2n"], rel=0.02)
+    result = summary.build(snapshot, config, ["drive.blf"], [])
+    assert result.regression is not None and result.regression.c2n == pytest.approx(fit.c2n, rel=1e-3)

@@ -1,0 +1,165 @@
+"""Coverage of the regression's 95 % intervals, cascade against marginal, over drives of every kind.
+
+Each drive runs once through the pipeline; the regression its result rests on (the steady samples',
+or where no sweep crossed zero the quasi-steady samples') is then fitted both ways on the same
+samples: the cascade of tests (today's default) and the marginal model (every nuisance with its
+prior, ``[priors]``). Kinds: tools/bench_accuracy.py's cases a–m (our simulator's bicycle and
+two-track models, CommonRoad's multi-body car) and the dev pack's nine drives (an independent
+generator's car; its truth ``c2n.rear_axle_effective_linear``). Printed per kind and estimator: the
+drives, the median and worst |error| %, the coverage and the intervals' median half width %, the
+term that holds the marginal interval open most often, and the warnings a linear drive should not
+raise (softening kept; d's interval apart from the tape's). At the end: the coverage over all drives
+with its Clopper–Pearson 95 % interval, and the median time of a refit.
+
+    python tools/bench_coverage.py                           # 23 per kind: 299 simulated + 9 = 308
+    python tools/bench_coverage.py --sessions 3 --kinds a,f,j,dev
+"""
+
+import argparse
+import copy
+import json
+import statistics
+import time
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from bench_accuracy import CASES, simulated
+from scipy.stats import beta
+
+from app.config import load_config
+from app.pipeline import Pipeline
+from app.results.regression import RegressionFit, SampleRegression
+from app.sources.logs import LogReport, read_log
+
+DEV_PACK = Path("/work/shared/data/dev-pack")
+PLAIN = ("a", "f")  # plain circles on linear tyres: no warning is supported there
+
+
+def drive(job: tuple[str, int, float | None]) -> dict[str, Any]:
+    """One drive of a kind, both estimators on its samples."""
+    kind, seed, tape_mm = job
+    if kind == "dev":
+        case = DEV_PACK / f"case_{seed + 1:02d}"
+        config = load_config(case / "config.toml")
+        truth = float(json.loads((case / "truth.json").read_text())["c2n"]["rear_axle_effective_linear"])
+        pipeline = Pipeline(config)
+        log = case / "drive.blf"
+        for message in read_log(log, LogReport(log), pipeline.decoder):
+            pipeline.process(message)
+    else:
+        config, simulation, truth = simulated(kind, "radii", seed, 100.0, tape_mm)
+        pipeline = Pipeline(config)
+        for message in simulation.messages:
+            pipeline.process(message)
+    pipeline.finish()
+    state = pipeline.snapshot()
+    regression = (
+        pipeline.quasi if state.fit is state.quasi and state.quasi is not None else pipeline.regression
+    )
+    row: dict[str, Any] = {"kind": kind, "seed": seed}
+    priors = replace(config.priors, estimator="marginal")
+    for name, chosen in (("cascade", None), ("marginal", priors)):
+        model: SampleRegression = copy.deepcopy(regression)
+        model.priors = chosen
+        started = time.perf_counter()
+        fit = model.fit()
+        row[f"{name}_s"] = time.perf_counter() - started
+        row[name] = _graded(fit, truth, config.d_m)
+    return row
+
+
+def _graded(fit: RegressionFit | None, truth: float, d_tape_m: float) -> dict[str, Any] | None:
+    if fit is None:
+        return None
+    low, high = fit.c2n_ci95
+    return {
+        "error": float(100.0 * (fit.c2n / truth - 1.0)),  # plain floats and bools: a JSON row
+        "covers": bool(low <= truth <= high),
+        "half": float(50.0 * (high - low) / truth),
+        "held": fit.held_open_by,
+        "softening": fit.model == "softening",
+        "d_apart": bool(not fit.d_fixed and not fit.d_ci95[0] <= d_tape_m <= fit.d_ci95[1]),
+    }
+
+
+def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """The exact binomial interval of a share k/n."""
+    tail = (1.0 - level) / 2.0
+    low = float(beta.ppf(tail, k, n - k + 1)) if k > 0 else 0.0
+    high = float(beta.ppf(1.0 - tail, k + 1, n - k)) if k < n else 1.0
+    return low, high
+
+
+def _row(kind: str, name: str, graded: list[dict[str, Any]], total: int) -> str:
+    if not graded:
+        return f"{kind:<5} {name:<9} {0:>3}/{total:<3}"
+    errors = [abs(g["error"]) for g in graded]
+    covered = sum(g["covers"] for g in graded)
+    held = Counter(g["held"] for g in graded if g["held"]).most_common(1)
+    warned = sum(g["softening"] or g["d_apart"] for g in graded)
+    return (
+        f"{kind:<5} {name:<9} {len(graded):>3}/{total:<3} "
+        f"{statistics.median(errors):7.3f} {max(errors):7.3f} "
+        f"{covered / len(graded):6.2f} {statistics.median(g['half'] for g in graded):6.2f} "
+        f"{warned:>4}  {held[0][0] + ' ' + str(held[0][1]) if held else '—'}"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--sessions", type=int, default=23, help="drives per simulated kind")
+    parser.add_argument("--kinds", default=",".join([*CASES, "dev"]), help="bench_accuracy's cases a–m, dev")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--tape-mm", type=float, default=None, help="as tools/bench_accuracy.py's")
+    parser.add_argument(
+        "--rows", type=Path, help="append each drive's row to this JSON-lines file as it ends"
+    )
+    parser.add_argument(
+        "--summarise", type=Path, nargs="+", help="print the tables of rows files, run nothing"
+    )
+    args = parser.parse_args()
+    kinds = args.kinds.split(",")
+    started = time.perf_counter()
+    if args.summarise:
+        rows = [json.loads(line) for path in args.summarise for line in path.read_text().splitlines() if line]
+        kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
+    else:
+        jobs = [  # seed by seed, every kind in each: a run cut short still has every kind
+            (k, seed, args.tape_mm)
+            for seed in range(max(9, args.sessions))
+            for k in kinds
+            if seed < (9 if k == "dev" else args.sessions)
+        ]
+        rows = []
+        with ProcessPoolExecutor(args.workers) as pool:
+            for row in pool.map(drive, jobs):
+                rows.append(row)
+                if args.rows:
+                    with args.rows.open("a") as file:
+                        file.write(json.dumps(row) + "\n")
+    print("kind  estimator  fits  |error| % median worst  cover  half%  warn  held open by (most often)")
+    for kind in kinds:
+        for name in ("cascade", "marginal"):
+            mine = [r for r in rows if r["kind"] == kind]
+            print(_row(kind, name, [r[name] for r in mine if r[name] is not None], len(mine)))
+    for name in ("cascade", "marginal"):
+        graded = [r[name] for r in rows if r[name] is not None]
+        k, n = sum(g["covers"] for g in graded), len(graded)
+        low, high = clopper_pearson(k, n)
+        plain = [r[name] for r in rows if r["kind"] in PLAIN and r[name] is not None]
+        warned = sum(g["softening"] or g["d_apart"] for g in plain)
+        refit = statistics.median(r[f"{name}_s"] for r in rows) * 1000.0
+        print(
+            f"{name}: coverage {k}/{n} = {k / max(n, 1):.3f} (Clopper–Pearson 95 %: {low:.3f}–{high:.3f}); "
+            f"warnings on plain linear drives {warned}/{len(plain)}; refit {refit:.1f} ms (median)"
+        )
+    print(f"{len(rows)} drives, {time.perf_counter() - started:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -15,7 +15,6 @@ from typing import Any, Literal
 
 from app.dbc import ChannelSpec, Dbc, load_dbc
 from app.errors import ConfigError
-from app.results.marginal import Priors
 from app.units import ROLE_UNITS, known_units, si_factor
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "mondeo.toml"
@@ -241,6 +240,41 @@ class StatusCondition:
     @property
     def name(self) -> str:
         return f"{self.message}.{self.signal}"
+
+
+@dataclass(frozen=True)
+class Priors:
+    """The policy of the marginal fit: its confidence level and each nuisance's prior standard
+    deviation (mean zero unless said), each from physics or a data sheet, never from a bench."""
+
+    # which regression gives the result: "cascade" (terms chosen by tests, today's default) or
+    # "marginal" (this one)
+    estimator: Literal["cascade", "marginal"] = "cascade"
+    confidence: float = 0.95
+    # the head's yaw on the car: mounted by eye against the body, ±1° at 95 %
+    head_yaw_deg: float = 0.5
+    # a test pad's grade, each of its two components: ISO 4138 asks for a test surface within 2 %
+    # in any direction, and drainage slopes of 1–2 % are common
+    slope_pct: float = 2.0
+    # how much the rear axle's stiffness changes per unit of longitudinal acceleration in g (a slope's
+    # gravity along the heading, braking): the load moved to it, h/l, with cornering stiffness about
+    # proportional to load — a car's centre of gravity at 0.5 m over a 2.5–3 m wheelbase: 0.2
+    load_transfer_per_g: float = 0.2
+    # the tyres' softening s in α = a_y/(g·C2n)·(1 + s·a_y²), (m/s²)⁻²: a Magic-Formula tyre loses
+    # 3–4 % of its stiffness by 4 m/s² (s ≈ 0.002); 0.004 holds twice that within one σ
+    softening_per_mps2_2: float = 0.004
+    # the yaw-rate gyro's bias after zeroing at standstill, °/s: a MEMS automotive yaw-rate sensor's
+    # data sheet quotes ±0.3 °/s over temperature; a day's drift is within it
+    gyro_bias_degps: float = 0.15
+    # the yaw inertia's share of the rear force: I_z·ṙ/l over the rear's share of m·a_y, a lever of
+    # about the front's distance a — at most a wheelbase (units of a_y's coefficient per m)
+    yaw_inertia_wheelbases: float = 1.0
+    # the axle's two wheels on a tight turn: slips and loads apart by shares of (κ·track)², so a
+    # term κ²·a_y of at most a wheelbase² times a_y's coefficient
+    two_wheels_wheelbases2: float = 1.0
+    # a rear force that follows the turn's direction, % of the axle's weight: 0 leaves it out (real
+    # cars); CommonRoad's Pacejka tyres carry a camber step of 2–3 %
+    turn_force_pct: float = 0.0
 
 
 @dataclass(frozen=True)

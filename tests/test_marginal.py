@@ -6,9 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from app.config import load_config
+from app.config import Priors, load_config
 from app.errors import ConfigError
-from app.results.marginal import Priors, Term, posterior
+from app.results.marginal import Term, posterior
 from app.results.regression import _TERMS, SampleRegression
 from app.sinks import summary
 from tests.simulated import cached_drive, run_pipeline

@@ -88,8 +88,9 @@ from typing import Literal
 
 import numpy as np
 
+from app.config import Priors
 from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
-from app.results.marginal import Posterior, Priors, Term, posterior
+from app.results.marginal import Posterior, Term, posterior
 
 _TERMS = (  # the columns each block keeps; a fit takes a subset
     "psi0",  # 1: the head's yaw on the car

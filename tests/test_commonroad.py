@@ -144,9 +144,9 @@ def test_the_gap_on_the_commonroad_car_calibrates_its_turn_force(
     effect: str, size: float | None, tmp_path: Path
 ) -> None:
     """The standard session on CommonRoad's car, a test day's imperfections on: the force that
-    follows the turn is calibrated (about 2 % of the weight), not taken for a sensor 0.1 m off,
-    and a verdict of none says a position error could be inside it; a real position error beside
-    it is still named and sized."""
+    follows the turn is calibrated (about 2 % of the weight), not taken for a sensor 0.1 m off:
+    with nothing withheld the report finds no more than the tyres' own softening; a real position
+    error beside it is still named and sized."""
     from app.gap.diagnose import diagnose
     from app.gap.measured import measure
     from app.sim.imperfections import of_session
@@ -162,14 +162,13 @@ def test_the_gap_on_the_commonroad_car_calibrates_its_turn_force(
     turn = result.calibration["turn_force_pct"]  # the car's own, with or without the effect
     assert 1.0 < turn.fitted < 4.0 and turn.ci95[0] > 0.0
     if effect == "none":
-        assert result.diagnosis == "none"
-        # the calibrated force could as well be a sensor off along the car: said, with the way out
-        assert result.confounded_with == ("roll_steer", "sensor_position_error", "load_transfer_nonlinearity")
-        assert "tape" in result.separate_by["sensor_position_error"]
-        assert (
-            "a sensor position error or a load transfer nonlinearity would be inside the "
-            "calibrated turn_force_pct" in result.verdict
-        )
+        # nothing withheld: what the report finds is the car's own — its Pacejka tyres soften with
+        # a_y (both axles' softening measured above zero) — and no sensor placed off along the car
+        findings = {e.effect: e for e in result.effects if e.matters}
+        assert result.diagnosis in ("none", "load_transfer_nonlinearity")
+        assert set(findings) <= {"load_transfer_nonlinearity"}
+        for effect_found in findings.values():
+            assert all(low > 0.0 for low, _ in effect_found.ci95.values())
     else:
         assert result.diagnosis == "sensor_position_error"
         named = next(c for c in result.candidates if c.named)

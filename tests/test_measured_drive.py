@@ -328,11 +328,18 @@ def test_race_laps_beyond_the_linear_range_are_refused_with_what_the_cornering_w
 
 def test_c2n_gap_runs_to_a_verdict(config: Config, whole_log: Path, tmp_path: Path) -> None:
     """The whole drive: race laps are beyond the linear model the gap compares with (a minute has
-    too little driving in its linear range to diagnose). Whatever the verdict, no named effect and
-    no calibrated nuisance it rests on sits on a physical bound unannounced, and every calibrated
-    value comes with its interval."""
+    too little driving in its linear range to diagnose). Either a refusal in one line naming the
+    manoeuvre the laps lack (no steady cornering near u0), or a report in which no named effect
+    and no calibrated nuisance it rests on sits on a physical bound unannounced, and every
+    calibrated value comes with its interval."""
     out = tmp_path / "gap.json"
     code, stdout, stderr = _run("gap", str(whole_log), "--config", str(CONFIG), "--json", str(out))
+    assert "Traceback" not in stdout + stderr
+    if code == 1:
+        assert stderr.count("\n") == 1 and "no steady cornering near the sideslip's sign change" in stderr
+        assert "drive constant-radius sweeps through u0, left and right" in stderr
+        assert not out.exists()
+        return
     assert code == 0, stderr
     assert "Traceback" not in stdout + stderr
     assert stdout.startswith("gap: ")

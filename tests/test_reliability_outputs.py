@@ -155,6 +155,24 @@ def test_events_csv_follows_the_csv_dialect(day: Path) -> None:
     assert len(first) == len(lines[0].split(";")) and "," in first[0] and "." not in first[0]
 
 
+def test_an_export_folder_is_replaced_only_where_each_file_is_c2n_s_by_its_content(day: Path) -> None:
+    """An older export (either CSV dialect) is replaced; a user's own events.csv or summary.json
+    in it — named as c2n names its files — is not, and the folder stays as it was."""
+    out = day / "export"
+    argv = ["export", str(day / "d.blf"), "--no-plots", "--format", "csv", "--out", str(out)]
+    assert run_cli(argv)[0] == 0
+    assert run_cli([*argv, "--csv-dialect", "excel-semicolon"])[0] == 0
+    assert run_cli(argv)[0] == 0
+    for name, mine in (("events.csv", "my notes on the crossings\n"), ("summary.json", '{"mine": 1}\n')):
+        (out / name).write_text(mine)
+        before = _snapshot(out)
+        code, _, err = run_cli(argv)
+        assert code == 1 and f"holds files c2n did not write ({name})" in err
+        assert _snapshot(out) == before
+        shutil.rmtree(out)
+        assert run_cli(argv)[0] == 0
+
+
 OUTPUT_OPTIONS = ("--json", "--report", "--out", "--record")
 
 

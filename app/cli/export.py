@@ -10,7 +10,7 @@ from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import need, printable
 from app.output.files import folder_atomically
-from app.output.paths import Output, check, config_files
+from app.output.paths import HTML_REPORT, SUMMARY_JSON, Output, check, config_files
 from app.user_text import shown
 
 FORMATS = ("csv", "parquet", "mf4")  # app.sinks.channels.FORMATS; pyarrow and asammdf load only when used
@@ -72,6 +72,36 @@ def _ours(name: str) -> bool:
     return name.startswith("channels.") or name in ("events.csv", "summary.json", "report.html", *PLOT_NAMES)
 
 
+# how each kind of file c2n export writes begins: its own header, or the format's magic bytes
+_STARTS = {
+    "channels.csv": (b'\xef\xbb\xbf"time [s]"',),
+    "channels.parquet": (b"PAR1",),
+    "channels.mf4": (b"MDF     ",),
+    "events.csv": (b"t,event,", b"t;event;"),
+    **{name: (b"\x89PNG\r\n\x1a\n",) for name in PLOT_NAMES},
+}
+
+
+def _ours_by_content(path: Path) -> bool:
+    """An entry of an older export: named as c2n export names its files and beginning as it
+    writes them — a user's own ``events.csv`` in the folder is not c2n's to replace."""
+    if not _ours(path.name) or not path.is_file():
+        return False
+    if path.name == "summary.json":
+        return SUMMARY_JSON(path)
+    if path.name == "report.html":
+        return HTML_REPORT(path)
+    starts = _STARTS.get(path.name)
+    if starts is None:
+        return False
+    try:
+        with path.open("rb") as file:
+            head = file.read(32)
+    except OSError:
+        return False
+    return head.startswith(starts)
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     from app.pipeline import Pipeline
@@ -89,7 +119,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if not args.no_plots:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     log, config, out = _inputs(args)
-    check([Output("--out", out, lambda entry: _ours(entry.name), folder=True)], [log, *config_files(config)])
+    check([Output("--out", out, _ours_by_content, folder=True)], [log, *config_files(config)])
     pipeline = Pipeline(config)
     source = LogSource([log], triage=pipeline.decoder)
     trace_recorder = TraceRecorder(config.roles)

@@ -25,6 +25,18 @@ from enum import IntEnum
 import numpy as np
 
 
+def well_conditioned_inverse(a: np.ndarray) -> np.ndarray | None:
+    """``a``'s inverse, or None where ``a`` is singular or too ill-conditioned for its inverse to
+    carry digits (condition number over 1e14: fewer than two of a double's sixteen left)."""
+    try:
+        inverse = np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(inverse)) or np.linalg.cond(a) > 1e14:
+        return None
+    return inverse
+
+
 class Term(IntEnum):
     """The regression's columns by name (their order in ``SampleRegression``'s block statistics)."""
 
@@ -100,13 +112,10 @@ def posterior(
     )
     sigma2 = max(yy / n, 1e-30)  # an upper bound to start: y's mean square
     for _ in range(3):  # σ² from the residuals, then its autocorrelation, then once more
-        a = data + sigma2 * np.diag(precision)
-        try:
-            inverse = np.linalg.inv(a)
-        except np.linalg.LinAlgError:
+        found = well_conditioned_inverse(data + sigma2 * np.diag(precision))
+        if found is None:
             return None
-        if not np.all(np.isfinite(inverse)) or np.linalg.cond(a) > 1e14:
-            return None
+        inverse = found
         coef, used = inverse @ (rhs + sigma2 * precision * prior_mean), sigma2
         residual = yy - 2.0 * coef @ rhs + coef @ data @ coef
         dof = max(n - float(np.trace(data @ inverse)), 1.0)

@@ -90,7 +90,7 @@ import numpy as np
 
 from app.config import Priors
 from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
-from app.results.marginal import Posterior, Term, posterior
+from app.results.marginal import Posterior, Term, posterior, well_conditioned_inverse
 
 _TERMS = (  # the columns each block keeps; a fit takes a subset
     "psi0",  # 1: the head's yaw on the car
@@ -904,12 +904,8 @@ def _solve(xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, terms: list[int], 
     (Bartlett weights 1 and ½: a block and its neighbour in the same run)."""
     sub_xtx = xtx[:, terms][:, :, terms]
     sub_xty = xty[:, terms]
-    a = sub_xtx.sum(axis=0)
-    try:
-        inverse = np.linalg.inv(a)
-    except np.linalg.LinAlgError:
-        return None
-    if not np.all(np.isfinite(inverse)) or np.linalg.cond(a) > 1e14:
+    inverse = well_conditioned_inverse(sub_xtx.sum(axis=0))
+    if inverse is None:
         return None
     coef = inverse @ sub_xty.sum(axis=0)
     scores = sub_xty - sub_xtx @ coef  # Σ x·e per block

@@ -45,8 +45,14 @@ class Vehicle:
 
 @dataclass(frozen=True)
 class Tyres:
+    """The tyres' figures as a rig gives them, and how far the car's tyres on the day may be from
+    the rig's C2n (± %, 95 %): the rig's surface against the road's, wear, temperature and the
+    pressure on the day. ``c2n gap`` compares the axle's C2n the drive measures with it (a rear
+    steer with roll or compliance is the difference); a handbook figure is known to 15–20 %."""
+
     c1n_per_rad: float | None = None
     c2n_per_rad: float | None = None
+    c2n_tolerance_pct: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -151,6 +157,7 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("vehicle", "gravity_mps2"): (9.7, 9.9, _CLOSED),  # on Earth: 9.78 at the equator, 9.83 at a pole
     ("tyres", "c1n_per_rad"): (0.0, 200.0, _OPEN),
     ("tyres", "c2n_per_rad"): (0.0, 200.0, _OPEN),
+    ("tyres", "c2n_tolerance_pct"): (0.0, 100.0, _OPEN),
     ("calibration", "yaw_rate_scale_pct"): (0.0, 10.0, _CLOSED),
     ("calibration", "speed_scale_pct"): (0.0, 10.0, _CLOSED),
     ("calibration", "d_tolerance_mm"): (0.0, 100.0, _CLOSED),

@@ -157,18 +157,24 @@ def test_the_gap_on_the_commonroad_car_calibrates_its_turn_force(
         seed=23, effect=Effect.of(effect, size), model="commonroad", imperfections=of_session(23)
     )
     log = tmp_path / "drive.blf"
-    write_log(simulate_standard(config, options).messages, log)
+    drive = simulate_standard(config, options)
+    write_log(drive.messages, log)
     result = diagnose(measure([log], config), config, workers=2).result
     turn = result.calibration["turn_force_pct"]  # the car's own, with or without the effect
     assert 1.0 < turn.fitted < 4.0 and turn.ci95[0] > 0.0
     if effect == "none":
         # nothing withheld: what the report finds is the car's own — its Pacejka tyres soften with
         # a_y (both axles' softening measured above zero) — and no sensor placed off along the car
+        # and its rear axle 5–12 % stiffer than its tyres' |p_ky1| (the config's figure) with the
+        # roll: measured as a rear steer into the turn, of the size the car's own state gives
         findings = {e.effect: e for e in result.effects if e.matters}
-        assert result.diagnosis in ("none", "load_transfer_nonlinearity")
-        assert set(findings) <= {"load_transfer_nonlinearity"}
+        assert result.diagnosis in ("none", "load_transfer_nonlinearity", "roll_steer")
+        assert set(findings) <= {"load_transfer_nonlinearity", "roll_steer"}
         for effect_found in findings.values():
             assert all(low > 0.0 for low, _ in effect_found.ci95.values())
+        if "roll_steer" in findings:
+            stiffer = 100.0 * (drive.truth["c2n_axle"] / config.tyres.c2n_per_rad - 1.0)
+            assert findings["roll_steer"].c2n_effect_pct.headline == pytest.approx(stiffer, abs=3.0)
     else:
         assert result.diagnosis == "sensor_position_error"
         named = next(c for c in result.candidates if c.named)

@@ -133,10 +133,12 @@ def effect_lines(result: GapResult) -> list[str]:
             else "C2n: no steady crossing"
         )
         mark = "MATTERS" if e.matters else "within tolerance" if not e.confounded_with else "confounded"
-        out.append(
-            f"    {e.effect:<27} {mark}: {sizes}; {e.channel} {e.heldout_before:.4f} → "
-            f"{e.heldout_after:.4f}{unit} (gain z = {e.gain_sigmas:.1f}); {moves}"
+        seen = (
+            f"{e.channel} {e.heldout_before:.4f} → {e.heldout_after:.4f}{unit} (gain z = {e.gain_sigmas:.1f})"
+            if e.heldout_before is not None and e.heldout_after is not None
+            else f"measured by {e.measured_by} (z = {e.gain_sigmas:.1f})"
         )
+        out.append(f"    {e.effect:<27} {mark}: {sizes}; {seen}; {moves}")
         if e.matters:
             out.append(f"      what to do: {e.action}")
         elif e.confounded_with:

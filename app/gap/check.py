@@ -27,6 +27,11 @@ class CaseAnswer:
     error: str | None = None
 
 
+# what every drive of our generators holds whatever was drawn: Magic-Formula (two-track) and
+# Pacejka (CommonRoad) tyres soften with slip
+ALWAYS_HELD = frozenset({"load_transfer_nonlinearity"})
+
+
 def cases(pack: Path) -> list[Path]:
     """The pack's case folders with a drive log. The seal must be there (it is opened only after
     every case is diagnosed), so a pack without one fails before any work."""
@@ -95,16 +100,19 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
         said = result.diagnosis if result else "error"
         group = list(result.confounded_with) if result else []
         findings = [e for e in result.effects if e.matters] if result else []
-        # named anywhere in the report: a finding, one the drive cannot tell from a finding, or
-        # listed within tolerance with its size; and no finding the truth does not hold
-        listed = {e.effect for e in result.effects} if result else set()
-        named = {e.effect for e in findings} | {c for e in findings for c in e.confounded_with} | listed
+        # named in the report: a finding, or one the drive cannot tell from a finding; and no
+        # finding the truth does not hold (every generator's tyres soften with slip)
+        named = {e.effect for e in findings} | {c for e in findings for c in e.confounded_with}
         false = [
-            e.effect for e in findings if e.effect != true_effect and true_effect not in e.confounded_with
+            e.effect
+            for e in findings
+            if e.effect not in {true_effect, *ALWAYS_HELD} and true_effect not in e.confounded_with
         ]
         ok = said == true_effect or (true_effect != "none" and said != "unexplained" and true_effect in group)
         if true_effect != "none":
             ok = (ok or true_effect in named) and not false
+        else:  # nothing drawn: right when it names nothing the drive does not hold
+            ok = said == "none" or (said in ALWAYS_HELD and not false)
         rows.append(
             {
                 "case": case,
@@ -130,7 +138,7 @@ def score(answers: list[CaseAnswer], truth: dict[str, Any]) -> dict[str, Any]:
 def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(rows)
     none_rows = [r for r in rows if r["truth"] == "none"]
-    alarms = sum(r["diagnosis"] != "none" for r in none_rows)
+    alarms = sum(not r["correct"] for r in none_rows)  # named what the drive does not hold
     named = [r for r in rows if r["diagnosis"] not in ("none", "unexplained", "error")]
     shrinks = [float(r["shrink_heldout"]) for r in named if r["shrink_heldout"] is not None]
     totals = [float(r["shrink_heldout_with_secondary"]) for r in named if r["shrink_heldout"] is not None]

@@ -60,6 +60,7 @@ from app.gap.effects import (
     unit_gaps,
 )
 from app.gap.measured import Measured
+from app.gap.method_effects import HELDOUT_FIT, method_effects, with_method_effects
 from app.gap.model import Mods, Prepared, Simulated, prepare, simulate
 from app.gap.model import run as run_model
 from app.gap.result import (
@@ -1058,6 +1059,17 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         _effect(j, config)
         for j in sorted((j for j in judged if j.present and j not in findings), key=lambda j: -j.importance)
     ]
+    own_shrink = effects[0].shrink_heldout if lead is not None else 0.0
+    lead_importance = lead.importance if lead else 0.0
+    effects = with_method_effects(effects, method_effects(m, config), lead_importance, config)
+    first = effects[0] if effects else None
+    measured_lead = first if first and first.measured_by != HELDOUT_FIT and first.matters else None
+    if measured_lead is not None:  # what the held-out fit led with is now a secondary finding
+        diagnosis, confounded = measured_lead.effect, [] if lead is not None else confounded
+    # an effect the method measured, present or not, is not hidden in a calibrated nuisance: its
+    # entry gives its size and interval
+    measured = {e.effect for e in effects if e.measured_by != HELDOUT_FIT}
+    confounded = [c for c in confounded if c not in measured]
     without = pb.simulate(best.without_effect()) if best is not None else calibrated
     effect_delta = pb.simulate(combine(best.fit.fields())).beta - without.beta if best is not None else 0.0
     residuals = Residuals(
@@ -1072,13 +1084,12 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         joint[f.effect] for f in findings if f.effect in joint and channel(f.effect) == "sideslip"
     ]
     total = _shrink_with(pb, ho, sideslip_joint[-1]) if sideslip_joint and best is not None else None
-    own_shrink = effects[0].shrink_heldout if lead is not None else 0.0
     c2n_index = [p.name for p in calibration.params].index("c2n_per_rad")
     result = GapResult(
         diagnosis=diagnosis,
         confounded_with=tuple(confounded),
         secondary=tuple(
-            Secondary(e.effect, e.params, e.shrink_heldout, e.action) for e in effects[1 : len(findings)]
+            Secondary(e.effect, e.params, e.shrink_heldout, e.action) for e in effects[1:] if e.matters
         ),
         calibration=_calibrated(pb, calibration, beside),
         located=tuple(locate(pb, calibrated, fold)),
@@ -1100,8 +1111,10 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         heldout_yaw_rms_degps=BeforeAfter(
             round(best.yaw_before if best else ho.yaw, 5), round(best.yaw_after if best else ho.yaw, 5)
         ),
-        verdict=_verdict(diagnosis, effects[0] if lead is not None else None, ho, confounded, config),
-        action=effects[0].action if lead is not None else None,
+        verdict=_verdict(
+            diagnosis, effects[0] if lead is not None or measured_lead else None, ho, confounded, config
+        ),
+        action=effects[0].action if lead is not None or measured_lead else None,
         separate_by={
             other: {**HIDDEN_BY_CALIBRATION, **HIDDEN_BY_RIVAL}[other]
             if best is None
@@ -1204,21 +1217,27 @@ def hidden_by_rivals(calibration: Calibration) -> list[str]:
 
 def _verdict(diagnosis: str, lead: Effect | None, ho: Heldout, confounded: list[str], config: Config) -> str:
     """The diagnosis in a sentence: what was found, and what the held-out test showed."""
-    if lead is None and diagnosis == "none":
-        twins = {**NUISANCE_TWINS, **RIVAL_NUISANCE}
-        inside: dict[str, list[str]] = {}
-        for effect in confounded:
+    twins = {**NUISANCE_TWINS, **RIVAL_NUISANCE}
+    inside: dict[str, list[str]] = {}
+    for effect in confounded:
+        if effect in twins:
             inside.setdefault(twins[effect], []).append(f"a {effect.replace('_', ' ')}")
-        hidden = "; ".join(f"{' or '.join(e)} would be inside the calibrated {n}" for n, e in inside.items())
+    hidden = "; ".join(f"{' or '.join(e)} would be inside the calibrated {n}" for n, e in inside.items())
+    if lead is None and diagnosis == "none":
         return (
             f"none: the calibrated model is within {ho.gap:.4f}° of the drive's sideslip (held out; "
-            f"tolerance {config.gap.sideslip_deg:g}°); no effect found matters ({hidden})"
+            f"tolerance {config.gap.sideslip_deg:g}°); no effect found matters"
+            + (f" ({hidden})" if hidden else "")
         )
     if lead is None:
         return (
             f"unexplained: the calibrated model leaves a held-out sideslip gap of {ho.gap:.4f}°, beyond "
             f"the sensor's {config.gap.sideslip_deg:g}°, that no candidate effect found matters for "
             "(see where it lies)"
+        )
+    if lead.heldout_before is None or lead.heldout_after is None:
+        return f"{diagnosis}, measured by {lead.measured_by}: {lead.judged.removeprefix('matters: ')}" + (
+            f"; {hidden}" if hidden else ""
         )
     unit = "°" if lead.channel == "sideslip" else " m/s"
     where = "sideslip" if lead.channel == "sideslip" else "vehicle speed signal"

@@ -147,7 +147,9 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
             text(e.effect),
             text(e.channel),
             html.escape(_intervals(e.params, e.ci95)),
-            f"{text(e.heldout_before)} → {text(e.heldout_after)} ({100 * e.shrink_heldout:.0f} %)",
+            f"{text(e.heldout_before)} → {text(e.heldout_after)} ({100 * e.shrink_heldout:.0f} %)"
+            if e.heldout_before is not None
+            else f"measured by {text(e.measured_by)}",
             text(e.gain_sigmas),
             f"{text(e.c2n_effect_pct.crossing)} / {text(e.c2n_effect_pct.headline)}",
             "<strong>matters</strong>" if e.matters else text(e.judged),

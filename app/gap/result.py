@@ -108,18 +108,20 @@ class Effect:
     beyond the config's tolerance (``matters``) or within it."""
 
     effect: str
-    channel: str  # "sideslip" (at the sensor) or "speed" (the vehicle speed signal)
+    channel: str  # "sideslip" (at the sensor), "speed" (the vehicle speed signal), "c2n" (the axle's)
     params: Mapping[str, float]
     ci95: Mapping[str, tuple[float, float]]
     shrink_heldout: float  # of its own channel's held-out gap
-    heldout_before: float  # that gap, deg (sideslip) or m/s (speed)
-    heldout_after: float
-    gain_sigmas: float  # the held-out gain over its standard error (manoeuvres as samples)
+    heldout_before: float | None  # that gap, deg (sideslip) or m/s (speed); None: not a held-out fit
+    heldout_after: float | None
+    gain_sigmas: float  # the held-out gain over its standard error (manoeuvres as samples), or the
+    # estimate's distance from nothing in standard errors where the method measured it
     c2n_effect_pct: C2nEffect
     matters: bool
     judged: str  # why it matters, or "within tolerance" and of what
     confounded_with: tuple[str, ...]  # effects the drive cannot tell from it
     action: str  # what its size means and what to do
+    measured_by: str = "held-out fit"  # or "the C2n regression", "the headline against the tyre rig's C2n"
 
 
 @dataclass(frozen=True)

@@ -82,7 +82,12 @@ def of_session(seed: int) -> Imperfections:
     return draw_imperfections(np.random.default_rng([seed, STREAM]))
 
 
-def handbook(rng: np.random.Generator, c1n: float, c2n: float, spread: float = 0.2) -> tuple[float, float]:
+HANDBOOK_SPREAD = 0.2  # a handbook's C1n and C2n against the car's: ± this share
+
+
+def handbook(
+    rng: np.random.Generator, c1n: float, c2n: float, spread: float = HANDBOOK_SPREAD
+) -> tuple[float, float]:
     """Nominal C1n and C2n as a handbook or a rig would give them: each the car's own perturbed
     independently by a uniform ±``spread``."""
     return (

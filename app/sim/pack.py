@@ -28,7 +28,7 @@ from app.errors import C2nError, ConfigError, OutputError
 from app.output.files import write_json, write_text
 from app.sim import commonroad
 from app.sim.effects import EFFECT_NAMES, Effect, draw_effect
-from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections, handbook, of_session
+from app.sim.imperfections import HANDBOOK_SPREAD, NO_IMPERFECTIONS, Imperfections, handbook, of_session
 from app.sim.standard import STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
 
 LOG_NAME = "drive.blf"
@@ -170,6 +170,7 @@ def _write_case(
         nominal = {"c1n_per_rad": c1n * spec.handbook[0], "c2n_per_rad": c2n * spec.handbook[1]}
         options = replace(options, plan_c2n=nominal["c2n_per_rad"])
         config_text = _with_tyres(config_text or _portable_config(config_path, force=True) or "", nominal)
+        config_text = _with_tolerance(config_text, 100.0 * HANDBOOK_SPREAD)
     drive = simulate_standard(config, options)
     folder.mkdir(parents=True, exist_ok=True)
     log = folder / LOG_NAME
@@ -190,6 +191,15 @@ def _with_tyres(text: str, tyres: dict[str, float]) -> str:
         text, found = re.subn(rf"(?m)^(\s*{key}\s*=\s*)[-+0-9.eE]+", rf"\g<1>{value:.4f}", text)
         if not found:
             raise ConfigError(f"the config has no [tyres] {key} to perturb")
+    return text
+
+
+def _with_tolerance(text: str, pct: float) -> str:
+    """The config text saying how well its [tyres] C2n is known (a handbook's figure)."""
+    line = f"c2n_tolerance_pct = {pct:g}  # a handbook's figure, not a rig's"
+    text, found = re.subn(r"(?m)^\s*c2n_tolerance_pct\s*=.*$", line, text)
+    if not found:
+        text = re.sub(r"(?m)^(\s*c2n_per_rad\s*=.*)$", rf"\g<1>\n{line}", text, count=1)
     return text
 
 

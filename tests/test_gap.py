@@ -20,7 +20,7 @@ from app.gap.diagnose import diagnose, problem, roll_lever_m
 from app.gap.measured import Measured, measure
 from app.gap.method_effects import BY_RIG
 from app.gap.model import Mods, prepare, run, simulate
-from app.gap.result import BeforeAfter, GapC2n, GapNoise, GapResult
+from app.gap.result import BeforeAfter, C2nEffect, Effect, GapC2n, GapNoise, GapResult
 from app.sim.session import DriveOptions, simulate_drive, write_drive
 from app.sim.vehicle_model import BicycleParams
 from app.sinks.summary import Summary
@@ -586,3 +586,40 @@ def test_a_bad_gap_tolerance_is_one_line_naming_it(tmp_path: Path, line: str, sa
     path.write_text(text + f"\n[gap]\n{line}\n")
     code, _, err = run_cli(["gap", str(tmp_path / "none.blf"), "--config", str(path)])
     assert code == 1 and says in err and "Traceback" not in err
+
+
+def test_gap_check_counts_the_tyres_softening_as_held_and_other_findings_on_a_clean_drive_false() -> None:
+    """Every generator's tyres soften with slip: a clean drive whose report leads with that
+    softening names what the drive holds; one that also finds a yawed head names what it does not."""
+    truth = {"cases": {f"case_00{k}": {"effect": {"name": "none", "size": 0.0}} for k in (1, 2)}}
+
+    def with_findings(*names: str) -> GapResult:
+        found = tuple(
+            Effect(
+                effect=name,
+                channel="sideslip",
+                params={},
+                ci95={},
+                shrink_heldout=0.0,
+                heldout_before=None,
+                heldout_after=None,
+                gain_sigmas=6.0,
+                c2n_effect_pct=C2nEffect(-1.2, 0.0),
+                matters=True,
+                judged="matters",
+                confounded_with=(),
+                action="",
+            )
+            for name in names
+        )
+        return dataclasses.replace(answered(names[0], 0.0), effects=found)
+
+    answers = [
+        CaseAnswer("case_001", with_findings("load_transfer_nonlinearity")),
+        CaseAnswer("case_002", with_findings("load_transfer_nonlinearity", "sensor_yaw_misalignment")),
+    ]
+    scores = score(answers, truth)
+    rows = {row["case"]: row for row in scores["cases"]}
+    assert rows["case_001"]["correct"] and not rows["case_002"]["correct"]
+    assert rows["case_002"]["false_findings"] == ["sensor_yaw_misalignment"]
+    assert scores["false_alarms"] == 1

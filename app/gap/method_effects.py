@@ -21,7 +21,7 @@ tolerances as the held-out fits: what it does to C2n, and its size against its o
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,6 +31,9 @@ from app.gap.measured import Measured
 from app.gap.result import C2nEffect, Effect
 
 HELDOUT_FIT = "held-out fit"
+# effects whose own parameter the method measures on every steady sample, where the bicycle
+# model's fit sees only what its calibrated C2n leaves: the method's entry is the effect's
+DIRECT = frozenset({"sensor_position_error", "roll_steer"})
 BY_REGRESSION = "the C2n regression"
 BY_RIG = "the headline against the tyre rig's C2n"
 
@@ -52,7 +55,12 @@ class _Estimate:
 def method_effects(m: Measured, config: Config) -> list[Effect]:
     """Every effect the regression and the headline measured, present or not (``matters`` and
     ``judged`` say which)."""
-    found = [_sensor_position(m, config), _softening(m, config), _roll_steer(m, config)]
+    found = [
+        _sensor_position(m, config),
+        _misalignment(m, config),
+        _softening(m, config),
+        _roll_steer(m, config),
+    ]
     return [e for e in found if e is not None]
 
 
@@ -60,9 +68,11 @@ def with_method_effects(
     fitted: Sequence[Effect], measured: Sequence[Effect], lead_importance: float, config: Config
 ) -> list[Effect]:
     """The held-out fits' effects and the method's together, one entry per effect, those that
-    matter first, the one that matters most leading: an effect the held-out fit found to matter
-    keeps its entry; else the method's measurement of it replaces the fit's."""
-    proven = {e.effect for e in fitted if e.matters}
+    matter first, the one that matters most leading. The method's measurement of d and of the
+    axle's C2n is the effect's own parameter (``DIRECT``): it replaces the fit's always. An offset
+    or a softening the held-out fit found to matter keeps the fit's entry (with its held-out gap);
+    else the method's replaces it."""
+    proven = {e.effect for e in fitted if e.matters} - DIRECT
     taken = [e for e in measured if e.effect not in proven]
     fits = [e for e in fitted if e.effect not in {t.effect for t in taken}]
     ranked = sorted((e for e in taken if e.matters), key=lambda e: -importance(e, config))
@@ -161,6 +171,48 @@ def _sensor_position(m: Measured, config: Config) -> Effect | None:
         BY_REGRESSION,
         config,
     )
+
+
+def _misalignment(m: Measured, config: Config) -> Effect | None:
+    """The regression's ψ0: a constant sideslip offset in the sensor's frame — a yawed head, or the
+    tyres' ply steer (the car crabs; the drive cannot tell them apart once the steering's centre is
+    calibrated). A crossing on radius R reads C2n·(1 + R·ψ0/d), left and right opposite."""
+    fit, tape = m.regression, config.vehicle.sensor_ahead_of_rear_axle_m
+    if fit is None or fit.psi0_rad is None or fit.psi0_ci95 is None or not tape:
+        return None
+    lo, hi = fit.psi0_ci95
+    deg = 180.0 / math.pi
+    head = _Estimate(-fit.psi0_rad * deg, (hi - lo) * deg / (2.0 * Z_INTERVAL))  # the head's yaw
+    radii = [abs(c.radius_m) for c in m.crossings if math.isfinite(c.radius_m) and c.radius_m]
+    crossing = 100.0 * abs(fit.psi0_rad) * float(np.mean(radii)) / tape if radii else None
+    shift = C2nEffect(None if crossing is None else round(crossing, 3), 0.0)
+    tolerance = config.gap.sideslip_deg
+    side = "left" if head.value > 0 else "right"
+    what = (
+        f"C2n ±{crossing:.2f} % on a single crossing (left and right opposite), 0 on the headline; "
+        if crossing is not None
+        else ""
+    ) + f"size {abs(head.value):.4g}° against the sensor's {tolerance:g}°"
+    action = (
+        f"the sideslip reads {abs(head.value):.3f}° off in the sensor's frame (a head yawed to the {side}, "
+        "or the tyres' ply steer): re-align the head if it is the head, or keep it and let left/right "
+        "pairing and the regression's ψ0 cancel it"
+        + (f" (single crossings move ±{crossing:.1f} %, the headline 0)" if crossing is not None else "")
+    )
+    found = _effect(
+        "sensor_yaw_misalignment",
+        "sideslip",
+        {"misalignment_deg": round(head.value, 5)},
+        {"misalignment_deg": head.ci95()},
+        head.z,
+        shift,
+        abs(head.value) / tolerance if tolerance > 0 else math.inf,
+        what,
+        action,
+        BY_REGRESSION,
+        config,
+    )
+    return replace(found, confounded_with=("tyre_ply_steer",))
 
 
 def _crossing_ay(m: Measured) -> Sequence[float]:

@@ -11,7 +11,14 @@ import numpy as np
 import pytest
 
 from app.config import Config, load_config
-from app.gap.method_effects import BY_REGRESSION, BY_RIG, HELDOUT_FIT, method_effects, with_method_effects
+from app.gap.method_effects import (
+    BY_PAIRING,
+    BY_REGRESSION,
+    BY_RIG,
+    HELDOUT_FIT,
+    method_effects,
+    with_method_effects,
+)
 from app.gap.result import C2nEffect, Effect
 
 G = 9.81
@@ -34,7 +41,7 @@ def _measured(
     s: float | None = None,
     s_se: float | None = None,
     crossing_ay: tuple[float, ...] = (2.0,),
-    psi0_deg: float | None = None,
+    head_deg: float | None = None,
     radius_m: float = 60.0,
 ) -> Any:
     fit = SimpleNamespace(
@@ -46,12 +53,15 @@ def _measured(
         softening_per_mps2_2=s,
         softening_se_per_mps2_2=s_se,
         model="softening" if s is not None else "linear",
-        psi0_rad=None if psi0_deg is None else math.radians(psi0_deg),
-        psi0_ci95=None
-        if psi0_deg is None
-        else (math.radians(psi0_deg - 0.002), math.radians(psi0_deg + 0.002)),
     )
-    summary = SimpleNamespace(c2n=headline, c2n_ci95=ci, c2n_method="regression")
+    paired = (
+        None
+        if head_deg is None
+        else SimpleNamespace(
+            misalignment_deg=head_deg, misalignment_ci95_deg=(head_deg - 0.002, head_deg + 0.002)
+        )
+    )
+    summary = SimpleNamespace(c2n=headline, c2n_ci95=ci, c2n_method="regression", paired=paired)
     ay = np.linspace(0.0, 4.0, 401)
     return SimpleNamespace(
         regression=fit,
@@ -150,20 +160,20 @@ def test_one_entry_per_effect_a_held_out_finding_kept_the_largest_finding_first(
     # d is the regression's own parameter: its measurement replaces even a held-out finding (which
     # sees d only through what the calibrated C2n leaves); an offset the held-out fit proved keeps
     # the fit's entry, with its held-out gap
-    offset = method_effects(_measured(psi0_deg=-0.3), config)
+    offset = method_effects(_measured(head_deg=0.3), config)
     proven = [_fitted("sensor_position_error", True), _fitted("sensor_yaw_misalignment", True)]
     merged = with_method_effects(proven, measured + offset, 2.0, config)
     by = {e.effect: e.measured_by for e in merged}
     assert by["sensor_position_error"] == BY_REGRESSION and by["sensor_yaw_misalignment"] == HELDOUT_FIT
 
 
-def test_the_regressions_psi0_is_a_head_yaw_or_ply_steer_moving_single_crossings_by_r_psi0_over_d() -> None:
-    effects = method_effects(_measured(psi0_deg=-0.3, radius_m=60.0), _config(tape=0.8))
+def test_the_pairings_offset_is_a_head_yaw_or_ply_steer_moving_single_crossings_by_r_psi_over_d() -> None:
+    effects = method_effects(_measured(head_deg=0.3, radius_m=60.0), _config(tape=0.8))
     head = _one(effects, "sensor_yaw_misalignment")
-    assert head.params["misalignment_deg"] == pytest.approx(0.3)  # measured = true − the head's yaw
+    assert head.params["misalignment_deg"] == pytest.approx(0.3) and head.measured_by == BY_PAIRING
     assert head.confounded_with == ("tyre_ply_steer",)
-    # a crossing on R reads C2n·(1 + R·ψ0/d)
+    # a crossing on R reads C2n·(1 ± R·ψ/d), left and right opposite; pairing cancels it
     assert head.c2n_effect_pct.crossing == pytest.approx(100 * 60.0 * math.radians(0.3) / 0.8, abs=1e-3)
     assert head.c2n_effect_pct.headline == 0.0 and head.matters and "left" in head.action
-    nothing = _one(method_effects(_measured(psi0_deg=0.0005), _config()), "sensor_yaw_misalignment")
+    nothing = _one(method_effects(_measured(head_deg=0.0005), _config()), "sensor_yaw_misalignment")
     assert not nothing.matters

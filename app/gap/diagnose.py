@@ -60,7 +60,7 @@ from app.gap.effects import (
     unit_gaps,
 )
 from app.gap.measured import Measured
-from app.gap.method_effects import HELDOUT_FIT, method_effects, with_method_effects
+from app.gap.method_effects import DIRECT, HELDOUT_FIT, method_effects, with_method_effects
 from app.gap.model import Mods, Prepared, Simulated, prepare, simulate
 from app.gap.model import run as run_model
 from app.gap.result import (
@@ -1039,6 +1039,10 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     units = test_units(ids)
     judged = [_judge(pb, config, calibration, units, bases, s, ci) for s, ci in pairs]
     findings, joint = _together(pb, config, calibration, ho, units, bases, judged)
+    measured_effects = method_effects(m, config)
+    # where the method measures an effect's own parameter, its measurement decides, not the fit's
+    direct = DIRECT & {e.effect for e in measured_effects}
+    findings = [f for f in findings if f.effect not in direct]
     lead = findings[0] if findings else None
     best = lead.scored if lead is not None else None
     after_sim = calibrated
@@ -1061,7 +1065,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     ]
     own_shrink = effects[0].shrink_heldout if lead is not None else 0.0
     lead_importance = lead.importance if lead else 0.0
-    effects = with_method_effects(effects, method_effects(m, config), lead_importance, config)
+    effects = with_method_effects(effects, measured_effects, lead_importance, config)
     first = effects[0] if effects else None
     measured_lead = first if first and first.measured_by != HELDOUT_FIT and first.matters else None
     if measured_lead is not None:  # what the held-out fit led with is now a secondary finding

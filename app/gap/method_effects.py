@@ -35,6 +35,7 @@ HELDOUT_FIT = "held-out fit"
 # model's fit sees only what its calibrated C2n leaves: the method's entry is the effect's
 DIRECT = frozenset({"sensor_position_error", "roll_steer"})
 BY_REGRESSION = "the C2n regression"
+BY_PAIRING = "the crossings' left/right pairing"
 BY_RIG = "the headline against the tyre rig's C2n"
 
 
@@ -174,17 +175,20 @@ def _sensor_position(m: Measured, config: Config) -> Effect | None:
 
 
 def _misalignment(m: Measured, config: Config) -> Effect | None:
-    """The regression's ψ0: a constant sideslip offset in the sensor's frame — a yawed head, or the
-    tyres' ply steer (the car crabs; the drive cannot tell them apart once the steering's centre is
-    calibrated). A crossing on radius R reads C2n·(1 + R·ψ0/d), left and right opposite."""
-    fit, tape = m.regression, config.vehicle.sensor_ahead_of_rear_axle_m
-    if fit is None or fit.psi0_rad is None or fit.psi0_ci95 is None or not tape:
+    """The crossings' left/right pairing: a constant sideslip offset in the sensor's frame moves a
+    left and a right crossing opposite ways, C2n·(1 ± R·ψ/d) — a yawed head, or the tyres' ply
+    steer (the car crabs; the drive cannot tell them apart once the steering's centre is
+    calibrated). Measured where the method reads C2n, on the crossings themselves, with their
+    scatter (the model's floor there included), not on every sample as the regression's ψ0."""
+    paired, tape = m.summary.paired, config.vehicle.sensor_ahead_of_rear_axle_m
+    if paired is None or paired.misalignment_deg is None or paired.misalignment_ci95_deg is None or not tape:
         return None
-    lo, hi = fit.psi0_ci95
-    deg = 180.0 / math.pi
-    head = _Estimate(-fit.psi0_rad * deg, (hi - lo) * deg / (2.0 * Z_INTERVAL))  # the head's yaw
+    lo, hi = paired.misalignment_ci95_deg
+    if lo is None or hi is None:
+        return None
+    head = _Estimate(paired.misalignment_deg, (hi - lo) / (2.0 * Z_INTERVAL))
     radii = [abs(c.radius_m) for c in m.crossings if math.isfinite(c.radius_m) and c.radius_m]
-    crossing = 100.0 * abs(fit.psi0_rad) * float(np.mean(radii)) / tape if radii else None
+    crossing = 100.0 * math.radians(abs(head.value)) * float(np.mean(radii)) / tape if radii else None
     shift = C2nEffect(None if crossing is None else round(crossing, 3), 0.0)
     tolerance = config.gap.sideslip_deg
     side = "left" if head.value > 0 else "right"
@@ -209,7 +213,7 @@ def _misalignment(m: Measured, config: Config) -> Effect | None:
         abs(head.value) / tolerance if tolerance > 0 else math.inf,
         what,
         action,
-        BY_REGRESSION,
+        BY_PAIRING,
         config,
     )
     return replace(found, confounded_with=("tyre_ply_steer",))

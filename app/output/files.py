@@ -4,6 +4,7 @@ an OS error becomes one OutputError naming the file."""
 
 import contextlib
 import dataclasses
+import errno
 import glob
 import json
 import os
@@ -70,11 +71,18 @@ def write_json(path: Path, data: Any, what: str) -> None:
 
 
 @contextlib.contextmanager
-def folder_atomically(out: Path, ours: Callable[[str], bool], what: str) -> Iterator[Path]:
+def folder_atomically(
+    out: Path, ours: Callable[[str], bool], what: str, replace: bool = True
+) -> Iterator[Path]:
     """A folder written as one unit: the ``with`` body writes into a hidden sibling unique to
     this run, which then takes ``out``'s place whole (an older ``out`` removed after), so a
     kill, a crash or a second run at the same time leaves one run's folder, never a mix. An
-    ``out`` holding anything ``ours`` does not recognise is refused: it is not ours to replace."""
+    ``out`` holding anything ``ours`` does not recognise is refused: it is not ours to replace.
+    ``replace`` False: ``out`` must be new or empty, and still be when the folder is put in
+    place — one rename, which the system refuses if anything was put there meanwhile. A
+    symlink ``out`` is written where it points."""
+    if out.is_symlink():
+        out = Path(os.path.realpath(out))
     if out.exists():
         foreign = sorted(p.name for p in out.iterdir()) if out.is_dir() else [out.name]
         foreign = [name for name in foreign if not ours(name)]
@@ -87,7 +95,10 @@ def folder_atomically(out: Path, ours: Callable[[str], bool], what: str) -> Iter
     staging = _staging(out.parent, f".{out.name}.partial-", out)
     try:
         yield staging
-        _swap_in(staging, out)
+        if replace:
+            _swap_in(staging, out)
+        else:
+            _put_in(staging, out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # gone already when it was swapped in
 
@@ -153,6 +164,19 @@ def _alive(pid: int) -> bool:
     except PermissionError:  # someone else's
         return True
     return True
+
+
+def _put_in(staging: Path, out: Path) -> None:
+    """``staging`` renamed to ``out``: rename(2) replaces only an empty folder, atomically."""
+    try:
+        staging.rename(out)
+    except OSError as error:
+        if error.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+            raise OutputError(
+                f"{out}: something else was put there while c2n wrote — left as it is; "
+                "run again with a new --out"
+            ) from error
+        raise OutputError(f"{out}: cannot put the output folder in place ({error.strerror})") from error
 
 
 def _swap_in(staging: Path, out: Path) -> None:

@@ -1,0 +1,89 @@
+"""Issue 39, the last holes: a folder c2n makes is made whole or not at all. A pack or a campaign
+interrupted midway leaves nothing under its name (and nothing that blocks the next run); two
+``live`` started in one second record into two folders; a refused scheduler leaves no trace."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.simulated import REPO
+from tests.test_reliability_inputs import run_cli
+
+KINDS = {
+    "pack": (["--pack", "2", "--quick", "--workers", "1"], "case_001/drive.blf"),
+    "campaign": (["--campaign", "2", "--workers", "1"], "logs/s00*.blf"),
+}
+
+
+def _start(out: Path, kind: str) -> subprocess.Popen[str]:
+    options, _ = KINDS[kind]
+    return subprocess.Popen(
+        [sys.executable, "-m", "app", "simulate", *options, "--out", str(out)],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _first_file(child: subprocess.Popen[str], folder: Path, pattern: str) -> None:
+    """Wait until the run has written its first drive (wherever it writes it)."""
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and child.poll() is None:
+        if list(folder.glob(f"*/{pattern}")) or list(folder.glob(f".*/{pattern}")):
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"no drive written before the run ended ({child.poll()})")
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_an_interrupted_pack_or_campaign_leaves_nothing_under_its_name(tmp_path: Path, kind: str) -> None:
+    out = tmp_path / f"[{kind}] 1"  # brackets: glob's own characters, in a name c2n must escape
+    (tmp_path / "mine.txt").write_text("my notes")
+    child = _start(out, kind)
+    try:
+        _first_file(child, tmp_path, KINDS[kind][1])
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    assert child.returncode == 130 and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.txt"]  # no half folder, no temporary
+    # a killed run (SIGKILL cannot be caught) leaves its temporary: the next run clears it
+    child = _start(out, kind)
+    try:
+        _first_file(child, tmp_path, KINDS[kind][1])
+        child.kill()
+        child.wait(timeout=30)
+    finally:
+        child.kill()
+    assert not out.exists()
+    left = [p.name for p in tmp_path.iterdir() if p.name != "mine.txt"]
+    assert len(left) == 1 and left[0].startswith(f".{out.name}.partial-{child.pid}-"), left
+    code, _, err = run_cli(["simulate", *KINDS[kind][0], "--out", str(out)])
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, "mine.txt"])
+    assert len(list(out.glob(KINDS[kind][1].replace("case_001", "case_00*")))) == 2
+    assert (out / "sealed" / "truth.json").is_file() and (tmp_path / "mine.txt").read_text() == "my notes"
+
+
+def test_a_pack_s_folder_filled_by_someone_else_meanwhile_is_left_as_it_is(tmp_path: Path) -> None:
+    """The folder is put in place by one rename, which the system refuses over a folder that is
+    no longer empty: the user's file stays, the pack is not half-merged into it."""
+    from app.sim.pack import write_pack
+    from app.sim.standard import QUICK_PLAN
+
+    out = tmp_path / "pack"
+    out.mkdir()
+
+    def meanwhile(case: object) -> None:
+        (out / "mine.txt").write_text("put here while the pack was written")
+
+    with pytest.raises(Exception, match="something else was put there"):
+        write_pack(out, 1, 3, plan=QUICK_PLAN, workers=1, on_case=meanwhile, realistic=False)
+    assert [p.name for p in tmp_path.iterdir()] == ["pack"] and os.listdir(out) == ["mine.txt"]

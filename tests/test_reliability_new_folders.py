@@ -87,3 +87,48 @@ def test_a_pack_s_folder_filled_by_someone_else_meanwhile_is_left_as_it_is(tmp_p
     with pytest.raises(Exception, match="something else was put there"):
         write_pack(out, 1, 3, plan=QUICK_PLAN, workers=1, on_case=meanwhile, realistic=False)
     assert [p.name for p in tmp_path.iterdir()] == ["pack"] and os.listdir(out) == ["mine.txt"]
+
+
+def test_sessions_begun_in_one_second_claim_a_folder_each_and_enter_none_already_there(
+    tmp_path: Path,
+) -> None:
+    import datetime
+    import threading
+
+    from app.cli.live import session_folder
+
+    second = datetime.datetime(2026, 11, 27, 1, 2, 3)
+    stamp = "2026-11-27_010203"
+    (tmp_path / stamp).mkdir()
+    (tmp_path / stamp / "frames.log").write_text("an older session's")
+    (tmp_path / f"{stamp}-2").write_text("a file of that name")
+    claimed: list[Path] = []
+    threads = [
+        threading.Thread(target=lambda: claimed.append(session_folder(tmp_path, lambda: second)))
+        for _ in range(8)
+    ]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert sorted(p.name for p in claimed) == sorted(f"{stamp}-{n}" for n in range(3, 11))
+    assert all(p.is_dir() and not any(p.iterdir()) for p in claimed)
+    assert (tmp_path / stamp / "frames.log").read_text() == "an older session's"
+    assert os.listdir(tmp_path / stamp) == ["frames.log"]
+    assert (tmp_path / f"{stamp}-2").read_text() == "a file of that name"
+
+
+def test_a_live_session_records_into_the_folder_it_claimed(tmp_path: Path) -> None:
+    """The recorder is handed the claimed (empty) folder; one it cannot record in is not left."""
+    from app.cli.live import _recorder, session_folder
+    from app.config import load_config
+    from app.errors import C2nError
+
+    recorder = _recorder(tmp_path, load_config(), ".log")
+    recorder.close()
+    assert [p.name for p in tmp_path.iterdir()] == [recorder.folder.name]
+    assert (recorder.folder / "frames.log").exists() and (recorder.folder / "events.csv").exists()
+    with pytest.raises(C2nError, match="raw format"):
+        _recorder(tmp_path / "other", load_config(), ".txt")
+    assert list((tmp_path / "other").iterdir()) == []
+    assert session_folder(tmp_path / "new" / "deeper").parent == tmp_path / "new" / "deeper"

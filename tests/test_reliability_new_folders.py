@@ -132,3 +132,23 @@ def test_a_live_session_records_into_the_folder_it_claimed(tmp_path: Path) -> No
         _recorder(tmp_path / "other", load_config(), ".txt")
     assert list((tmp_path / "other").iterdir()) == []
     assert session_folder(tmp_path / "new" / "deeper").parent == tmp_path / "new" / "deeper"
+
+
+def test_a_refused_scheduler_leaves_the_output_location_as_it_was(tmp_path: Path) -> None:
+    import socket
+
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("log,tyre_set\nd.log,A\n")
+    (tmp_path / "d.log").write_text("(0.000000) can0 123#0102\n")
+    kept = tmp_path / "kept"  # an empty folder the user made for it: stays, empty
+    kept.mkdir()
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))  # bound, not listening: the connection is refused
+        scheduler = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+        for out in (None, tmp_path / "new" / "deeper", kept):
+            before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+            argv = ["campaign", str(manifest), "--scheduler", scheduler]
+            code, _, err = run_cli([*argv, "--out", str(out)] if out else argv)
+            assert code == 1 and "no Dask scheduler answers" in err, err
+            assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before, out
+    assert kept.is_dir()

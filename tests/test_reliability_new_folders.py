@@ -84,7 +84,7 @@ def test_a_pack_s_folder_filled_by_someone_else_meanwhile_is_left_as_it_is(tmp_p
     def meanwhile(case: object) -> None:
         (out / "mine.txt").write_text("put here while the pack was written")
 
-    with pytest.raises(Exception, match="something else was put there"):
+    with pytest.raises(Exception, match="was filled while c2n wrote"):
         write_pack(out, 1, 3, plan=QUICK_PLAN, workers=1, on_case=meanwhile, realistic=False)
     assert [p.name for p in tmp_path.iterdir()] == ["pack"] and os.listdir(out) == ["mine.txt"]
 
@@ -152,3 +152,51 @@ def test_a_refused_scheduler_leaves_the_output_location_as_it_was(tmp_path: Path
             assert code == 1 and "no Dask scheduler answers" in err, err
             assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before, out
     assert kept.is_dir()
+
+
+def test_a_pack_into_the_empty_working_folder_fills_it_in_place(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--out .``: the folder a shell stands in is filled, not renamed away under it."""
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    code, _, err = run_cli(["simulate", "--pack", "1", "--quick", "--workers", "1", "--out", "."])
+    assert code == 0, err
+    assert sorted(os.listdir(here)) == ["case_001", "sealed"] and os.listdir(tmp_path) == ["here"]
+    assert Path.cwd() == here and (here / "case_001" / "drive.blf").stat().st_size > 0
+
+
+def _without_root_s_override() -> list[str]:
+    """A prefix that runs a command without root's licence to write anywhere (none: not root)."""
+    if os.geteuid() != 0:
+        return []
+    return ["setpriv", "--bounding-set", "-dac_override,-dac_read_search,-fowner", "--"]
+
+
+READ_ONLY = {
+    "pack": ["simulate", "--pack", "1", "--quick", "--out", "{ro}/p"],
+    "campaign": ["simulate", "--campaign", "1", "--out", "{ro}/c"],
+    "live": ["live", "-i", "virtual", "--duration", "1", "--record", "{ro}/sessions"],
+    "campaign --scheduler": ["campaign", "{manifest}", "--out", "{ro}/o", "--scheduler", "tcp://127.0.0.1:9"],
+}
+
+
+@pytest.mark.parametrize("command", READ_ONLY)
+def test_a_read_only_parent_is_one_line_and_nothing_is_made(tmp_path: Path, command: str) -> None:
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    (tmp_path / "m.csv").write_text("log,tyre_set\nd.log,A\n")
+    (tmp_path / "d.log").write_text("(0.000000) can0 123#0102\n")
+    ro.chmod(0o555)
+    argv = [arg.format(ro=ro, manifest=tmp_path / "m.csv") for arg in READ_ONLY[command]]
+    done = subprocess.run(
+        [*_without_root_s_override(), sys.executable, "-m", "app", *argv],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert "Permission denied" in done.stderr and "Traceback" not in done.stderr
+    assert os.listdir(ro) == []

@@ -79,26 +79,26 @@ def folder_atomically(
     kill, a crash or a second run at the same time leaves one run's folder, never a mix. An
     ``out`` holding anything ``ours`` does not recognise is refused: it is not ours to replace.
     ``replace`` False: ``out`` must be new or empty, and still be when the folder is put in
-    place — one rename, which the system refuses if anything was put there meanwhile. A
-    symlink ``out`` is written where it points."""
-    if out.is_symlink():
-        out = Path(os.path.realpath(out))
-    if out.exists():
-        foreign = sorted(p.name for p in out.iterdir()) if out.is_dir() else [out.name]
+    place — one rename, which the system refuses if anything was put there meanwhile (a folder
+    that is there, empty, is filled instead: it may be a shell's working folder). A symlink
+    ``out`` is written where it points."""
+    place = Path(os.path.realpath(out) if out.is_symlink() else os.path.abspath(out))  # `.` too
+    if place.exists():
+        foreign = sorted(p.name for p in place.iterdir()) if place.is_dir() else [out.name]
         foreign = [name for name in foreign if not ours(name)]
-        if not out.is_dir() or foreign:
+        if not place.is_dir() or foreign:
             shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
             raise OutputError(
                 f"{out}: holds files {what} did not write ({shown}) — choose a new or empty --out"
             )
-    remove_stale(out.parent, f".{out.name}.partial-")  # a killed run's
-    staging = _staging(out.parent, f".{out.name}.partial-", out)
+    remove_stale(place.parent, f".{place.name}.partial-")  # a killed run's
+    staging = _staging(place.parent, f".{place.name}.partial-", out)
     try:
         yield staging
         if replace:
-            _swap_in(staging, out)
+            _swap_in(staging, place)
         else:
-            _put_in(staging, out)
+            _put_in(staging, place, out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # gone already when it was swapped in
 
@@ -117,15 +117,12 @@ def files_together(folder: Path, names: Sequence[str]) -> Iterator[Path]:
         missing = [name for name in names if not (staging / name).is_file()]
         if missing:
             raise OutputError(f"{folder}: {', '.join(missing)} not written")
-        held = {signal.SIGINT, signal.SIGTERM}
-        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
         try:
-            for name in names:
-                os.replace(staging / name, folder / name)
+            with _held():  # a held Ctrl-C arrives after
+                for name in names:
+                    os.replace(staging / name, folder / name)
         except OSError as error:
             raise OutputError(f"{folder}: cannot put the results in place ({error.strerror})") from error
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a held Ctrl-C arrives now
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 
@@ -166,17 +163,35 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _put_in(staging: Path, out: Path) -> None:
-    """``staging`` renamed to ``out``: rename(2) replaces only an empty folder, atomically."""
+def _put_in(staging: Path, place: Path, out: Path) -> None:
+    """``staging`` renamed to ``place`` (rename(2) replaces only an empty folder, atomically);
+    into an empty folder that is there, its entries are moved, Ctrl-C and SIGTERM held back."""
     try:
-        staging.rename(out)
+        if place.is_dir():
+            if any(place.iterdir()):
+                raise FileExistsError(errno.ENOTEMPTY, "not empty")
+            with _held():
+                for entry in sorted(staging.iterdir()):
+                    os.rename(entry, place / entry.name)
+        else:
+            staging.rename(place)
     except OSError as error:
         if error.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
             raise OutputError(
-                f"{out}: something else was put there while c2n wrote — left as it is; "
-                "run again with a new --out"
+                f"{out}: was filled while c2n wrote (another run?) — left as it is; run again with "
+                "a new --out"
             ) from error
         raise OutputError(f"{out}: cannot put the output folder in place ({error.strerror})") from error
+
+
+@contextlib.contextmanager
+def _held() -> Iterator[None]:
+    """Ctrl-C and SIGTERM held back for the body, then delivered."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _swap_in(staging: Path, out: Path) -> None:

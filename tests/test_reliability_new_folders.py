@@ -200,3 +200,18 @@ def test_a_read_only_parent_is_one_line_and_nothing_is_made(tmp_path: Path, comm
     assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
     assert "Permission denied" in done.stderr and "Traceback" not in done.stderr
     assert os.listdir(ro) == []
+
+
+def test_two_packs_to_the_same_new_folder_at_once_give_one_whole_pack(tmp_path: Path) -> None:
+    out = tmp_path / "pack"
+    children = [_start(out, "pack") for _ in range(2)]
+    try:
+        errors = [child.communicate(timeout=300)[1] for child in children]
+    finally:
+        for child in children:
+            child.kill()
+    assert sorted(child.returncode for child in children) == [0, 1], errors
+    refused = errors[[child.returncode for child in children].index(1)]
+    assert refused.count("\n") == 1 and ("was filled while c2n wrote" in refused or "holds files" in refused)
+    assert os.listdir(tmp_path) == ["pack"]  # no temporary left
+    assert sorted(os.listdir(out)) == ["case_001", "case_002", "sealed"]

@@ -215,3 +215,14 @@ def test_two_packs_to_the_same_new_folder_at_once_give_one_whole_pack(tmp_path: 
     assert refused.count("\n") == 1 and ("was filled while c2n wrote" in refused or "holds files" in refused)
     assert os.listdir(tmp_path) == ["pack"]  # no temporary left
     assert sorted(os.listdir(out)) == ["case_001", "case_002", "sealed"]
+
+
+def test_an_export_into_the_working_folder_is_one_line_not_the_folder_swapped_away(
+    drive_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    code, _, err = run_cli(["export", str(drive_log), "--no-plots", "--format", "csv", "--out", "."])
+    assert code == 1 and err.count("\n") == 1 and "is the folder c2n runs in" in err, err
+    assert Path.cwd().exists() and os.listdir(here) == [] and os.listdir(tmp_path) == ["here"]

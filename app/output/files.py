@@ -91,6 +91,10 @@ def folder_atomically(
             raise OutputError(
                 f"{out}: holds files {what} did not write ({shown}) — choose a new or empty --out"
             )
+    if replace and place.is_dir() and inside(Path.cwd(), place):
+        raise OutputError(  # swapped away, it would leave this shell in a folder that is gone
+            f"{out}: is the folder c2n runs in (or holds it) — choose another --out"
+        )
     remove_stale(place.parent, f".{place.name}.partial-")  # a killed run's
     staging = _staging(place.parent, f".{place.name}.partial-", out)
     try:
@@ -161,6 +165,12 @@ def _alive(pid: int) -> bool:
     except PermissionError:  # someone else's
         return True
     return True
+
+
+def inside(path: Path, folder: Path) -> bool:
+    """``path`` is ``folder`` or in it, however spelt."""
+    inner, outer = os.path.realpath(path), os.path.realpath(folder)
+    return inner == outer or inner.startswith(outer.rstrip(os.sep) + os.sep)
 
 
 def _put_in(staging: Path, place: Path, out: Path) -> None:

@@ -151,7 +151,7 @@ def run(
     the workers are started (``workers()``) only when something is left to analyse."""
     cache = out / CACHE
     try:
-        cache.mkdir(parents=True, exist_ok=True)
+        made = _make(cache)
     except OSError as error:
         raise C2nError(f"{cache}: cannot be made ({error.strerror}) — choose another --out") from None
     stored = _stored(cache)
@@ -165,11 +165,17 @@ def run(
             on_row(i, rows[i])
         else:
             pending.append(i)
-    memo.save()
     if not pending:
+        memo.save()
         return rows
     known = frozenset(stored)
-    with workers() as executor:
+    with contextlib.ExitStack() as stack:
+        try:
+            executor = stack.enter_context(workers())
+        except BaseException:  # refused (or Ctrl-C) before any work: the folders made go again
+            _unmake(made)
+            raise
+        memo.save()
         futures = {
             executor.submit(run_task, Task(Job(manifest.entries[i].log, config), known)): i for i in pending
         }
@@ -190,6 +196,27 @@ def run(
                 "run the same command again to go on"
             ) from None
     return rows
+
+
+def _make(folder: Path) -> list[Path]:
+    """Make ``folder`` and its missing parents; the ones this call made (another process's are
+    not), outermost first."""
+    missing = [path for path in (folder, *folder.parents) if not os.path.lexists(path)]
+    made = []
+    for path in reversed(missing):
+        try:
+            path.mkdir()
+        except FileExistsError:  # made meanwhile by someone else: not ours
+            continue
+        made.append(path)
+    return made
+
+
+def _unmake(made: list[Path]) -> None:
+    """Remove the folders ``_make`` made, innermost first, each only while it is empty."""
+    for path in reversed(made):
+        with contextlib.suppress(OSError):
+            path.rmdir()
 
 
 def _take(

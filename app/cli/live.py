@@ -3,6 +3,7 @@
 import argparse
 import contextlib
 import datetime
+import shutil
 import signal
 import sys
 import threading
@@ -17,13 +18,15 @@ from rich.text import Text
 
 from app.cli.common import add_bus, add_config, add_force, bus_kwargs, channels, error_console, number
 from app.config import load_config
-from app.errors import OutputError, printable
+from app.errors import C2nError, OutputError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
 from app.user_text import shown
 
 if TYPE_CHECKING:
     import can
 
+    from app.config import Config
+    from app.sinks.recorder import SessionRecorder
     from app.sources.buses import Backoff
 
 RAW_FORMATS = (".log", ".asc", ".blf")  # app.sinks.recorder.RAW_FORMATS, named here for `--help`
@@ -92,13 +95,39 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
-def session_folder(parent: Path) -> Path:
-    stamp = datetime.datetime.now().strftime("%Y-%m-%d_%H%M%S")
-    folder, n = parent / stamp, 1
-    while folder.exists():
-        n += 1
-        folder = parent / f"{stamp}-{n}"
-    return folder
+_MOST_IN_ONE_SECOND = 10_000  # sessions begun in one second: more is a folder c2n cannot write
+
+
+def session_folder(parent: Path, now: Callable[[], datetime.datetime] = datetime.datetime.now) -> Path:
+    """A new, empty folder for the session, named after the second it begins (``-2``, ``-3`` …
+    after it when that one is taken), claimed by creating it: two sessions begun in the same
+    second get a folder each, and a folder or file already there is never entered."""
+    stamp = now().strftime("%Y-%m-%d_%H%M%S")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        for n in range(1, _MOST_IN_ONE_SECOND + 1):
+            folder = parent / (stamp if n == 1 else f"{stamp}-{n}")
+            try:
+                folder.mkdir()
+                return folder
+            except FileExistsError:  # another session's, or anything else: the next name
+                continue
+    except OSError as error:
+        raise OutputError(
+            f"{parent}: cannot record the session ({error.strerror}) — use --record DIR"
+        ) from error
+    raise OutputError(f"{parent}: {_MOST_IN_ONE_SECOND} sessions began at {stamp} — use --record DIR")
+
+
+def _recorder(parent: Path, config: "Config", raw_format: str) -> "SessionRecorder":
+    from app.sinks.recorder import SessionRecorder
+
+    folder = session_folder(parent)
+    try:
+        return SessionRecorder(folder, config, raw_format, claimed=True)
+    except C2nError:
+        shutil.rmtree(folder, ignore_errors=True)  # claimed by this run: all in it is c2n's
+        raise
 
 
 OpenBuses = Callable[..., list["can.BusABC"]]
@@ -121,7 +150,6 @@ def run(
     from app.sinks import summary
     from app.sinks.dashboard import Dashboard
     from app.sinks.event_printer import EventPrinter, print_result
-    from app.sinks.recorder import SessionRecorder
     from app.sinks.sink import Sink
     from app.sources.buses import Backoff, BusSource, open_buses
     from app.sources.playback import drive_time
@@ -142,9 +170,7 @@ def run(
     buses = opener(args.interface, wanted, args.bitrate, **options)
     title = ", ".join(str(bus.channel_info) for bus in buses)
     pipeline = Pipeline(config)
-    recorder = (
-        None if args.no_record else SessionRecorder(session_folder(args.record), config, args.raw_format)
-    )
+    recorder = None if args.no_record else _recorder(args.record, config, args.raw_format)
     stop = threading.Event()
     timer = threading.Timer(args.duration, stop.set) if args.duration else None
     # Ctrl-C and SIGTERM both end the session cleanly, also where SIGINT was inherited ignored

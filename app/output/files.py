@@ -4,6 +4,7 @@ an OS error becomes one OutputError naming the file."""
 
 import contextlib
 import dataclasses
+import errno
 import glob
 import json
 import os
@@ -70,24 +71,38 @@ def write_json(path: Path, data: Any, what: str) -> None:
 
 
 @contextlib.contextmanager
-def folder_atomically(out: Path, ours: Callable[[str], bool], what: str) -> Iterator[Path]:
+def folder_atomically(
+    out: Path, ours: Callable[[str], bool], what: str, replace: bool = True
+) -> Iterator[Path]:
     """A folder written as one unit: the ``with`` body writes into a hidden sibling unique to
     this run, which then takes ``out``'s place whole (an older ``out`` removed after), so a
     kill, a crash or a second run at the same time leaves one run's folder, never a mix. An
-    ``out`` holding anything ``ours`` does not recognise is refused: it is not ours to replace."""
-    if out.exists():
-        foreign = sorted(p.name for p in out.iterdir()) if out.is_dir() else [out.name]
+    ``out`` holding anything ``ours`` does not recognise is refused: it is not ours to replace.
+    ``replace`` False: ``out`` must be new or empty, and still be when the folder is put in
+    place — one rename, which the system refuses if anything was put there meanwhile (a folder
+    that is there, empty, is filled instead: it may be a shell's working folder). A symlink
+    ``out`` is written where it points."""
+    place = Path(os.path.realpath(out) if out.is_symlink() else os.path.abspath(out))  # `.` too
+    if place.exists():
+        foreign = sorted(p.name for p in place.iterdir()) if place.is_dir() else [out.name]
         foreign = [name for name in foreign if not ours(name)]
-        if not out.is_dir() or foreign:
+        if not place.is_dir() or foreign:
             shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
             raise OutputError(
                 f"{out}: holds files {what} did not write ({shown}) — choose a new or empty --out"
             )
-    remove_stale(out.parent, f".{out.name}.partial-")  # a killed run's
-    staging = _staging(out.parent, f".{out.name}.partial-", out)
+    if replace and place.is_dir() and inside(Path.cwd(), place):
+        raise OutputError(  # swapped away, it would leave this shell in a folder that is gone
+            f"{out}: is the folder c2n runs in (or holds it) — choose another --out"
+        )
+    remove_stale(place.parent, f".{place.name}.partial-")  # a killed run's
+    staging = _staging(place.parent, f".{place.name}.partial-", out)
     try:
         yield staging
-        _swap_in(staging, out)
+        if replace:
+            _swap_in(staging, place)
+        else:
+            _put_in(staging, place, out)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # gone already when it was swapped in
 
@@ -106,15 +121,12 @@ def files_together(folder: Path, names: Sequence[str]) -> Iterator[Path]:
         missing = [name for name in names if not (staging / name).is_file()]
         if missing:
             raise OutputError(f"{folder}: {', '.join(missing)} not written")
-        held = {signal.SIGINT, signal.SIGTERM}
-        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
         try:
-            for name in names:
-                os.replace(staging / name, folder / name)
+            with _held():  # a held Ctrl-C arrives after
+                for name in names:
+                    os.replace(staging / name, folder / name)
         except OSError as error:
             raise OutputError(f"{folder}: cannot put the results in place ({error.strerror})") from error
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, previous)  # a held Ctrl-C arrives now
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 
@@ -153,6 +165,43 @@ def _alive(pid: int) -> bool:
     except PermissionError:  # someone else's
         return True
     return True
+
+
+def inside(path: Path, folder: Path) -> bool:
+    """``path`` is ``folder`` or in it, however spelt."""
+    inner, outer = os.path.realpath(path), os.path.realpath(folder)
+    return inner == outer or inner.startswith(outer.rstrip(os.sep) + os.sep)
+
+
+def _put_in(staging: Path, place: Path, out: Path) -> None:
+    """``staging`` renamed to ``place`` (rename(2) replaces only an empty folder, atomically);
+    into an empty folder that is there, its entries are moved, Ctrl-C and SIGTERM held back."""
+    try:
+        if place.is_dir():
+            if any(place.iterdir()):
+                raise FileExistsError(errno.ENOTEMPTY, "not empty")
+            with _held():
+                for entry in sorted(staging.iterdir()):
+                    os.rename(entry, place / entry.name)
+        else:
+            staging.rename(place)
+    except OSError as error:
+        if error.errno in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+            raise OutputError(
+                f"{out}: was filled while c2n wrote (another run?) — left as it is; run again with "
+                "a new --out"
+            ) from error
+        raise OutputError(f"{out}: cannot put the output folder in place ({error.strerror})") from error
+
+
+@contextlib.contextmanager
+def _held() -> Iterator[None]:
+    """Ctrl-C and SIGTERM held back for the body, then delivered."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _swap_in(staging: Path, out: Path) -> None:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from app.errors import OutputError, UsageError
-from app.output.files import STDOUT
+from app.output.files import STDOUT, inside
 
 GENERATOR = '<meta name="generator" content="c2n">'  # in the head of every HTML page c2n writes
 _OLDER_HTML = "default-src 'none'; img-src data:"  # the policy of pages written before the marker
@@ -52,7 +52,7 @@ def check(outputs: Sequence[Output | None], inputs: Iterable[Path], force: bool 
                 raise UsageError(
                     f"{out.option} {out.path}: that is an input of this command — write elsewhere"
                 )
-            if out.folder and _inside(source, out.path):
+            if out.folder and inside(source, out.path):
                 raise UsageError(
                     f"{out.option} {out.path}: that folder holds an input ({source}) — choose another folder"
                 )
@@ -161,11 +161,6 @@ def _same(a: Path, b: Path) -> bool:
         return os.path.samefile(a, b)
     except OSError:  # one of them does not exist (yet)
         return os.path.realpath(a) == os.path.realpath(b)
-
-
-def _inside(path: Path, folder: Path) -> bool:
-    inner, outer = os.path.realpath(path), os.path.realpath(folder)
-    return inner == outer or inner.startswith(outer.rstrip(os.sep) + os.sep)
 
 
 # the files c2n writes, each known by keys only it writes together

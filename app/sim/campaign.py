@@ -22,7 +22,7 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, OutputError
-from app.output.files import write_atomically, write_json
+from app.output.files import folder_atomically, write_json, write_text
 from app.sim.pack import write_log
 from app.sim.session import DriveOptions, simulate_drive
 
@@ -72,32 +72,48 @@ def write_campaign(
         raise OutputError(f"{out}: exists and is not an empty folder — choose a new one")
     load_config(config_path)  # a bad config fails here, once
     specs = plan_campaign(n, seed)
+    # written in a hidden folder beside ``out``, renamed to it when whole: a Ctrl-C, a kill or a
+    # full disk leaves no half campaign under its name
+    with folder_atomically(out, lambda name: False, "c2n simulate", replace=False) as staging:
+        _write_sessions(staging, specs, config_path, workers, on_session, sensor or {})
+        text = io.StringIO()
+        writer = csv.writer(text, lineterminator="\n")
+        writer.writerow(["log", "tyre_set", "pressure_kPa", "day"])
+        for spec in specs:
+            writer.writerow([f"logs/{spec.name}.blf", spec.tyre_set, f"{spec.pressure_kpa:g}", spec.day])
+        write_text(staging / "manifest.csv", text.getvalue(), "the manifest")
+        truth = {
+            "seed": seed,
+            "tyre_sets": {name: {"c2n": c2n, "pressure_kPa": p} for name, (c2n, p) in TYRE_SETS.items()},
+            "day_scatter": DAY_SCATTER,
+            "sessions": {
+                f"logs/{s.name}.blf": {"tyre_set": s.tyre_set, "day": s.day, "c2n": s.c2n} for s in specs
+            },
+        }
+        write_json(staging / "sealed" / "truth.json", truth, "the sealed truth")
+    manifest = out / "manifest.csv"
+    return manifest
+
+
+def _write_sessions(
+    out: Path,
+    specs: list[SessionSpec],
+    config_path: Path,
+    workers: int | None,
+    on_session: Callable[[SessionSpec, float], None] | None,
+    sensor: dict[str, Any],
+) -> None:
     (out / "logs").mkdir(parents=True, exist_ok=True)
-    jobs = [(Path(config_path), out / "logs" / f"{spec.name}.blf", spec, sensor or {}) for spec in specs]
-    with ProcessPoolExecutor(max_workers=max(1, min(workers or os.cpu_count() or 1, n))) as pool:
+    jobs = [(Path(config_path), out / "logs" / f"{spec.name}.blf", spec, sensor) for spec in specs]
+    pool = ProcessPoolExecutor(max_workers=max(1, min(workers or os.cpu_count() or 1, len(specs))))
+    try:
         futures = {pool.submit(_write_session, *job): job[2] for job in jobs}
         for future in as_completed(futures):
             elapsed = future.result()
             if on_session:
                 on_session(futures[future], elapsed)
-    manifest = out / "manifest.csv"
-    text = io.StringIO()
-    writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(["log", "tyre_set", "pressure_kPa", "day"])
-    for spec in specs:
-        writer.writerow([f"logs/{spec.name}.blf", spec.tyre_set, f"{spec.pressure_kpa:g}", spec.day])
-    write_atomically(manifest, lambda tmp: tmp.write_text(text.getvalue(), encoding="utf-8"), "the manifest")
-    truth = {
-        "seed": seed,
-        "tyre_sets": {name: {"c2n": c2n, "pressure_kPa": p} for name, (c2n, p) in TYRE_SETS.items()},
-        "day_scatter": DAY_SCATTER,
-        "sessions": {
-            f"logs/{s.name}.blf": {"tyre_set": s.tyre_set, "day": s.day, "c2n": s.c2n} for s in specs
-        },
-    }
-    (out / "sealed").mkdir(exist_ok=True)
-    write_json(out / "sealed" / "truth.json", truth, "the sealed truth")
-    return manifest
+    finally:  # a Ctrl-C: the drives not begun are not simulated
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _write_session(config_path: Path, log: Path, spec: SessionSpec, sensor: dict[str, Any]) -> float:

@@ -25,7 +25,7 @@ import numpy as np
 
 from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, ConfigError, OutputError
-from app.output.files import write_json, write_text
+from app.output.files import folder_atomically, write_json, write_text
 from app.sim import commonroad
 from app.sim.effects import EFFECT_NAMES, Effect, draw_effect
 from app.sim.imperfections import HANDBOOK_SPREAD, NO_IMPERFECTIONS, Imperfections, handbook, of_session
@@ -116,6 +116,34 @@ def write_pack(
     load_config(config_path)  # a bad config fails here, once, not in every worker
     specs = plan_pack(n, pack_seed, realistic, model, only)
     start = clock()
+    # written in a hidden folder beside ``out``, renamed to it when whole: a Ctrl-C, a kill or a
+    # full disk leaves no half pack under its name
+    with folder_atomically(out, lambda name: False, "c2n simulate", replace=False) as staging:
+        results = _write_cases(staging, specs, config_path, plan, config_text, model, workers, on_case)
+        truth = {
+            "pack_seed": pack_seed,
+            "n": n,
+            "config": str(Path(config_path).resolve()),
+            "realistic": realistic,
+            "model": model,
+            "cases": {result.name: result.truth for result in results},
+        }
+        write_json(staging / "sealed" / "truth.json", truth, "the sealed truth")
+    cases = tuple(replace(result, log=out / result.name / LOG_NAME) for result in results)
+    return PackResult(out, cases, out / "sealed" / "truth.json", clock() - start)
+
+
+def _write_cases(
+    out: Path,
+    specs: list[CaseSpec],
+    config_path: Path,
+    plan: StandardPlan,
+    config_text: str | None,
+    model: str,
+    workers: int | None,
+    on_case: Callable[[CaseResult], None] | None,
+) -> list[CaseResult]:
+    n = len(specs)
     jobs = [(Path(config_path), out / spec.name, spec, plan, config_text, model) for spec in specs]
     workers = max(1, min(workers or os.cpu_count() or 1, n))
     results: list[CaseResult] = []
@@ -135,19 +163,7 @@ def write_pack(
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
     results.sort(key=lambda result: result.name)
-    sealed = out / "sealed"
-    sealed.mkdir(parents=True, exist_ok=True)
-    truth_path = sealed / "truth.json"
-    truth = {
-        "pack_seed": pack_seed,
-        "n": n,
-        "config": str(Path(config_path).resolve()),
-        "realistic": realistic,
-        "model": model,
-        "cases": {result.name: result.truth for result in results},
-    }
-    write_json(truth_path, truth, "the sealed truth")
-    return PackResult(out, tuple(results), truth_path, clock() - start)
+    return results
 
 
 def _write_case(

@@ -174,14 +174,16 @@ def copy_config(config: Config, copies: Path) -> None:
 class SessionRecorder(Sink):
     """The session folder as a sink: every raw frame as it arrives, every event as a row of
     events.csv; ``close`` finishes both (a BLF gets its header), ``write_summary`` adds the
-    summary beside them."""
+    summary beside them. ``folder`` must be new — or ``claimed``: made empty by the caller for
+    this session alone (``app.cli.live.session_folder``)."""
 
-    def __init__(self, folder: Path, config: Config, raw_format: str = ".log") -> None:
+    def __init__(self, folder: Path, config: Config, raw_format: str = ".log", claimed: bool = False) -> None:
         if raw_format not in RAW_FORMATS:
             raise C2nError(f"raw format '{raw_format}' — use one of {', '.join(RAW_FORMATS)}")
         self.folder = folder
         try:
-            folder.mkdir(parents=True, exist_ok=False)
+            if not claimed:
+                folder.mkdir(parents=True, exist_ok=False)
             copy_config(config, folder / CONFIG_FOLDER)
             self.raw_path = folder / f"frames{raw_format}"
             self._spool = _Spool(self.raw_path) if raw_format in _TEXT_WRITERS else None

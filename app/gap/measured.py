@@ -145,10 +145,17 @@ BLOCK_FRAMES = 4096  # frames per block: the per-block work (a few numpy calls p
 def frame_blocks(messages: Iterable[can.Message], pipeline: Pipeline) -> Iterator[FrameBlock]:
     """The frames as FrameBlocks of up to BLOCK_FRAMES, in order. A frame a block cannot hold as
     ``decode`` would read it (error and remote frames, a dlc other than its data's length, a
-    channel of None beside others) goes through ``decode`` alone, its Record to ``take_block``."""
+    channel named rather than numbered, as a candump log's ``can0``) goes through ``decode`` alone,
+    its Record to ``take_block``; a block holds channels of None or numbers, not both."""
     part: list[can.Message] = []
     for msg in messages:
-        if msg.is_error_frame or msg.is_remote_frame or msg.dlc != len(msg.data):
+        channel = msg.channel
+        if (
+            msg.is_error_frame
+            or msg.is_remote_frame
+            or msg.dlc != len(msg.data)
+            or not (channel is None or type(channel) is int)  # a named channel: a key's object
+        ):
             if part:
                 yield _block(part)
                 part = []

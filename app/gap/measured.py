@@ -6,6 +6,7 @@ come from the vehicle bus where the config maps them; the comparison is with the
 sideslip and the yaw rate.
 """
 
+import itertools
 import logging
 import math
 from collections.abc import Iterable, Iterator, Sequence
@@ -110,9 +111,14 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
     tests/test_trace_blocks.py)."""
     pipeline = Pipeline(config)
     source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
+    messages = iter(source)
+    first = next(messages, None)
+    if first is not None and not (first.channel is None or type(first.channel) is int):
+        return measure_by_frame(logs, config, dt)  # named channels (candump's can0): frame by frame
     recorder = TraceBlocks(config.roles)
     pipeline.on_block = recorder.on_block
-    run(frame_blocks(source, pipeline), pipeline, [], blocks=True)
+    frames = messages if first is None else itertools.chain([first], messages)
+    run(frame_blocks(frames, pipeline), pipeline, [], blocks=True)
     return _measured(source, pipeline, recorder.trace(pipeline.snapshot().t0), config, logs, dt)
 
 

@@ -9,7 +9,7 @@ A bulk reader may hand over frames as a FrameBlock instead (``c2n analyze`` on M
 
 import copy
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import TypeVar
@@ -36,6 +36,7 @@ from app.results.turn_step import without_step
 from app.snapshot import FilterState, Pending, Snapshot
 from app.sources.blocks import FrameBlock, RecordBlock
 
+BlockHook = Callable[[RecordBlock, np.ndarray, np.ndarray, np.ndarray, np.ndarray], None]
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)
 _LATERAL = {"beta": ("beta",), "vy": ("vy",), "auto": ("beta", "vy")}  # what sideslip_source allows
@@ -85,6 +86,10 @@ class Pipeline:
         self.profile = SideslipProfile()
         self.state = SessionState()
         self._last_fit = -float("inf")
+        # Called by ``take_block`` with each block, the rows the filter took, their estimates (rows
+        # of Estimate's fields, NaN for None), the gate's kinds and directions: what a Record
+        # would carry, for a sink of blocks (app/sinks/trace.py's TraceBlocks).
+        self.on_block: BlockHook | None = None
 
     def snapshot(self) -> Snapshot:
         """The run as it stands, for the sinks: frozen, and copies of what changes."""
@@ -225,8 +230,12 @@ class Pipeline:
         valid, out = self.filter.steps(t[rows], {role: column[rows] for role, column in block.values.items()})
         rows, out = rows[valid], out[valid]
         if not len(rows):
+            if self.on_block is not None:
+                self.on_block(block, rows, out, np.zeros(0, np.int64), np.zeros(0, np.int64))
             return []
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
+        if self.on_block is not None:
+            self.on_block(block, rows, out, np.asarray(kinds), np.asarray(directions))
         quasi = self.quasi_gate.steps(t[rows], out, problems[rows] < 0) & ~np.isnan(out[:, _V_MEAS])
         quasi_fields = iter(out[quasi].tolist())
         quasi_flags = quasi.tolist()

@@ -6,13 +6,15 @@ come from the vehicle bus where the config maps them; the comparison is with the
 sideslip and the yaw rate.
 """
 
+import itertools
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
+import can
 import numpy as np
 
 from app.config import Config
@@ -23,8 +25,9 @@ from app.results.regression import RegressionFit
 from app.run_loop import run
 from app.sinks.summary import Summary
 from app.sinks.summary import build as build_summary
-from app.sinks.trace import Trace, TraceRecorder
+from app.sinks.trace import Trace, TraceBlocks, TraceRecorder
 from app.snapshot import Snapshot
+from app.sources.blocks import FrameBlock, RecordBlock
 from app.sources.logs import LogSource
 
 log = logging.getLogger(__name__)
@@ -103,20 +106,102 @@ def _vehicle_roles(config: Config) -> frozenset[str]:
 
 
 def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
+    """The drive through the pipeline, its frames taken in blocks (``Pipeline.take_block``: the
+    filter and the gates vectorised); the same trace as frame by frame (``measure_by_frame``,
+    tests/test_trace_blocks.py)."""
+    pipeline = Pipeline(config)
+    source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
+    messages = iter(source)
+    first = next(messages, None)
+    if first is not None and not (first.channel is None or type(first.channel) is int):
+        return measure_by_frame(logs, config, dt)  # named channels (candump's can0): frame by frame
+    recorder = TraceBlocks(config.roles)
+    pipeline.on_block = recorder.on_block
+    frames = messages if first is None else itertools.chain([first], messages)
+    run(frame_blocks(frames, pipeline), pipeline, [], blocks=True)
+    return _measured(source, pipeline, recorder.trace(pipeline.snapshot().t0), config, logs, dt)
+
+
+def measure_by_frame(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
+    """``measure`` frame by frame through the live loop's path: the reference the blocks keep to."""
     pipeline = Pipeline(config)
     source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
     recorder = TraceRecorder(config.roles)
     run(source, pipeline, [recorder])
+    return _measured(source, pipeline, recorder.trace(pipeline.snapshot().t0), config, logs, dt)
+
+
+def _measured(
+    source: LogSource, pipeline: Pipeline, trace: Trace, config: Config, logs: Sequence[Path], dt: float
+) -> Measured:
     for report in source.notes:
         if report.stopped:
             log.warning("%s: %s", report.path, report.stopped)
     snapshot = pipeline.snapshot()
-    trace = recorder.trace(snapshot.t0)
     if not len(trace) or not np.isfinite(trace["sideslip_measured"]).any():
         raise NoResultError(
             f"{', '.join(map(str, logs))}: no optical sideslip — the gap needs the optical sensor's frames"
         )
     return _on_grid(trace, config, snapshot, logs, dt)
+
+
+BLOCK_FRAMES = 4096  # frames per block: the per-block work (a few numpy calls per role) amortised
+
+
+def frame_blocks(messages: Iterable[can.Message], pipeline: Pipeline) -> Iterator[FrameBlock]:
+    """The frames as FrameBlocks of up to BLOCK_FRAMES, in order. A frame a block cannot hold as
+    ``decode`` would read it (error and remote frames, a dlc other than its data's length, a
+    channel named rather than numbered, as a candump log's ``can0``) goes through ``decode`` alone,
+    its Record to ``take_block``; a block holds channels of None or numbers, not both."""
+    part: list[can.Message] = []
+    for msg in messages:
+        channel = msg.channel
+        if (
+            msg.is_error_frame
+            or msg.is_remote_frame
+            or msg.dlc != len(msg.data)
+            or not (channel is None or type(channel) is int)  # a named channel: a key's object
+        ):
+            if part:
+                yield _block(part)
+                part = []
+            record = pipeline.decoder.decode(msg)
+            if record is not None:
+                pipeline.take_block(
+                    RecordBlock(
+                        np.array([record.t]),
+                        [record.channel],
+                        [record.frame_id],
+                        {role: np.array([value]) for role, value in record.signals.items()},
+                        {0: dict(record.rejected)} if record.rejected else {},
+                    )
+                )
+            continue
+        if part and (msg.channel is None) != (part[0].channel is None):
+            yield _block(part)
+            part = []
+        part.append(msg)
+        if len(part) == BLOCK_FRAMES:
+            yield _block(part)
+            part = []
+    if part:
+        yield _block(part)
+
+
+def _block(part: list[can.Message]) -> FrameBlock:
+    width = max(8, max(len(m.data) for m in part))
+    data = np.zeros((len(part), width), np.uint8)
+    for k, m in enumerate(part):
+        data[k, : len(m.data)] = np.frombuffer(m.data, np.uint8)
+    return FrameBlock(
+        t=np.array([m.timestamp for m in part]),
+        frame_id=np.array([m.arbitration_id for m in part], np.uint32),
+        extended=np.array([m.is_extended_id for m in part]),
+        channel=None if part[0].channel is None else np.array([m.channel for m in part]),
+        data=data,
+        length=np.array([len(m.data) for m in part]),
+        fd=np.array([m.is_fd for m in part]),
+    )
 
 
 def _on_grid(trace: Trace, config: Config, snapshot: Snapshot, logs: Sequence[Path], dt: float) -> Measured:

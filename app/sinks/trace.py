@@ -12,6 +12,7 @@ import math
 from array import array
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -158,6 +159,74 @@ class TraceRecorder(Sink):
         """The columns so far, with time counted from ``t0`` (the session's first frame)."""
         columns = {
             name: np.frombuffer(column, dtype=np.float64).copy() for name, column in self._columns.items()
+        }
+        columns[TIME.name] = np.round(columns[TIME.name] - t0, 6)  # frame times are µs-resolved
+        return Trace(t0, self.channels, columns)
+
+
+# Estimate's fields (app/estimate/compiled.py's estimate_of): the column of each filtered channel
+# and its factor, in _FILTERED's order up to "health"; "steady" and "direction" are the gate's.
+_FILTERED_FIELDS = ((0, 1.0), (1, 1.0), (2, 1.0), (6, _DEG), (7, _DEG), (4, _DEG), (8, 1.0), (9, 1.0))
+_MEASURED_FIELDS = ((10, 1.0), (11, _DEG))
+_DIRECTION_VALUES = np.array([0.0, 1.0, -1.0])  # app/detect/steady_state.py's DIRECTIONS: None, left, right
+
+
+def _held_from(values: np.ndarray, given: np.ndarray, before: float) -> np.ndarray:
+    """``values`` where ``given``, else the last given value before (``before`` ahead of the first)."""
+    index = np.where(given, np.arange(len(values)), -1)
+    np.maximum.accumulate(index, out=index)
+    return np.where(index >= 0, values[np.maximum(index, 0)], before)
+
+
+class TraceBlocks:
+    """TraceRecorder's columns from the blocks ``Pipeline.take_block`` takes (its ``on_block``
+    hook): the same rows and values as TraceRecorder over the Records one by one
+    (tests/test_trace_blocks.py), a block's rows at a time."""
+
+    def __init__(self, roles: Iterable[str]) -> None:
+        self._reference = TraceRecorder(roles)  # the channels, and the held values' start
+        self._decoded = self._reference._decoded
+        self.channels = self._reference.channels
+        self._parts: dict[str, list[np.ndarray]] = {channel.name: [] for channel in self.channels}
+        self._held = {role: _NAN for role, _, _ in self._decoded}
+        self._filtered = [_NAN] * len(_FILTERED)
+
+    def on_block(
+        self, block: Any, rows: np.ndarray, out: np.ndarray, kinds: np.ndarray, directions: np.ndarray
+    ) -> None:
+        n, parts = len(block), self._parts
+        parts[TIME.name].append(np.asarray(block.t, dtype=np.float64))
+        given = np.zeros(n, bool)
+        given[rows] = True
+        from app.detect.steady_state import STEADY  # the detector's module: not at a sink's import
+
+        filtered = [out[:, field] * factor for field, factor in _FILTERED_FIELDS]
+        filtered.append(np.where(kinds == STEADY, 1.0, 0.0))
+        filtered.append(_DIRECTION_VALUES[directions] if len(directions) else np.zeros(0))
+        for k, ((channel, _), values) in enumerate(zip(_FILTERED, filtered, strict=True)):
+            column = np.full(n, _NAN)
+            column[rows] = values
+            parts[channel.name].append(_held_from(column, given, self._filtered[k]))
+            if len(rows):
+                self._filtered[k] = float(values[-1])
+        for (channel, _), (field, factor) in zip(_MEASURED, _MEASURED_FIELDS, strict=True):
+            column = np.full(n, _NAN)
+            column[rows] = out[:, field] * factor
+            parts[channel.name].append(column)
+        for role, channel, factor in self._decoded:
+            values = block.values.get(role)
+            if values is None:
+                parts[channel.name].append(np.full(n, self._held[role] * factor))
+                continue
+            usable = ~np.isnan(values)
+            parts[channel.name].append(_held_from(values, usable, self._held[role]) * factor)
+            if usable.any():
+                self._held[role] = float(values[np.flatnonzero(usable)[-1]])
+
+    def trace(self, t0: float) -> Trace:
+        """The columns so far, with time counted from ``t0`` (the session's first frame)."""
+        columns = {
+            name: np.concatenate(parts) if parts else np.zeros(0) for name, parts in self._parts.items()
         }
         columns[TIME.name] = np.round(columns[TIME.name] - t0, 6)  # frame times are µs-resolved
         return Trace(t0, self.channels, columns)

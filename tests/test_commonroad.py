@@ -176,10 +176,14 @@ def test_the_gap_on_the_commonroad_car_calibrates_its_turn_force(
             stiffer = 100.0 * (drive.truth["c2n_axle"] / config.tyres.c2n_per_rad - 1.0)
             assert findings["roll_steer"].c2n_effect_pct.headline == pytest.approx(stiffer, abs=3.0)
     else:
+        # d is the regression's own parameter: its measurement is the finding; the held-out fit of
+        # the same effect agrees and shrinks the gap
         assert result.diagnosis == "sensor_position_error"
-        named = next(c for c in result.candidates if c.named)
-        assert named.params["d_error_m"] == pytest.approx(-0.2, abs=0.05)
-        assert named.shrink_heldout > 0.4 and named.at_bound == ()
+        found = next(e for e in result.effects if e.effect == "sensor_position_error")
+        assert found.matters and found.params["d_error_m"] == pytest.approx(-0.2, abs=0.05)
+        fitted = next(c for c in result.candidates if c.effect == "sensor_position_error")
+        assert fitted.params["d_error_m"] == pytest.approx(-0.2, abs=0.05)
+        assert fitted.shrink_heldout > 0.4 and fitted.at_bound == ()
 
 
 def test_on_the_commonroad_car_c2n_is_its_rear_axle_s_with_the_turn_force_taken_out() -> None:

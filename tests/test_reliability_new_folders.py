@@ -30,7 +30,15 @@ def _start(out: Path, kind: str) -> subprocess.Popen[str]:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_foreground,
     )
+
+
+def _foreground() -> None:
+    """The child as a terminal starts a foreground command: Ctrl-C delivered and acted on, whatever
+    the test process inherited or left behind."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
 def _first_file(child: subprocess.Popen[str], folder: Path, pattern: str) -> None:
@@ -216,7 +224,7 @@ def test_two_packs_to_the_same_new_folder_at_once_give_one_whole_pack(tmp_path: 
     refused = errors[[child.returncode for child in children].index(1)]
     assert refused.count("\n") == 1 and ("was filled while c2n wrote" in refused or "holds files" in refused)
     assert os.listdir(tmp_path) == ["pack"]  # no temporary left
-    assert sorted(os.listdir(out)) == ["case_001", "case_002", "sealed"]
+    assert sorted(os.listdir(out)) == [f"case_00{k}" for k in range(1, 5)] + ["sealed"]
 
 
 def test_an_export_into_the_working_folder_is_one_line_not_the_folder_swapped_away(

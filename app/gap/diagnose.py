@@ -1042,6 +1042,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     measured_effects = method_effects(m, config)
     # where the method measures an effect's own parameter, its measurement decides, not the fit's
     direct = DIRECT & {e.effect for e in measured_effects}
+    fitted_beside = findings  # the nuisances are reported as fitted beside every effect the fit named
     findings = [f for f in findings if f.effect not in direct]
     lead = findings[0] if findings else None
     best = lead.scored if lead is not None else None
@@ -1059,6 +1060,10 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         diagnosis = "none" if ho.gap <= config.gap.sideslip_deg else "unexplained"
         if diagnosis == "none":
             confounded = [*HIDDEN_BY_CALIBRATION, *hidden_by_rivals(calibration)]
+    if len(fitted_beside) > len(findings):  # a d the regression measures: the fit's, beside it
+        last_fit = joint.get(fitted_beside[-1].effect)
+        beside_fit = last_fit.fit if last_fit else fitted_beside[0].scored.fit
+        beside = fit(pb, beside_fit.params, pb.rows, start=beside_fit.values)
     effects = [_effect(j, config) for j in findings] + [
         _effect(j, config)
         for j in sorted((j for j in judged if j.present and j not in findings), key=lambda j: -j.importance)

@@ -26,7 +26,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.config import Config
-from app.gap.effects import Z_INTERVAL, Z_TEST
+from app.gap import effects
+from app.gap.effects import Z_INTERVAL, Z_TEST, C2nShift
 from app.gap.measured import Measured
 from app.gap.result import C2nEffect, Effect
 
@@ -89,12 +90,9 @@ def with_method_effects(
 
 
 def importance(e: Effect, config: Config) -> float:
-    """What the effect does over what the config tolerates (≥ 1 matters), as for the held-out fits."""
-    shifts = [abs(x) for x in (e.c2n_effect_pct.crossing, e.c2n_effect_pct.headline) if x is not None]
-    ratios = [s / config.gap.c2n_pct for s in shifts]
-    if e.effect == "sensor_position_error":
-        ratios.append(abs(e.params["d_error_m"]) * 1000.0 / max(config.calibration.d_tolerance_mm, 1e-9))
-    return max(ratios, default=0.0)
+    """What the effect does over what the config tolerates (≥ 1 matters), by the held-out fits' measure."""
+    shift = C2nShift(e.c2n_effect_pct.crossing, e.c2n_effect_pct.headline)
+    return effects.importance(shift, effects.own_size(e.effect, e.params, config), config)
 
 
 def _judged(present: bool, z: float, matters: bool, what: str, config: Config) -> str:

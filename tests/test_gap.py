@@ -19,7 +19,7 @@ from app.gap.check import CaseAnswer, score
 from app.gap.diagnose import diagnose, problem, roll_lever_m
 from app.gap.measured import Measured, measure
 from app.gap.method_effects import BY_RIG
-from app.gap.model import Mods, prepare, run, simulate
+from app.gap.model import Mods, prepare, run, run_reference, simulate
 from app.gap.result import BeforeAfter, C2nEffect, Effect, GapC2n, GapNoise, GapResult
 from app.sim.session import DriveOptions, simulate_drive, write_drive
 from app.sim.vehicle_model import BicycleParams
@@ -623,3 +623,46 @@ def test_gap_check_counts_the_tyres_softening_as_held_and_other_findings_on_a_cl
     assert rows["case_001"]["correct"] and not rows["case_002"]["correct"]
     assert rows["case_002"]["false_findings"] == ["sensor_yaw_misalignment"]
     assert scores["false_alarms"] == 1
+
+
+def test_the_compiled_model_is_the_numpy_reference_step_for_step() -> None:
+    """``run`` (one compiled loop) against ``run_reference`` (numpy around ``step_lateral``) on a
+    turning, speeding-up drive with gaps in its yaw rate, with no modification, with every one
+    at once and with the vehicle bus early or late: every output within 1e-12 of its range."""
+    config = load_config()
+    p = BicycleParams.from_config(config)
+    base = steady_drive(12.0, math.radians(1.5), seconds=30.0)
+    n = len(base.t)
+    wobble = np.sin(base.t / 3.0)
+    r = 0.2 * (1.0 + 0.3 * wobble)  # rad/s
+    r[n // 3 : n // 3 + 40] = np.nan  # a stretch the yaw rate was not read
+    drive = dataclasses.replace(
+        base, u_optical=12.0 + 0.2 * base.t, delta=base.delta * (1.0 + 0.5 * wobble), r=r, p=0.02 * wobble
+    )
+    prepared = prepare(p, drive, cg_height_m=0.55, roll_lever_m=0.4)
+    prepared = dataclasses.replace(prepared, delta_late=True, r_late=True)
+    every = Mods(
+        yaw_bias_radps=0.002,
+        yaw_scale=0.01,
+        steer_offset_rad=0.001,
+        ratio_error=0.03,
+        c1n_factor=1.1,
+        c2n_factor=0.9,
+        turn_force_g=0.01,
+        misalignment_rad=0.002,
+        d_error_m=0.05,
+        speed_scale=0.02,
+        latency_s=0.05,
+        slope_sin_mps2=0.1,
+        slope_cos_mps2=-0.05,
+        softening1_per_mps4=0.01,
+        softening2_per_mps4=0.02,
+        roll_steer_rad_per_mps2=0.001,
+        ply_rad=0.0005,
+    )
+    for mods in (Mods(), every, Mods(latency_s=-0.033), Mods(latency_s=0.013, softening2_per_mps4=0.5)):
+        compiled, reference = run(prepared, config.d_m, mods), run_reference(prepared, config.d_m, mods)
+        for name in ("beta", "r", "r_measured", "ay", "speed_reading"):
+            a, b = getattr(compiled, name), getattr(reference, name)
+            assert np.array_equal(np.isnan(a), np.isnan(b)), name
+            assert np.nanmax(np.abs(a - b)) <= 1e-12 * np.nanmax(np.abs(b)), (name, mods)

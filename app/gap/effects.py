@@ -28,20 +28,20 @@ else the drive cannot tell it from the leader, and it is reported as confounded.
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
-from scipy.stats import norm
 
 from app.config import Config
 from app.gap.measured import Measured
 
 CONFIDENCE = 0.95  # the one statistical constant: intervals cover this much, a test errs 1 − it
-Z_INTERVAL = float(norm.ppf(0.5 + CONFIDENCE / 2))  # two-sided: a 95 % interval is ±1.96 σ
+Z_INTERVAL = float(NormalDist().inv_cdf(0.5 + CONFIDENCE / 2))  # two-sided: a 95 % interval is ±1.96 σ
 TESTS = 8  # the candidate effects each drive is tested for (the vocabulary but "none")
 # one-sided, the error shared among the candidates tested (Bonferroni): a drive with nothing
 # wrong names a spurious effect in at most 1 − CONFIDENCE of drives, not in 1 − CONFIDENCE of
 # every candidate's tests (eight of them would name one in a third of clean drives)
-Z_TEST = float(norm.ppf(1.0 - (1.0 - CONFIDENCE) / TESTS))  # 2.50 σ
+Z_TEST = float(NormalDist().inv_cdf(1.0 - (1.0 - CONFIDENCE) / TESTS))  # 2.50 σ
 
 SPEED_CHANNEL = frozenset({"speed_scale_error", "signal_latency"})
 

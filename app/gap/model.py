@@ -143,6 +143,63 @@ def simulate(
 
 
 def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
+    """The model on a ``prepare``d drive with ``mods``: every step of ``run_reference`` in one
+    compiled loop (a fit runs it a thousand times; the numpy version spends most of its time
+    between the arrays)."""
+    p = w.params
+    beta, yaw, r_meas, ay, speed_reading = _run_steps(
+        w.t,
+        w.u_optical,
+        w.u,
+        w.delta,
+        w.delta_late,
+        w.r,
+        w.r_late,
+        w.c1_nominal,
+        w.c2_nominal,
+        w.sway,
+        w.dt,
+        np.array(
+            [
+                p.c1n,
+                p.c2n,
+                p.a_m,
+                p.b_m,
+                p.mass_kg,
+                p.yaw_inertia_kgm2,
+                w.transfer_kg_s2,
+                d_m + mods.d_error_m - p.b_m,
+                *(getattr(mods, name) for name in _MOD_FIELDS),
+            ]
+        ),
+    )
+    return Simulated(beta=beta, r=yaw, u=w.u, r_measured=r_meas, ay=ay, speed_reading=speed_reading)
+
+
+_MOD_FIELDS = (  # what ``_run_steps`` reads from k[8:]: Mods' fields in this order
+    "yaw_bias_radps",
+    "yaw_scale",
+    "steer_offset_rad",
+    "ratio_error",
+    "c1n_factor",
+    "c2n_factor",
+    "turn_force_g",
+    "misalignment_rad",
+    "d_error_m",
+    "speed_scale",
+    "latency_s",
+    "slope_sin_mps2",
+    "slope_cos_mps2",
+    "softening1_per_mps4",
+    "softening2_per_mps4",
+    "roll_steer_rad_per_mps2",
+    "ply_rad",
+)
+
+
+def run_reference(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
+    """``run`` in numpy around ``step_lateral``: the reference ``run``'s one compiled loop is
+    held to (tests/test_gap.py)."""
     p, t = w.params, w.t
     late = mods.latency_s
     delta = _shift(w.delta, t, late) if w.delta_late else w.delta
@@ -196,6 +253,12 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
 def _compiled(function: Any) -> Any:
     """numba's ``njit``, its machine code cached beside this file."""
     return njit(cache=True)(function)
+
+
+def _compiled_fast(function: Any) -> Any:
+    """``_compiled`` allowed to reorder and fuse arithmetic (not to assume away NaN or to
+    approximate sin, tanh or atan2): a run agrees with ``run_reference`` to about 1e-15."""
+    return njit(cache=True, fastmath={"nsz", "arcp", "contract", "reassoc"})(function)
 
 
 @_compiled
@@ -262,6 +325,138 @@ def step_lateral(
             e10 * v + e11 * r + g10 * f0 + g11 * f1,
         )
     return v_out, r_out
+
+
+@_compiled_fast
+def _interp_at(values: np.ndarray, t: np.ndarray, x: float, j: int) -> tuple[float, int]:
+    """np.interp(x, t, values), its search started at ``j`` (x only grows from one call to the
+    next): the value and where the search ended."""
+    n = len(t)
+    if x <= t[0]:
+        return values[0], j
+    if x >= t[n - 1]:
+        return values[n - 1], j
+    while t[j + 1] <= x:
+        j += 1
+    if x == t[j]:
+        return values[j], j
+    slope = (values[j + 1] - values[j]) / (t[j + 1] - t[j])
+    out = slope * (x - t[j]) + values[j]
+    if math.isnan(out):
+        out = slope * (x - t[j + 1]) + values[j + 1]
+        if math.isnan(out) and values[j] == values[j + 1]:
+            out = values[j]
+    return out, j
+
+
+@_compiled_fast
+def _run_steps(
+    t: np.ndarray,
+    u_optical: np.ndarray,
+    u: np.ndarray,
+    delta_read: np.ndarray,
+    delta_late: bool,
+    r_read: np.ndarray,
+    r_late: bool,
+    c1_nominal: np.ndarray,
+    c2_nominal: np.ndarray,
+    sway: np.ndarray,
+    h: float,
+    k: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``run_reference`` step by step: the car's numbers and the mods in ``k`` (c1n, c2n, a, b,
+    mass, I_z, the rearward transfer, the sensor's x, then Mods' fields in their order). Returns
+    the sideslip at the sensor, the yaw rate, the measured yaw rate, a_y and the speed reading."""
+    c1n, c2n, a, b, mass, iz, transfer, x_sensor = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7]
+    yaw_bias, yaw_scale, steer_offset, ratio_error = k[8], k[9], k[10], k[11]
+    c1n_factor, c2n_factor, turn_force, misalignment = k[12], k[13], k[14], k[15]
+    speed_scale, late, slope_sin, slope_cos = k[17], k[18], k[19], k[20]  # k[16]: d's, in x_sensor
+    softening1, softening2, roll_steer, ply = k[21], k[22], k[23], k[24]
+    n = len(u)
+    beta = np.empty(n)
+    r_out = np.empty(n)
+    r_meas_out = np.empty(n)
+    ay_out = np.empty(n)
+    speed_out = np.empty(n)
+    sloped = slope_sin != 0.0 or slope_cos != 0.0
+    softened = softening1 != 0.0 or softening2 != 0.0
+    cos_misalignment = math.cos(misalignment)
+    j_late, j_early = 0, 0
+    turned = 0.0  # the cumulative sum of the measured yaw rate: the heading over h
+    v = 0.0
+    r = 0.0
+    for i in range(n):
+        delta = delta_read[i]
+        r_meas = r_read[i]
+        if late != 0.0:
+            if delta_late:
+                delta, j_late = _interp_at(delta_read, t, t[i] + late, j_late)
+            if r_late:
+                r_meas, j_late = _interp_at(r_read, t, t[i] + late, j_late)
+        delta = (delta - steer_offset) / (1.0 + ratio_error)
+        r_meas = (r_meas - yaw_bias) / (1.0 + yaw_scale)
+        ay = u_optical[i] * r_meas
+        if math.isnan(ay):
+            ay = 0.0
+        speed = u_optical[i]
+        if late != 0.0:
+            speed, j_early = _interp_at(u_optical, t, t[i] - late, j_early)
+        speed_out[i] = (1.0 + speed_scale) * speed / cos_misalignment
+        c1, c2, lateral, specific = c1_nominal[i], c2_nominal[i], 0.0, ay
+        if sloped:
+            if not math.isnan(r_meas):
+                turned += r_meas
+            heading = turned * h
+            sin, cos = math.sin(heading), math.cos(heading)
+            lateral = slope_sin * sin + slope_cos * cos
+            rearward = -transfer * (slope_cos * sin - slope_sin * cos)
+            c1, c2 = c1 - c1n * rearward, c2 + c2n * rearward
+            specific = ay - lateral
+        c1, c2 = c1 * c1n_factor, c2 * c2n_factor
+        if softened:
+            ay2 = ay * ay
+            c1 = c1 * min(max(1.0 - softening1 * ay2, 0.2), 2.0)
+            c2 = c2 * min(max(1.0 - softening2 * ay2, 0.2), 2.0)
+        delta2 = roll_steer * ay + ply if roll_steer != 0.0 else ply
+        if turn_force != 0.0:
+            lateral = lateral + G * turn_force * math.tanh(specific / TURN_AY_MPS2)
+        uk = u[i]
+        m00 = -(c1 + c2) / (mass * uk)
+        m01 = -(a * c1 - b * c2) / (mass * uk) - uk
+        m10 = -(a * c1 - b * c2) / (iz * uk)
+        m11 = -(a * a * c1 + b * b * c2) / (iz * uk)
+        f0 = (c1 * delta + c2 * delta2) / mass + lateral
+        f1 = (a * c1 * delta - b * c2 * delta2) / iz
+        if i == 0:
+            det = m00 * m11 - m01 * m10
+            if abs(det) > 1e-12:  # x0 = −M⁻¹·f
+                v = -(m11 * f0 - m01 * f1) / det
+                r = -(-m10 * f0 + m00 * f1) / det
+        beta[i] = math.atan2(v + r * x_sensor - sway[i], uk) - misalignment
+        r_out[i] = r
+        r_meas_out[i] = r_meas
+        ay_out[i] = ay
+        # as step_lateral: A = M·h, exp(A) and h·(I + A/2 + A²/6 + A³/24) by their series
+        a00, a01, a10, a11 = m00 * h, m01 * h, m10 * h, m11 * h
+        b00, b01 = a00 * a00 + a01 * a10, a00 * a01 + a01 * a11  # A²
+        b10, b11 = a10 * a00 + a11 * a10, a10 * a01 + a11 * a11
+        c00, c01 = b00 * a00 + b01 * a10, b00 * a01 + b01 * a11  # A³
+        c10, c11 = b10 * a00 + b11 * a10, b10 * a01 + b11 * a11
+        d00, d01 = c00 * a00 + c01 * a10, c00 * a01 + c01 * a11  # A⁴
+        d10, d11 = c10 * a00 + c11 * a10, c10 * a01 + c11 * a11
+        e00 = 1.0 + a00 + b00 / 2.0 + c00 / 6.0 + d00 / 24.0
+        e01 = a01 + b01 / 2.0 + c01 / 6.0 + d01 / 24.0
+        e10 = a10 + b10 / 2.0 + c10 / 6.0 + d10 / 24.0
+        e11 = 1.0 + a11 + b11 / 2.0 + c11 / 6.0 + d11 / 24.0
+        g00 = h * (1.0 + a00 / 2.0 + b00 / 6.0 + c00 / 24.0)
+        g01 = h * (a01 / 2.0 + b01 / 6.0 + c01 / 24.0)
+        g10 = h * (a10 / 2.0 + b10 / 6.0 + c10 / 24.0)
+        g11 = h * (1.0 + a11 / 2.0 + b11 / 6.0 + c11 / 24.0)
+        v, r = (
+            e00 * v + e01 * r + g00 * f0 + g01 * f1,
+            e10 * v + e11 * r + g10 * f0 + g11 * f1,
+        )
+    return beta, r_out, r_meas_out, ay_out, speed_out
 
 
 def deg(x: float) -> float:

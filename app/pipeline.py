@@ -255,10 +255,13 @@ class Pipeline:
             ):
                 signs.add(now, float(out[k, _U]), float(out[k, _R]), ay[rows[k]], steer[rows[k]])
             if steady or detector.running:
-                estimate = estimate_of(next(steady_fields) if steady else out[k].tolist())
-                new = detector.step(
-                    now, estimate, SteadyState(steady, DIRECTIONS[directions[k]]), headings[k]
-                )
+                if steady:
+                    estimate = estimate_of(next(steady_fields))
+                    new = detector.step(
+                        now, estimate, SteadyState(True, DIRECTIONS[directions[k]]), headings[k]
+                    )
+                else:  # all ``step`` does with a frame that is not steady
+                    new = detector.end_quiet_runs(now)
                 if new:
                     self._collect(new)
                     events += new

@@ -166,11 +166,7 @@ class CrossingDetector:
 
     def step(self, t: float, estimate: Estimate, steady: SteadyState, heading: float = 0.0) -> list[Event]:
         """One filtered frame; ``heading`` is the yaw rate integrated from the start (rad)."""
-        events: list[Event] = []
-        for key in list(self._runs):
-            quiet = t - self._t_last[key]
-            if quiet > self.settings.max_gap_s or quiet < -0.05:
-                events.extend(self._end_run(key, "the steady run ended"))
+        events = self.end_quiet_runs(t)
         if not steady.steady or estimate.v_meas_mps is None or estimate.sideslip_meas_rad is None:
             return events
         key = steady.direction
@@ -197,6 +193,16 @@ class CrossingDetector:
         events.extend(self._watch_sign(run, key, t, u, estimate))
         if run.pending is not None and abs(u - run.pending.u) >= hw:
             events.append(self._fit(run, run.take_pending(), key))
+        return events
+
+    def end_quiet_runs(self, t: float) -> list[Event]:
+        """What ``step`` does with a frame that is not steady: end the runs that have had no
+        steady frame for longer than the gap allowed (or whose time ran back)."""
+        events: list[Event] = []
+        for key in list(self._runs):
+            quiet = t - self._t_last[key]
+            if quiet > self.settings.max_gap_s or quiet < -0.05:
+                events.extend(self._end_run(key, "the steady run ended"))
         return events
 
     def finish(self) -> list[Event]:

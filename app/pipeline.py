@@ -86,6 +86,7 @@ class Pipeline:
         self.profile = SideslipProfile()
         self.state = SessionState()
         self._last_fit = -float("inf")
+        self._fitted_on: tuple[int, int, bool] | None = None  # what the last refit saw (``_refit``)
         # Called by ``take_block`` with each block, the rows the filter took, their estimates (rows
         # of Estimate's fields, NaN for None), the gate's kinds and directions: what a Record
         # would carry, for a sink of blocks (app/sinks/trace.py's TraceBlocks).
@@ -241,7 +242,10 @@ class Pipeline:
         quasi_flags = quasi.tolist()
         headings = self.heading.steps(t[rows], out[:, _R]).tolist()
         times = t[rows].tolist()
-        steady_fields = iter(out[np.equal(kinds, STEADY)].tolist())  # the rows the detector sees
+        # the rows the detector takes samples from: steady, with a measured lateral velocity
+        sampled = np.equal(kinds, STEADY) & ~np.isnan(out[:, _V_MEAS])
+        sampled_flags = sampled.tolist()
+        sampled_fields = iter(out[sampled].tolist())
         detector, regression, profile, quasi_fit = self.detector, self.regression, self.profile, self.quasi
         events: list[Event] = []
         own: tuple[Event, ...] = ()  # the last record's
@@ -255,18 +259,18 @@ class Pipeline:
             ):
                 signs.add(now, float(out[k, _U]), float(out[k, _R]), ay[rows[k]], steer[rows[k]])
             if steady or detector.running:
-                if steady:
-                    estimate = estimate_of(next(steady_fields))
+                if sampled_flags[k]:
+                    estimate = estimate_of(next(sampled_fields))
                     new = detector.step(
                         now, estimate, SteadyState(True, DIRECTIONS[directions[k]]), headings[k]
                     )
-                else:  # all ``step`` does with a frame that is not steady
+                else:  # all ``step`` does with a frame it takes no sample from
                     new = detector.end_quiet_runs(now)
                 if new:
                     self._collect(new)
                     events += new
                     own = tuple(new) if k == len(times) - 1 else ()
-                if steady and estimate.v_meas_mps is not None:
+                if sampled_flags[k] and estimate.v_meas_mps is not None:  # (always, when sampled)
                     profile.add(estimate.u_mps, estimate.v_meas_mps, DIRECTIONS[directions[k]])
                     if estimate.r_radps is not None:
                         u, r, v = estimate.u_mps, estimate.r_radps, estimate.v_meas_mps
@@ -344,6 +348,7 @@ class Pipeline:
         self._drives.append(self._sample_regression(transient=True))
         self.quasi.new_log()
         self._last_fit = -float("inf")
+        self._fitted_on = None  # the same samples, now of two drives
 
     def _sample_regression(self, transient: bool) -> SampleRegression:
         """The every-sample regression on the config's car: steady samples, or (``transient``)
@@ -363,7 +368,12 @@ class Pipeline:
     def _refit(self) -> None:
         """The regression over every sample so far; a slope it found goes to the detector, and a
         new slope or turn step pairs the crossings again. The quasi-steady samples' regression too
-        while no sweep has crossed zero."""
+        while no sweep has crossed zero. Nothing new since the last refit (no sample, no first
+        crossing): the same fits, not worked out again."""
+        seen = (self.regression.n_samples, self.quasi.n_samples, bool(self.state.crossings))
+        if seen == self._fitted_on:
+            return
+        self._fitted_on = seen
         before = self.state.regression
         self.state.quasi = self.quasi.fit() if not self.state.crossings else None
         fit = self.state.regression = self.regression.fit()

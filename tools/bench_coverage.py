@@ -18,6 +18,7 @@ with its Clopper–Pearson 95 % interval, and the median time of a refit.
 import argparse
 import copy
 import json
+import pickle
 import statistics
 import time
 from collections import Counter
@@ -29,7 +30,7 @@ from typing import Any
 from bench_accuracy import CASES, simulated
 from scipy.stats import beta
 
-from app.config import load_config
+from app.config import Config, load_config
 from app.pipeline import Pipeline
 from app.results.regression import RegressionFit, SampleRegression
 from app.sources.logs import LogReport, read_log
@@ -38,9 +39,10 @@ DEV_PACK = Path("/work/shared/data/dev-pack")
 PLAIN = ("a", "f")  # plain circles on linear tyres: no warning is supported there
 
 
-def drive(job: tuple[str, int, float | None]) -> dict[str, Any]:
-    """One drive of a kind, both estimators on its samples."""
-    kind, seed, tape_mm = job
+def drive(job: tuple[str, int, float | None, Path | None]) -> dict[str, Any]:
+    """One drive of a kind, both estimators on its samples; its samples kept in ``keep`` (a
+    pickle of the regression, its truth and config) for ``--refit``."""
+    kind, seed, tape_mm, keep = job
     if kind == "dev":
         case = DEV_PACK / f"case_{seed + 1:02d}"
         config = load_config(case / "config.toml")
@@ -59,6 +61,14 @@ def drive(job: tuple[str, int, float | None]) -> dict[str, Any]:
     regression = (
         pipeline.quasi if state.fit is state.quasi and state.quasi is not None else pipeline.regression
     )
+    if keep is not None:
+        kept = {"kind": kind, "seed": seed, "regression": regression, "truth": truth, "config": config}
+        (keep / f"{kind}_{seed:03d}.pickle").write_bytes(pickle.dumps(kept))
+    return fitted(kind, seed, regression, truth, config)
+
+
+def fitted(kind: str, seed: int, regression: SampleRegression, truth: float, config: Config) -> dict[str, Any]:
+    """The row of a drive's samples, fitted both ways."""
     row: dict[str, Any] = {"kind": kind, "seed": seed}
     priors = replace(config.priors, estimator="marginal")
     for name, chosen in (("cascade", None), ("marginal", priors)):
@@ -122,15 +132,29 @@ def main() -> None:
     parser.add_argument(
         "--summarise", type=Path, nargs="+", help="print the tables of rows files, run nothing"
     )
+    parser.add_argument("--keep", type=Path, help="keep each drive's samples in this directory")
+    parser.add_argument(
+        "--refit", type=Path, help="fit the samples kept in this directory again (today's code), run nothing"
+    )
     args = parser.parse_args()
     kinds = args.kinds.split(",")
     started = time.perf_counter()
     if args.summarise:
         rows = [json.loads(line) for path in args.summarise for line in path.read_text().splitlines() if line]
         kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
+    elif args.refit:
+        rows = []
+        for path in sorted(args.refit.glob("*.pickle")):
+            kept = pickle.loads(path.read_bytes())
+            config = replace(kept["config"], priors=load_config(kept["config"].path).priors)  # today's defaults
+            rows.append(fitted(kept["kind"], kept["seed"], kept["regression"], kept["truth"], config))
+        rows.sort(key=lambda r: (r["seed"], r["kind"]))
+        kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
     else:
+        if args.keep:
+            args.keep.mkdir(parents=True, exist_ok=True)
         jobs = [  # seed by seed, every kind in each: a run cut short still has every kind
-            (k, seed, args.tape_mm)
+            (k, seed, args.tape_mm, args.keep)
             for seed in range(max(9, args.sessions))
             for k in kinds
             if seed < (9 if k == "dev" else args.sessions)

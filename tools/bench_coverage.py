@@ -67,7 +67,9 @@ def drive(job: tuple[str, int, float | None, Path | None]) -> dict[str, Any]:
     return fitted(kind, seed, regression, truth, config)
 
 
-def fitted(kind: str, seed: int, regression: SampleRegression, truth: float, config: Config) -> dict[str, Any]:
+def fitted(
+    kind: str, seed: int, regression: SampleRegression, truth: float, config: Config
+) -> dict[str, Any]:
     """The row of a drive's samples, fitted both ways."""
     row: dict[str, Any] = {"kind": kind, "seed": seed}
     priors = replace(config.priors, estimator="marginal")
@@ -125,6 +127,7 @@ def main() -> None:
     parser.add_argument("--sessions", type=int, default=23, help="drives per simulated kind")
     parser.add_argument("--kinds", default=",".join([*CASES, "dev"]), help="bench_accuracy's cases a–m, dev")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--first-seed", type=int, default=0, help="start here (a run continued)")
     parser.add_argument("--tape-mm", type=float, default=None, help="as tools/bench_accuracy.py's")
     parser.add_argument(
         "--rows", type=Path, help="append each drive's row to this JSON-lines file as it ends"
@@ -146,7 +149,9 @@ def main() -> None:
         rows = []
         for path in sorted(args.refit.glob("*.pickle")):
             kept = pickle.loads(path.read_bytes())
-            config = replace(kept["config"], priors=load_config(kept["config"].path).priors)  # today's defaults
+            config = replace(
+                kept["config"], priors=load_config(kept["config"].path).priors
+            )  # today's defaults
             rows.append(fitted(kept["kind"], kept["seed"], kept["regression"], kept["truth"], config))
         rows.sort(key=lambda r: (r["seed"], r["kind"]))
         kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
@@ -155,7 +160,7 @@ def main() -> None:
             args.keep.mkdir(parents=True, exist_ok=True)
         jobs = [  # seed by seed, every kind in each: a run cut short still has every kind
             (k, seed, args.tape_mm, args.keep)
-            for seed in range(max(9, args.sessions))
+            for seed in range(args.first_seed, max(9, args.sessions))
             for k in kinds
             if seed < (9 if k == "dev" else args.sessions)
         ]

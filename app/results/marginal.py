@@ -104,9 +104,10 @@ def posterior(
 ) -> Posterior | None:
     """The Gaussian-prior regression over block statistics (blocks × k × k, blocks × k, blocks) on
     the ``terms`` columns; ``prior_sd`` inf for a flat prior. None where the posterior is improper."""
-    sub_xtx = xtx[:, terms][:, :, terms]
+    total = xtx.sum(axis=0)  # summed before the terms are taken: no copy of every block's matrix
     sub_xty = xty[:, terms]
-    data, rhs, yy = sub_xtx.sum(axis=0), sub_xty.sum(axis=0), float(yty.sum())
+    data, rhs, yy = total[np.ix_(terms, terms)], sub_xty.sum(axis=0), float(yty.sum())
+    full = np.zeros(xtx.shape[1])
     precision = np.where(
         np.isfinite(prior_sd), 1.0 / np.square(np.where(np.isfinite(prior_sd), prior_sd, 1.0)), 0.0
     )
@@ -120,7 +121,8 @@ def posterior(
         residual = yy - 2.0 * coef @ rhs + coef @ data @ coef
         dof = max(n - float(np.trace(data @ inverse)), 1.0)
         white = max(residual / dof, 1e-30)
-        meat = _newey_west(sub_xty - sub_xtx @ coef, run)
+        full[terms] = coef
+        meat = _newey_west(sub_xty - (xtx @ full)[:, terms], run)  # each block's scores
         inflation = float(np.trace(inverse @ meat)) / (white * float(np.trace(inverse @ data)))
         sigma2 = white * max(inflation, 1.0)
     cov = inverse @ (meat * n / dof + used * used * np.diag(precision)) @ inverse

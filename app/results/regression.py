@@ -421,7 +421,8 @@ class SampleRegression:
         # weighed by its evidence, the density of the data's own d under it (closed form)
         tape = self._marginal_posterior(priors, design, b_ay, self.d_tape_se_m)
         wide_sd = priors.d_gross_wheelbases * self.wheelbase_m
-        wide = self._marginal_posterior(priors, design, b_ay, wide_sd)
+        settled = b_ay if tape is None else tape[0].value(Term.AY)
+        wide = self._marginal_posterior(priors, design, settled, wide_sd)  # from the tape's a_y
         if tape is None or wide is None:
             found = tape or wide
             return None if found is None else self._marginal_result(priors, [found], [1.0], len(run), logs)
@@ -435,7 +436,7 @@ class SampleRegression:
         bias's columns; the priors' scale follows a_y's coefficient until it settles."""
         post: Posterior | None = None
         bias_terms: list[int] = []
-        for _ in range(3):  # the priors' scale and the bias's column follow a_y's coefficient
+        for _ in range(4):  # the priors' scale and the bias's column follow a_y's coefficient
             sd = _prior_sd(priors, self.g, b_ay, self.wheelbase_m)
             wide_xtx, wide_xty = design.xtx, design.xty
             if self.d_tape_m is not None:  # a yaw-rate bias b moves β by b·(k·u − d/u), k = −b_ay
@@ -462,7 +463,10 @@ class SampleRegression:
             )
             if post is None:
                 return None
+            settled = abs(post.value(Term.AY) - b_ay) <= _SETTLED * abs(b_ay)
             b_ay = post.value(Term.AY)
+            if settled:  # the priors' scale was a_y's coefficient's own
+                break
         assert post is not None
         return post, bias_terms
 
@@ -835,6 +839,9 @@ def _within(xtx: np.ndarray) -> float:
     return float(sum_k2 - sum_k * sum_k / n) if n > 0 else 0.0
 
 
+_SETTLED = 1e-4  # a_y's coefficient settled: a change under 0.01 % of C2n, far inside its interval
+
+
 @dataclass(frozen=True)
 class _Design:
     """The marginal fit's statistics and columns: ψ0's, the speed pairs, the drive's own terms."""
@@ -895,7 +902,7 @@ def mixture(
     def quantile(p: float) -> float:
         low = min(m - 50.0 * s for m, s in zip(means, ses, strict=True))
         high = max(m + 50.0 * s for m, s in zip(means, ses, strict=True))
-        for _ in range(100):
+        for _ in range(60):  # 100 σ halved 60 times: 1e-16 of it
             middle = 0.5 * (low + high)
             low, high = (middle, high) if cdf(middle) < p else (low, middle)
         return 0.5 * (low + high)

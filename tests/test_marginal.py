@@ -9,8 +9,8 @@ from scipy.stats import norm, t
 
 from app.config import Priors, load_config
 from app.errors import ConfigError
-from app.results.marginal import Posterior, Term, posterior
-from app.results.regression import _TERMS, SampleRegression, _wide_share, mixture
+from app.results.marginal import Posterior, Term, mixture, posterior, wide_share
+from app.results.regression import _TERMS, SampleRegression
 from app.sinks import summary
 from tests.simulated import cached_drive, run_pipeline
 
@@ -151,7 +151,7 @@ def _wide_posterior(d_hat: float, v: float, tape: float, wide_sd: float) -> Post
 def test_the_wide_d_prior_is_weighed_by_its_evidence(d_hat: float) -> None:
     """The weight is Bayes' rule on the two priors' densities of the data's own d: N(d̂; tape, v + σ²)."""
     tape, tape_sd, wide_sd, v, share = 1.1, 0.005, 1.35, 0.004**2, 0.01
-    found = _wide_share(_wide_posterior(d_hat, v, tape, wide_sd), tape, tape_sd, wide_sd, share)
+    found = wide_share(_wide_posterior(d_hat, v, tape, wide_sd), tape, tape_sd, wide_sd, share)
     wide = share * norm.pdf(d_hat, tape, math.sqrt(v + wide_sd**2))
     narrow = (1 - share) * norm.pdf(d_hat, tape, math.sqrt(v + tape_sd**2))
     assert found == pytest.approx(wide / (wide + narrow), rel=1e-6, abs=1e-12)
@@ -160,7 +160,7 @@ def test_the_wide_d_prior_is_weighed_by_its_evidence(d_hat: float) -> None:
 def test_where_the_data_cannot_place_d_the_wide_prior_keeps_its_share() -> None:
     tape = 1.1
     no_data = Posterior([int(Term.D)], np.array([tape]), np.array([[1.35**2]]), 1.0, 100.0)
-    assert _wide_share(no_data, tape, 0.005, 1.35, 0.01) == pytest.approx(0.01)
+    assert wide_share(no_data, tape, 0.005, 1.35, 0.01) == pytest.approx(0.01)
 
 
 def test_a_mixtures_interval_holds_its_level() -> None:

@@ -90,7 +90,7 @@ import numpy as np
 
 from app.config import Priors
 from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
-from app.results.marginal import Posterior, Term, posterior, well_conditioned_inverse
+from app.results.marginal import Posterior, Term, mixture, posterior, well_conditioned_inverse, wide_share
 
 _TERMS = (  # the columns each block keeps; a fit takes a subset
     "psi0",  # 1: the head's yaw on the car
@@ -426,7 +426,7 @@ class SampleRegression:
         if tape is None or wide is None:
             found = tape or wide
             return None if found is None else self._marginal_result(priors, [found], [1.0], len(run), logs)
-        share = _wide_share(wide[0], self.d_tape_m, self.d_tape_se_m, wide_sd, priors.d_gross_share)
+        share = wide_share(wide[0], self.d_tape_m, self.d_tape_se_m, wide_sd, priors.d_gross_share)
         return self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs)
 
     def _marginal_posterior(
@@ -854,61 +854,6 @@ class _Design:
     offsets: list[int]
     speeds: list[tuple[int, int]]
     own: list[int]
-
-
-def _wide_share(wide: Posterior, tape_m: float, tape_sd: float, wide_sd: float, share: float) -> float:
-    """The wide d prior's posterior weight: its prior ``share`` times the evidence ratio, the data's
-    own d (found from the wide posterior: its precision less the prior's) under N(tape, v + σ²)
-    for each prior's σ. Where the data hardly place d (one speed) the ratio is 1."""
-    if share <= 0.0:
-        return 0.0
-    if share >= 1.0:
-        return 1.0
-    p = wide.se(Term.D) ** 2
-    info = 1.0 / p - 1.0 / wide_sd**2 if p > 0 else math.inf
-    if info <= 0.0:
-        return share
-    v = 1.0 / info
-    x = v * (wide.value(Term.D) / p - tape_m / wide_sd**2) - tape_m
-    a, b = v + tape_sd**2, v + wide_sd**2
-    log_ratio = 0.5 * math.log(a / b) + 0.5 * x * x * (1.0 / a - 1.0 / b)
-    log_odds = log_ratio + math.log(share / (1.0 - share))
-    return 1.0 / (1.0 + math.exp(-log_odds)) if log_odds > -700 else 0.0
-
-
-def mixture(
-    means: list[float], ses: list[float], weights: list[float], dof: float, level: float
-) -> tuple[float, tuple[float, float]]:
-    """A mixture of Student-t's (``dof``) by ``weights``: its mean and its central ``level``
-    interval (the quantiles by bisection; one component: mean ± t·se)."""
-    from scipy.special import stdtr
-
-    total = sum(weights)
-    w = [x / total for x in weights]
-    mean = sum(wi * m for wi, m in zip(w, means, strict=True))
-    if len(means) == 1 or max(w) == 1.0:
-        i = w.index(max(w))
-        from scipy.special import stdtrit
-
-        q = float(stdtrit(dof, 0.5 + level / 2.0))
-        return means[i], (means[i] - q * ses[i], means[i] + q * ses[i])
-
-    def cdf(x: float) -> float:
-        return sum(
-            wi * (float(stdtr(dof, (x - m) / s)) if s > 0 else float(x >= m))
-            for wi, m, s in zip(w, means, ses, strict=True)
-        )
-
-    def quantile(p: float) -> float:
-        low = min(m - 50.0 * s for m, s in zip(means, ses, strict=True))
-        high = max(m + 50.0 * s for m, s in zip(means, ses, strict=True))
-        for _ in range(60):  # 100 σ halved 60 times: 1e-16 of it
-            middle = 0.5 * (low + high)
-            low, high = (middle, high) if cdf(middle) < p else (low, middle)
-        return 0.5 * (low + high)
-
-    tail = (1.0 - level) / 2.0
-    return mean, (quantile(tail), quantile(1.0 - tail))
 
 
 def _per_log(

@@ -7,7 +7,8 @@ prior, ``[priors]``). Kinds: tools/bench_accuracy.py's cases a–m (our simulato
 two-track models, CommonRoad's multi-body car) and the dev pack's nine drives (an independent
 generator's car; its truth ``c2n.rear_axle_effective_linear``). Printed per kind and estimator: the
 drives, the median and worst |error| %, the coverage and the intervals' median half width %, the
-term that holds the marginal interval open most often, and the warnings a linear drive should not
+term that holds the marginal interval open most often, the errors in their intervals' own σ (rms),
+and the warnings a linear drive should not
 raise (softening kept on the bicycle model's linear tyres; d's interval apart from the tape's on a
 plain drive). At the end: the coverage over all drives
 with its Clopper–Pearson 95 % interval, and the median time of a refit.
@@ -28,6 +29,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from bench_accuracy import CASES, simulated
 from scipy.stats import beta
 
@@ -38,6 +40,7 @@ from app.sources.logs import LogReport, read_log
 
 DEV_PACK = Path("/work/shared/data/dev-pack")
 PLAIN = ("a", "f")  # plain drives on a level pad, d the tape's: no warning of d apart is supported
+EXACT_D = ("a", "b", "c", "d", "e", "f", "g")  # simulated with the config's d exact (h–m: the tape's error)
 LINEAR = ("a", "b", "d")  # the bicycle model's linear tyres: no softening warning is supported (f's
 # two-track tyres soften: Magic-Formula tyres and load transfer, t = −4…−9 in both fits)
 
@@ -77,10 +80,18 @@ def drive(job: tuple[str, int, float | None, Path | None]) -> dict[str, Any]:
 
 
 def fitted(
-    kind: str, seed: int, regression: SampleRegression, truth: float, config: Config
+    kind: str, seed: int, regression: SampleRegression, truth: float, config: Config, tape: bool = False
 ) -> dict[str, Any]:
-    """The row of a drive's samples, fitted both ways."""
+    """The row of a drive's samples, fitted both ways; ``tape``: on the kinds whose simulation has
+    the config's d exact (a–g), the tape read off by an error drawn as bench_accuracy's h–m draw it
+    (normal, the config's tolerance at 95 %), so the intervals, which count that tolerance, are
+    tried on what they claim."""
     row: dict[str, Any] = {"kind": kind, "seed": seed}
+    if tape and kind in EXACT_D and regression.d_tape_m is not None:
+        regression = copy.deepcopy(regression)
+        regression.d_tape_m += float(
+            np.random.default_rng(50_000 + seed).normal(0.0, config.calibration.d_se_m)
+        )
     priors = replace(config.priors, estimator="marginal")
     for name, chosen in (("cascade", None), ("marginal", priors)):
         model: SampleRegression = copy.deepcopy(regression)
@@ -114,6 +125,13 @@ def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     return low, high
 
 
+def _z_rms(graded: list[dict[str, Any]]) -> float:
+    """The errors in their intervals' own σ (half width / 1.96), rms: 1 where the intervals are as
+    wide as the errors — sharper than a coverage count of a few drives."""
+    z = [g["error"] / (g["half"] / 1.96) for g in graded if g["half"] > 0]
+    return (sum(x * x for x in z) / len(z)) ** 0.5 if z else float("nan")
+
+
 def _interval(k: int, n: int) -> str:
     low, high = clopper_pearson(k, n)
     return f"{low:4.2f}–{high:4.2f}"
@@ -130,7 +148,7 @@ def _row(kind: str, name: str, graded: list[dict[str, Any]], total: int) -> str:
         f"{kind:<5} {name:<9} {len(graded):>3}/{total:<3} "
         f"{statistics.median(errors):7.3f} {max(errors):7.3f} "
         f"{covered:>3}/{len(graded):<3} {_interval(covered, len(graded))} "
-        f"{statistics.median(g['half'] for g in graded):6.2f} "
+        f"{statistics.median(g['half'] for g in graded):6.2f} {_z_rms(graded):5.2f} "
         f"{warned:>4}  {held[0][0] + ' ' + str(held[0][1]) if held else '—'}"
     )
 
@@ -150,6 +168,11 @@ def main() -> None:
     parser.add_argument(
         "--summarise", type=Path, nargs="+", help="print the tables of rows files, run nothing"
     )
+    parser.add_argument(
+        "--tape-drawn",
+        action="store_true",
+        help="with --refit: a–g's tape read off by an error within the config's tolerance (as h–m's)",
+    )
     parser.add_argument("--keep", type=Path, help="keep each drive's samples in this directory")
     parser.add_argument(
         "--refit", type=Path, help="fit the samples kept in this directory again (today's code), run nothing"
@@ -167,7 +190,9 @@ def main() -> None:
             config = replace(
                 kept["config"], priors=load_config(kept["config"].path).priors
             )  # today's defaults
-            rows.append(fitted(kept["kind"], kept["seed"], kept["regression"], kept["truth"], config))
+            rows.append(
+                fitted(kept["kind"], kept["seed"], kept["regression"], kept["truth"], config, args.tape_drawn)
+            )
         rows.sort(key=lambda r: (r["seed"], r["kind"]))
         kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
     else:
@@ -187,7 +212,7 @@ def main() -> None:
                     with args.rows.open("a") as file:
                         file.write(json.dumps(row) + "\n")
     print(
-        "kind  estimator  fits  |error| % median worst  covered (Clopper–Pearson)  half%  warn  "
+        "kind  estimator  fits  |error| % median worst  covered (Clopper–Pearson)  half%  z rms  warn  "
         "held open by (most often)"
     )
     for kind in kinds:

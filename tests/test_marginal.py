@@ -189,3 +189,13 @@ def test_a_d_far_from_the_tape_is_found_and_c2n_stays_right() -> None:
     assert mixed.c2n == pytest.approx(14.0, rel=0.01)
     assert mixed.c2n_ci95[0] <= 14.0 <= mixed.c2n_ci95[1]
     assert mixed.d_ci95[0] <= 0.95 <= mixed.d_ci95[1] and not mixed.d_ci95[0] <= 1.1 <= mixed.d_ci95[1]
+
+
+def test_a_tape_stated_exact_holds_d_there() -> None:
+    """d_tolerance_mm = 0: d stays at the tape's value though the samples place it 8 mm away."""
+    regression = SampleRegression(G, d_tape_m=1.1, d_tape_se_m=0.0, wheelbase_m=2.7, priors=MARGINAL)
+    _drive(regression, 14.0, 1.108, [8.0, 10.0, 12.0], 6)
+    fit = regression.fit()
+    assert fit is not None
+    assert fit.d_m == pytest.approx(1.1, abs=2e-4)
+    assert fit.c2n == pytest.approx(14.0, rel=0.02)

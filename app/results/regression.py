@@ -419,14 +419,15 @@ class SampleRegression:
             return self._marginal_result(priors, [found], [1.0], len(run), logs)
         # d's prior: the tape's, and with ``d_gross_share`` a wide one (the tape wrong); each is
         # weighed by its evidence, the density of the data's own d under it (closed form)
-        tape = self._marginal_posterior(priors, design, b_ay, self.d_tape_se_m)
+        tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
+        tape = self._marginal_posterior(priors, design, b_ay, tape_sd)
         wide_sd = priors.d_gross_wheelbases * self.wheelbase_m
         settled = b_ay if tape is None else tape[0].value(Term.AY)
         wide = self._marginal_posterior(priors, design, settled, wide_sd)  # from the tape's a_y
         if tape is None or wide is None:
             found = tape or wide
             return None if found is None else self._marginal_result(priors, [found], [1.0], len(run), logs)
-        share = wide_share(wide[0], self.d_tape_m, self.d_tape_se_m, wide_sd, priors.d_gross_share)
+        share = wide_share(wide[0], self.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
         return self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs)
 
     def _marginal_posterior(
@@ -839,6 +840,7 @@ def _within(xtx: np.ndarray) -> float:
     return float(sum_k2 - sum_k * sum_k / n) if n > 0 else 0.0
 
 
+D_EXACT_SD_M = 1e-4  # a tape stated exact (d_tolerance_mm 0): its prior 0.1 mm, finer than any tape reads
 _SETTLED = 1e-4  # a_y's coefficient settled: a change under 0.01 % of C2n, far inside its interval
 
 

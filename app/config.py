@@ -174,6 +174,8 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("priors", "yaw_inertia_wheelbases"): (0.0, 10.0, _OPEN),
     ("priors", "two_wheels_wheelbases2"): (0.0, 10.0, _OPEN),
     ("priors", "turn_force_pct"): (0.0, 20.0, _CLOSED),
+    ("priors", "d_gross_share"): (0.0, 1.0, _OPEN),
+    ("priors", "d_gross_wheelbases"): (0.0, 10.0, _OPEN),
     ("detector", "ay_max_mps2"): (0.0, 20.0, _OPEN),
     ("detector", "sweep_max_mps2"): (0.0, 10.0, _OPEN),
     ("detector", "speed_min_mps"): (0.0, 100.0, _CLOSED),
@@ -282,6 +284,15 @@ class Priors:
     # a rear force that follows the turn's direction, % of the axle's weight: 0 leaves it out (real
     # cars); CommonRoad's Pacejka tyres carry a camber step of 2–3 %
     turn_force_pct: float = 0.0
+    # the share of setups whose d is wrong beyond the tape's tolerance (the head moved, d measured
+    # from the wrong point, a config copied from another car): d's prior is then the tape's with
+    # this weight on a second, wide one. The data move the weight (the two priors' evidence), so
+    # the share only sets where: a drive's d apart from the tape by 4.0, 4.4, 4.9 σ at 0.05, 0.01,
+    # 0.001 takes the wide prior; under 5 % it cannot, alone, open a 95 % interval (one speed)
+    d_gross_share: float = 0.01
+    # the wide prior's σ, in wheelbases: a head put (or its d written) wrongly is still on the car,
+    # within a wheelbase of the tape's value at 95 %
+    d_gross_wheelbases: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -5,10 +5,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.stats import norm, t
 
 from app.config import Priors, load_config
 from app.errors import ConfigError
-from app.results.marginal import Term, posterior
+from app.results.marginal import Posterior, Term, mixture, posterior, wide_share
 from app.results.regression import _TERMS, SampleRegression
 from app.sinks import summary
 from tests.simulated import cached_drive, run_pipeline
@@ -137,3 +138,64 @@ def test_the_pipeline_reads_a_simulated_drive_with_the_marginal_regression(confi
     assert fit.c2n == pytest.approx(drive.truth["c2n"], rel=0.02)
     result = summary.build(snapshot, config, ["drive.blf"], [])
     assert result.regression is not None and result.regression.c2n == pytest.approx(fit.c2n, rel=1e-3)
+
+
+def _wide_posterior(d_hat: float, v: float, tape: float, wide_sd: float) -> Posterior:
+    """The posterior of d alone where the data say d̂ ± √v and the prior is N(tape, wide_sd²)."""
+    p = 1.0 / (1.0 / v + 1.0 / wide_sd**2)
+    mean = p * (d_hat / v + tape / wide_sd**2)
+    return Posterior([int(Term.D)], np.array([mean]), np.array([[p]]), 1.0, 100.0)
+
+
+@pytest.mark.parametrize("d_hat", [1.1, 1.115, 1.13, 1.2])
+def test_the_wide_d_prior_is_weighed_by_its_evidence(d_hat: float) -> None:
+    """The weight is Bayes' rule on the two priors' densities of the data's own d: N(d̂; tape, v + σ²)."""
+    tape, tape_sd, wide_sd, v, share = 1.1, 0.005, 1.35, 0.004**2, 0.01
+    found = wide_share(_wide_posterior(d_hat, v, tape, wide_sd), tape, tape_sd, wide_sd, share)
+    wide = share * norm.pdf(d_hat, tape, math.sqrt(v + wide_sd**2))
+    narrow = (1 - share) * norm.pdf(d_hat, tape, math.sqrt(v + tape_sd**2))
+    assert found == pytest.approx(wide / (wide + narrow), rel=1e-6, abs=1e-12)
+
+
+def test_where_the_data_cannot_place_d_the_wide_prior_keeps_its_share() -> None:
+    tape = 1.1
+    no_data = Posterior([int(Term.D)], np.array([tape]), np.array([[1.35**2]]), 1.0, 100.0)
+    assert wide_share(no_data, tape, 0.005, 1.35, 0.01) == pytest.approx(0.01)
+
+
+def test_a_mixtures_interval_holds_its_level() -> None:
+    one = mixture([2.0], [0.5], [1.0], 30, 0.95)
+    assert one == (2.0, pytest.approx((2.0 - t.ppf(0.975, 30) * 0.5, 2.0 + t.ppf(0.975, 30) * 0.5)))
+    mean, (low, high) = mixture([0.0, 10.0], [1.0, 2.0], [0.7, 0.3], 30, 0.95)
+    assert mean == pytest.approx(3.0)
+    for x, p in ((low, 0.025), (high, 0.975)):
+        assert 0.7 * t.cdf(x, 30) + 0.3 * t.cdf((x - 10.0) / 2.0, 30) == pytest.approx(p, abs=1e-9)
+
+
+def test_a_d_far_from_the_tape_is_found_and_c2n_stays_right() -> None:
+    """The head 15 cm behind the config's d (dev pack case_08's kind of error): with the tape's prior
+    alone d is pulled toward it and C2n reads far off, outside its interval; with the wide prior's
+    small share the evidence moves the weight, C2n holds the truth and d's interval leaves the tape."""
+    fits = {}
+    for share in (0.0, 0.01):
+        regression = SampleRegression(
+            G, d_tape_m=1.1, wheelbase_m=2.7, priors=replace(MARGINAL, d_gross_share=share)
+        )
+        _drive(regression, 14.0, 0.95, [8.0, 10.0, 12.0], 5)
+        fits[share] = regression.fit()
+    tape_only, mixed = fits[0.0], fits[0.01]
+    assert tape_only is not None and mixed is not None
+    assert not tape_only.c2n_ci95[0] <= 14.0 <= tape_only.c2n_ci95[1]
+    assert mixed.c2n == pytest.approx(14.0, rel=0.01)
+    assert mixed.c2n_ci95[0] <= 14.0 <= mixed.c2n_ci95[1]
+    assert mixed.d_ci95[0] <= 0.95 <= mixed.d_ci95[1] and not mixed.d_ci95[0] <= 1.1 <= mixed.d_ci95[1]
+
+
+def test_a_tape_stated_exact_holds_d_there() -> None:
+    """d_tolerance_mm = 0: d stays at the tape's value though the samples place it 8 mm away."""
+    regression = SampleRegression(G, d_tape_m=1.1, d_tape_se_m=0.0, wheelbase_m=2.7, priors=MARGINAL)
+    _drive(regression, 14.0, 1.108, [8.0, 10.0, 12.0], 6)
+    fit = regression.fit()
+    assert fit is not None
+    assert fit.d_m == pytest.approx(1.1, abs=2e-4)
+    assert fit.c2n == pytest.approx(14.0, rel=0.02)

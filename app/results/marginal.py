@@ -13,6 +13,12 @@ long-run variance of the block scores against σ²·XᵀX). The covariance is th
 A⁻¹(M + σ⁴Λ)A⁻¹ — the prior counted as pseudo-observations of the coefficients, the data's scores
 M as in the least-squares fit — so it is the textbook posterior σ²A⁻¹ where the noise is white.
 
+d's prior is two: the tape's, and a wide one for a tape that is wrong (``wide_share``). The fit is
+made under each and the two weighed by Bayes' rule on their evidence, which for one coefficient's
+prior is the density of the data's own estimate of it under each prior (the other terms' priors
+are the same in both, so the rest of the evidence cancels); C2n and d are then the two posteriors'
+mixture (``mixture``).
+
 Several priors are on a ratio to a_y's coefficient (the slope's pull is g_y/(g·C2n), the softening
 s·a_y² multiplies it): they are scaled with a_y's coefficient from the fit before, and the fit is
 repeated until it settles (three passes take it to 1e-6 on the benches' drives).
@@ -104,9 +110,10 @@ def posterior(
 ) -> Posterior | None:
     """The Gaussian-prior regression over block statistics (blocks × k × k, blocks × k, blocks) on
     the ``terms`` columns; ``prior_sd`` inf for a flat prior. None where the posterior is improper."""
-    sub_xtx = xtx[:, terms][:, :, terms]
+    total = xtx.sum(axis=0)  # summed before the terms are taken: no copy of every block's matrix
     sub_xty = xty[:, terms]
-    data, rhs, yy = sub_xtx.sum(axis=0), sub_xty.sum(axis=0), float(yty.sum())
+    data, rhs, yy = total[np.ix_(terms, terms)], sub_xty.sum(axis=0), float(yty.sum())
+    full = np.zeros(xtx.shape[1])
     precision = np.where(
         np.isfinite(prior_sd), 1.0 / np.square(np.where(np.isfinite(prior_sd), prior_sd, 1.0)), 0.0
     )
@@ -120,7 +127,8 @@ def posterior(
         residual = yy - 2.0 * coef @ rhs + coef @ data @ coef
         dof = max(n - float(np.trace(data @ inverse)), 1.0)
         white = max(residual / dof, 1e-30)
-        meat = _newey_west(sub_xty - sub_xtx @ coef, run)
+        full[terms] = coef
+        meat = _newey_west(sub_xty - (xtx @ full)[:, terms], run)  # each block's scores
         inflation = float(np.trace(inverse @ meat)) / (white * float(np.trace(inverse @ data)))
         sigma2 = white * max(inflation, 1.0)
     cov = inverse @ (meat * n / dof + used * used * np.diag(precision)) @ inverse
@@ -133,3 +141,58 @@ def _newey_west(scores: np.ndarray, run: np.ndarray) -> np.ndarray:
     same_run = run[1:] == run[:-1]
     cross = scores[1:][same_run].T @ scores[:-1][same_run]
     return np.asarray(meat + 0.5 * (cross + cross.T))
+
+
+def wide_share(wide: Posterior, tape_m: float, tape_sd: float, wide_sd: float, share: float) -> float:
+    """The wide d prior's posterior weight: its prior ``share`` times the evidence ratio, the data's
+    own d (found from the wide posterior: its precision less the prior's) under N(tape, v + σ²)
+    for each prior's σ. Where the data hardly place d (one speed) the ratio is 1."""
+    if share <= 0.0:
+        return 0.0
+    if share >= 1.0:
+        return 1.0
+    p = wide.se(Term.D) ** 2
+    info = 1.0 / p - 1.0 / wide_sd**2 if p > 0 else math.inf
+    if info <= 0.0:
+        return share
+    v = 1.0 / info
+    x = v * (wide.value(Term.D) / p - tape_m / wide_sd**2) - tape_m
+    a, b = v + tape_sd**2, v + wide_sd**2
+    log_ratio = 0.5 * math.log(a / b) + 0.5 * x * x * (1.0 / a - 1.0 / b)
+    log_odds = log_ratio + math.log(share / (1.0 - share))
+    return 1.0 / (1.0 + math.exp(-log_odds)) if log_odds > -700 else 0.0
+
+
+def mixture(
+    means: list[float], ses: list[float], weights: list[float], dof: float, level: float
+) -> tuple[float, tuple[float, float]]:
+    """A mixture of Student-t's (``dof``) by ``weights``: its mean and its central ``level``
+    interval (the quantiles by bisection; one component: mean ± t·se)."""
+    from scipy.special import stdtr
+
+    total = sum(weights)
+    w = [x / total for x in weights]
+    mean = sum(wi * m for wi, m in zip(w, means, strict=True))
+    if len(means) == 1 or max(w) == 1.0:
+        i = w.index(max(w))
+        from scipy.special import stdtrit
+
+        q = float(stdtrit(dof, 0.5 + level / 2.0))
+        return means[i], (means[i] - q * ses[i], means[i] + q * ses[i])
+
+    def cdf(x: float) -> float:
+        return sum(
+            wi * (float(stdtr(dof, (x - m) / s)) if s > 0 else float(x >= m))
+            for wi, m, s in zip(w, means, ses, strict=True)
+        )
+
+    def quantile(p: float) -> float:
+        low = min(m - 50.0 * s for m, s in zip(means, ses, strict=True))
+        high = max(m + 50.0 * s for m, s in zip(means, ses, strict=True))
+        for _ in range(60):  # 100 σ halved 60 times: 1e-16 of it
+            middle = 0.5 * (low + high)
+            low, high = (middle, high) if cdf(middle) < p else (low, middle)
+        return 0.5 * (low + high)
+
+    tail = (1.0 - level) / 2.0
+    return mean, (quantile(tail), quantile(1.0 - tail))

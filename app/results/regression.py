@@ -90,7 +90,7 @@ import numpy as np
 
 from app.config import Priors
 from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
-from app.results.marginal import Posterior, Term, posterior, well_conditioned_inverse
+from app.results.marginal import Posterior, Term, mixture, posterior, well_conditioned_inverse, wide_share
 
 _TERMS = (  # the columns each block keeps; a fit takes a subset
     "psi0",  # 1: the head's yaw on the car
@@ -411,23 +411,47 @@ class SampleRegression:
         )  # headings: per drive
         turn = [Term.TURN] if priors.turn_force_pct > 0 else []
         own = [Term.D, Term.AY, Term.AY3, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
+        design = _Design(xtx, xty, yty, run, n, offsets, speeds, [int(t) for t in own])
+        if self.d_tape_m is None:  # no tape: d's prior is flat
+            found = self._marginal_posterior(priors, design, b_ay, math.inf)
+            if found is None:
+                return None
+            return self._marginal_result(priors, [found], [1.0], len(run), logs)
+        # d's prior: the tape's, and with ``d_gross_share`` a wide one (the tape wrong); each is
+        # weighed by its evidence, the density of the data's own d under it (closed form)
+        tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
+        tape = self._marginal_posterior(priors, design, b_ay, tape_sd)
+        wide_sd = priors.d_gross_wheelbases * self.wheelbase_m
+        settled = b_ay if tape is None else tape[0].value(Term.AY)
+        wide = self._marginal_posterior(priors, design, settled, wide_sd)  # from the tape's a_y
+        if tape is None or wide is None:
+            found = tape or wide
+            return None if found is None else self._marginal_result(priors, [found], [1.0], len(run), logs)
+        share = wide_share(wide[0], self.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
+        return self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs)
+
+    def _marginal_posterior(
+        self, priors: Priors, design: "_Design", b_ay: float, d_sd: float
+    ) -> tuple[Posterior, list[int]] | None:
+        """The posterior with d's prior N(tape, d_sd²) (flat without a tape), and the yaw-rate
+        bias's columns; the priors' scale follows a_y's coefficient until it settles."""
         post: Posterior | None = None
         bias_terms: list[int] = []
-        for _ in range(3):  # the priors' scale and the bias's column follow a_y's coefficient
+        for _ in range(4):  # the priors' scale and the bias's column follow a_y's coefficient
             sd = _prior_sd(priors, self.g, b_ay, self.wheelbase_m)
-            wide_xtx, wide_xty = xtx, xty
+            wide_xtx, wide_xty = design.xtx, design.xty
             if self.d_tape_m is not None:  # a yaw-rate bias b moves β by b·(k·u − d/u), k = −b_ay
-                combos = [{u: -b_ay, inv_u: -self.d_tape_m} for u, inv_u in speeds]
-                wide_xtx, wide_xty, bias_terms = _combined(xtx, xty, combos)
-            terms = [*offsets, *own, *bias_terms]
+                combos = [{u: -b_ay, inv_u: -self.d_tape_m} for u, inv_u in design.speeds]
+                wide_xtx, wide_xty, bias_terms = _combined(design.xtx, design.xty, combos)
+            terms = [*design.offsets, *design.own, *bias_terms]
             mean = np.zeros(len(terms))
             spread = np.array(
                 [
                     sd[Term.PSI0]
-                    if t in offsets
+                    if t in design.offsets
                     else math.radians(priors.gyro_bias_degps)
                     if t in bias_terms
-                    else (self.d_tape_se_m if self.d_tape_m is not None else math.inf)
+                    else d_sd
                     if t == Term.D
                     else sd[t]
                     for t in terms
@@ -435,25 +459,52 @@ class SampleRegression:
             )
             if self.d_tape_m is not None:
                 mean[terms.index(Term.D)] = self.d_tape_m
-            post = posterior(wide_xtx, wide_xty, yty, run, [int(t) for t in terms], mean, spread, n)
+            post = posterior(
+                wide_xtx, wide_xty, design.yty, design.run, [int(t) for t in terms], mean, spread, design.n
+            )
             if post is None:
                 return None
+            settled = abs(post.value(Term.AY) - b_ay) <= _SETTLED * abs(b_ay)
             b_ay = post.value(Term.AY)
+            if settled:  # the priors' scale was a_y's coefficient's own
+                break
         assert post is not None
-        return self._marginal_result(priors, post, bias_terms, len(run), logs)
+        return post, bias_terms
 
     def _marginal_result(
-        self, priors: Priors, post: Posterior, bias_terms: list[int], blocks: int, logs: int
+        self,
+        priors: Priors,
+        found: list[tuple[Posterior, list[int]]],
+        weights: list[float],
+        blocks: int,
+        logs: int,
     ) -> RegressionFit | None:
-        b_ay = post.value(Term.AY)
-        if b_ay >= 0:  # no stiffness
+        """The result of d's priors' mixture: C2n and d from both posteriors by their weights, the
+        rest (terms reported, ``held_open_by``) from the heavier one."""
+        kept = [(f, w) for f, w in zip(found, weights, strict=True) if f[0].value(Term.AY) < 0]
+        if not kept:  # no stiffness
             return None
+        post, bias_terms = max(kept, key=lambda fw: fw[1])[0]
         from scipy.special import stdtrit
 
-        q = float(stdtrit(max(blocks - len(post.terms), 1), 0.5 + priors.confidence / 2.0))
-        c2n = -1.0 / (self.g * b_ay)
-        c2n_se = math.hypot(post.se(Term.AY) / (self.g * b_ay * b_ay), self.scale_se * abs(c2n))
-        c2n_ci = (c2n - q * c2n_se, c2n + q * c2n_se)
+        dof = max(blocks - len(post.terms), 1)
+        q = float(stdtrit(dof, 0.5 + priors.confidence / 2.0))
+        shares = [w for _, w in kept]
+        c2ns = [-1.0 / (self.g * f[0].value(Term.AY)) for f, _ in kept]
+        c2n_ses = [
+            math.hypot(f[0].se(Term.AY) * self.g * c * c, self.scale_se * abs(c))
+            for (f, _), c in zip(kept, c2ns, strict=True)
+        ]
+        c2n, c2n_ci = mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
+        c2n_se = (c2n_ci[1] - c2n_ci[0]) / (2.0 * q)
+        d_m, d_ci = mixture(
+            [f[0].value(Term.D) for f, _ in kept],
+            [f[0].se(Term.D) for f, _ in kept],
+            shares,
+            dof,
+            priors.confidence,
+        )
+        b_ay = post.value(Term.AY)
         fit = _Solution(post.terms, post.coef, post.cov)
 
         def ci(term: int) -> tuple[float, float]:
@@ -471,8 +522,8 @@ class SampleRegression:
             c2n=c2n,
             c2n_se=c2n_se,
             c2n_ci95=c2n_ci,
-            d_m=post.value(Term.D),
-            d_ci95=ci(Term.D),
+            d_m=d_m,
+            d_ci95=d_ci,
             psi0_rad=post.value(Term.PSI0),
             psi0_ci95=ci(Term.PSI0),
             model="softening" if softens else "linear",
@@ -787,6 +838,24 @@ def _within(xtx: np.ndarray) -> float:
     """Σ(κ − κ̄)² of the blocks' samples: how much the curvature varies about its own mean."""
     n, sum_k, sum_k2 = xtx[:, 0, 0].sum(), xtx[:, 0, 1].sum(), xtx[:, 1, 1].sum()
     return float(sum_k2 - sum_k * sum_k / n) if n > 0 else 0.0
+
+
+D_EXACT_SD_M = 1e-4  # a tape stated exact (d_tolerance_mm 0): its prior 0.1 mm, finer than any tape reads
+_SETTLED = 1e-4  # a_y's coefficient settled: a change under 0.01 % of C2n, far inside its interval
+
+
+@dataclass(frozen=True)
+class _Design:
+    """The marginal fit's statistics and columns: ψ0's, the speed pairs, the drive's own terms."""
+
+    xtx: np.ndarray
+    xty: np.ndarray
+    yty: np.ndarray
+    run: np.ndarray
+    n: int
+    offsets: list[int]
+    speeds: list[tuple[int, int]]
+    own: list[int]
 
 
 def _per_log(

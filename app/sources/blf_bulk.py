@@ -210,8 +210,9 @@ class TriagedBLFReader(can.BLFReader):
     def _block(self, gathered: list[np.ndarray]) -> FrameBlock:
         """The data frames of run objects as python-can's parser reads them: the timestamp in
         10 µs where the header's flags are 1, else in ns, from the file's start. python-can takes
-        ``float(Decimal(raw) * 1e-5)``, the exact product rounded once; a raw value below 2**53 is
-        exact as a float, so dividing it by 1e5 (exact too) rounds the same quotient the same way."""
+        ``float(Decimal(raw) * Decimal("1e-5"))`` (or 1e-9), the exact product rounded once; a raw
+        value below 2**53 is exact as a float, so dividing it by 1e5 (or 1e9, exact too) rounds the
+        same quotient the same way. Then the start is added, as python-can adds it."""
         objects = gathered[0] if len(gathered) == 1 else np.concatenate(gathered)
         dlc = objects["dlc"].astype(np.int64)
         unit = np.where(objects["time_unit"] == 1, 1e5, 1e9)

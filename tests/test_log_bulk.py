@@ -1,7 +1,9 @@
-"""The bulk readers (BLF: python-can's object walk with unneeded frames skipped; MF4: asammdf's
-arrays) against python-can's readers, the reference: the same frames reach the pipeline, every
-other frame is counted the same, the results are identical."""
+"""The bulk readers (BLF: python-can's object walk with unneeded frames skipped, the needed ones
+in FrameBlocks read with numpy; MF4: asammdf's arrays) against python-can's readers, the
+reference: the same frames reach the pipeline, every other frame is counted the same, the results
+are identical."""
 
+import copy
 import json
 from pathlib import Path
 from typing import Any
@@ -9,6 +11,7 @@ from typing import Any
 import can
 import numpy as np
 import pytest
+from can.io.blf import OBJ_HEADER_BASE_STRUCT, OBJ_HEADER_V1_STRUCT, TIME_TEN_MICS
 
 from app.config import load_config
 from app.decode.decoder import Decoder
@@ -21,9 +24,37 @@ from app.sources.mf4_bulk import MDF, data_groups, holds_frames
 from tests.simulated import cached_drive
 
 
-def busy_drive(folder: Path, suffix: str, extra: tuple[can.Message, ...] = ()) -> Path:
+class MixedUnitsWriter(can.BLFWriter):
+    """python-can's BLF writer (whose objects give their time in ns) with every other object's
+    time in 10 µs, its header's flags 1, as other loggers write it."""
+
+    objects = 0
+
+    def _add_object(self, obj_type: int, data: bytes, timestamp: float | None = None) -> None:
+        self.objects += 1
+        if self.objects % 2 or timestamp is None or self.start_timestamp is None:
+            super()._add_object(obj_type, data, timestamp)
+            return
+        header_size = OBJ_HEADER_BASE_STRUCT.size + OBJ_HEADER_V1_STRUCT.size
+        ticks = max(round((timestamp - self.start_timestamp) * 1e5), 0)
+        padding = b"\x00" * (len(data) % 4)
+        self.stop_timestamp = timestamp
+        self._buffer += [
+            OBJ_HEADER_BASE_STRUCT.pack(b"LOBJ", header_size, 1, header_size + len(data), obj_type),
+            OBJ_HEADER_V1_STRUCT.pack(TIME_TEN_MICS, 0, 0, ticks),
+            data,
+            padding,
+        ]
+        self._buffer_size += header_size + len(data) + len(padding)
+        self.object_count += 1
+        if self._buffer_size >= self.max_container_size:
+            self._flush()
+
+
+def busy_drive(folder: Path, suffix: str, extra: tuple[can.Message, ...] = (), offset: float = 0.0) -> Path:
     """A simulated drive on a busy bus: background ids, 29-bit ids, CAN FD frames, a second
-    channel, in one log file."""
+    channel, in one log file (a BLF with times in 10 µs and in ns), its times moved by
+    ``offset``."""
     drive = cached_drive()
     rng = np.random.default_rng(11)
     start, end = drive.messages[0].timestamp, drive.messages[-1].timestamp
@@ -42,14 +73,18 @@ def busy_drive(folder: Path, suffix: str, extra: tuple[can.Message, ...] = ()) -
         )
     messages.sort(key=lambda m: m.timestamp)
     path = folder / f"drive{suffix}"
-    with can.Logger(path) as writer:
+    with MixedUnitsWriter(path) if suffix == ".blf" else can.Logger(path) as writer:
         for message in messages:
+            if offset:
+                message = copy.copy(message)  # the cached drive's own Messages stay as they are
+                message.timestamp += offset
             writer.on_message_received(message)
     return path
 
 
 def analysed(path: Path, bulk: bool) -> dict[str, Any]:
-    """The drive's summary; ``bulk``: read as ``c2n analyze`` reads it (an MF4 as FrameBlocks)."""
+    """The drive's summary; ``bulk``: read as ``c2n analyze`` reads it (a BLF or an MF4 as
+    FrameBlocks)."""
     pipeline = Pipeline(load_config())
     source = LogSource([path], triage=pipeline.decoder if bulk else None)
     blocks = 0
@@ -62,6 +97,8 @@ def analysed(path: Path, bulk: bool) -> dict[str, Any]:
     if bulk and path.suffix == ".mf4":  # blocks where asammdf's arrays are read: data frames only
         with MDF(path) as mdf:
             assert (blocks > 0) == (data_groups(mdf) is not None)
+    if path.suffix == ".blf":  # its runs of CAN message objects: blocks whenever read in bulk
+        assert (blocks > 0) == bulk
     pipeline.finish()
     result = summary.build(pipeline.snapshot(), pipeline.config, [str(path)], source.reports).to_json()
     assert source.reports[0].done and source.reports[0].stopped is None
@@ -120,6 +157,96 @@ def test_the_frames_read_in_bulk_are_python_cans_own(drive_log: Path) -> None:
     assert k == len(in_bulk) > 0
     assert passed_over > 15_000
     assert decoder.counts.total == passed_over  # counted without being decoded
+
+
+def frames_of(items: list[can.Message | FrameBlock]) -> list[tuple[Any, ...]]:
+    """Each frame's fields as python-can's Message gives them, a block's row by row."""
+    out: list[tuple[Any, ...]] = []
+    for item in items:
+        if isinstance(item, can.Message):
+            out.append(
+                (
+                    item.timestamp,
+                    item.arbitration_id,
+                    item.is_extended_id,
+                    item.channel,
+                    bytes(item.data),
+                    item.dlc,
+                    item.is_fd,
+                    item.is_remote_frame,
+                    item.is_error_frame,
+                )
+            )
+            continue
+        assert item.channel is not None and item.data.shape[1] >= int(item.length.max())
+        for k, length in enumerate(item.length.tolist()):
+            row = item.data[k]
+            assert not row[length:].any()  # the bytes past the data length are zeros, as _block pads
+            fields = (item.frame_id[k], item.extended[k], item.channel[k], item.fd[k])
+            frame_id, extended, channel, fd = (x.item() for x in fields)
+            out.append(
+                (
+                    item.t[k].item(),
+                    frame_id,
+                    extended,
+                    channel,
+                    row[:length].tobytes(),
+                    length,
+                    fd,
+                    False,
+                    False,
+                )
+            )
+    return out
+
+
+@pytest.mark.parametrize("clock", ["unix", "from power-on"])
+def test_a_blf_read_in_blocks_gives_python_cans_frames(tmp_path: Path, clock: str) -> None:
+    """Frame for frame, timestamp to the bit: the blocks and Messages of a BLF read in blocks are
+    python-can's reader's frames, in order, less the frames passed over (counted instead), on the
+    busy drive (times in 10 µs and ns, 29-bit ids, CAN FD, two channels) with an error frame, and
+    needed frames a block does not hold: remote, with a dlc over 8, a time too late to be exact as
+    a float of ns (more than 2**53 ns, 104 days, after the start). On a clock from power-on the
+    file starts at 0 (its header has no date): the times are the objects' own, every bit seen."""
+    decoder = Decoder(load_config())
+    drive = cached_drive().messages
+    needed = next(
+        m for m in drive if decoder.skip_kind(m.channel, m.arbitration_id, m.is_extended_id) is None
+    )
+    t = drive[200].timestamp
+
+    def like(**fields: Any) -> can.Message:
+        return can.Message(arbitration_id=needed.arbitration_id, is_extended_id=False, **fields)
+
+    odd = (
+        can.Message(timestamp=t, is_error_frame=True, channel=0),
+        like(timestamp=t + 0.0001, is_remote_frame=True, dlc=8, channel=needed.channel),
+        like(timestamp=t + 0.0002, dlc=15, data=bytes(range(8)), channel=needed.channel),
+        like(timestamp=t + 0.0003, data=bytes(range(8)), channel=-1),  # raw channel 0
+        *(  # two: the writer gives one of them in ns, the other in 10 µs (a block holds that one)
+            like(timestamp=drive[-1].timestamp + 105 * 86_400 + k, data=bytes(8), channel=needed.channel)
+            for k in (0, 1)
+        ),
+    )
+    path = busy_drive(tmp_path, ".blf", odd, offset=0.0 if clock == "unix" else 0.5 - drive[0].timestamp)
+    report = LogReport(path)
+    items = list(read_log(path, report, triage=decoder, blocks=True))
+    blocks = [item for item in items if isinstance(item, FrameBlock)]
+    in_blocks = sum(len(b) for b in blocks)
+    theirs = [m for m in can.LogReader(path) if not (m.is_error_frame or m.is_remote_frame or m.is_fd)]
+    kept = [
+        m
+        for m in can.LogReader(path)
+        if decoder.skip_kind(m.channel, m.arbitration_id, m.is_extended_id) is None
+        or m.is_error_frame
+        or m.is_remote_frame
+        or m.is_fd  # python-can's parser reads CAN FD objects: they come as Messages
+    ]
+    assert frames_of(items) == frames_of(kept)  # type: ignore[arg-type]
+    assert report.frames == len(theirs) + 1 + 1 + 400 and report.stopped is None
+    assert in_blocks > 30_000 and len(items) - len(blocks) == 400 + 4  # CAN FD, the odd frames
+    assert decoder.counts.total == report.frames - in_blocks - (len(items) - len(blocks))
+    assert (can.BLFReader(path).start_timestamp == 0) == (clock == "from power-on")
 
 
 @pytest.mark.parametrize("suffix", [".blf", ".mf4"])

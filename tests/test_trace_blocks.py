@@ -3,15 +3,22 @@ the reference, TraceRecorder over the Records of the live loop one by one: the s
 values in every channel, the same measured drive — on the troubled drive of test_blocks.py, with
 error, remote and cut frames among its frames (those go through ``decode`` alone)."""
 
+import io
+from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import can
 import numpy as np
+import pytest
 
+from app.cli import main
 from app.gap.measured import frame_blocks, measure, measure_by_frame
 from app.pipeline import Pipeline
 from app.run_loop import run
 from app.sinks.trace import Trace, TraceBlocks, TraceRecorder
+from app.sources import logs
+from app.sources.blocks import FrameBlock
+from app.sources.logs import LogReport, read_log
 from tests.test_blocks import CONFIG, _copy, troubled_drive
 
 
@@ -69,3 +76,31 @@ def test_the_measured_drive_is_the_same_in_blocks(tmp_path: Path) -> None:
         assert np.array_equal(getattr(blocks, name), getattr(frames, name), equal_nan=True), name
     assert blocks.crossings == frames.crossings and blocks.regression == frames.regression
     assert blocks.summary == frames.summary
+
+
+def test_c2n_gap_says_the_same_whether_a_blf_comes_in_blocks_or_as_messages(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``c2n gap --json`` byte for byte: the BLF reader's own FrameBlocks (its remote, error and
+    cut frames as Messages among them) against its Messages packed into blocks by
+    ``frame_blocks``, as before the reader gave blocks."""
+    log = tmp_path / "drive.blf"
+    with can.Logger(str(log)) as writer:
+        for m in odd_drive():
+            writer.on_message_received(m)
+    items = list(read_log(log, LogReport(log), Pipeline(CONFIG).decoder, blocks=True))
+    messages = [item for item in items if isinstance(item, can.Message)]
+    assert any(isinstance(item, FrameBlock) for item in items) and any(m.is_remote_frame for m in messages)
+
+    def gap_json(name: str) -> bytes:
+        out = tmp_path / name
+        with redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()) as err:
+            code = main(["gap", str(log), "--json", str(out)])
+        assert code == 0, err.getvalue()
+        return out.read_bytes()
+
+    in_blocks = gap_json("blocks.json")
+    monkeypatch.delitem(logs._BLOCK_READERS, ".blf")  # the BLF read as Messages, the bulk reader's
+    as_messages = gap_json("messages.json")
+    assert b'"diagnosis"' in in_blocks
+    assert in_blocks == as_messages

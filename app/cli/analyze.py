@@ -104,7 +104,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     for number, logs in enumerate(drives):
         source = LogSource(logs, merge=args.merge, triage=pipeline.decoder)
         progress = ReadProgress(source, ", ".join(p.name for p in logs))
-        frames: Iterator[Any] = source.items(blocks=True)  # an MF4's as FrameBlocks: process_block
+        frames: Iterator[Any] = source.items(blocks=True)  # a BLF or MF4 in FrameBlocks: process_block
         end = pipeline.state.t_last
         if number and end is not None:  # the drives laid end to end, _POOL_GAP_S apart
             pipeline.new_log()

@@ -107,13 +107,14 @@ def _vehicle_roles(config: Config) -> frozenset[str]:
 
 def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
     """The drive through the pipeline, its frames taken in blocks (``Pipeline.take_block``: the
-    filter and the gates vectorised); the same trace as frame by frame (``measure_by_frame``,
+    filter and the gates vectorised), a BLF's or an MF4's as the reader hands them over
+    (``LogSource.items``); the same trace as frame by frame (``measure_by_frame``,
     tests/test_trace_blocks.py)."""
     pipeline = Pipeline(config)
     source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
-    messages = iter(source)
+    messages = source.items(blocks=True)
     first = next(messages, None)
-    if first is not None and not (first.channel is None or type(first.channel) is int):
+    if isinstance(first, can.Message) and not (first.channel is None or type(first.channel) is int):
         return measure_by_frame(logs, config, dt)  # named channels (candump's can0): frame by frame
     recorder = TraceBlocks(config.roles)
     pipeline.on_block = recorder.on_block
@@ -148,13 +149,20 @@ def _measured(
 BLOCK_FRAMES = 4096  # frames per block: the per-block work (a few numpy calls per role) amortised
 
 
-def frame_blocks(messages: Iterable[can.Message], pipeline: Pipeline) -> Iterator[FrameBlock]:
-    """The frames as FrameBlocks of up to BLOCK_FRAMES, in order. A frame a block cannot hold as
-    ``decode`` would read it (error and remote frames, a dlc other than its data's length, a
-    channel named rather than numbered, as a candump log's ``can0``) goes through ``decode`` alone,
-    its Record to ``take_block``; a block holds channels of None or numbers, not both."""
+def frame_blocks(messages: Iterable[can.Message | FrameBlock], pipeline: Pipeline) -> Iterator[FrameBlock]:
+    """The frames as FrameBlocks of up to BLOCK_FRAMES, in order; a reader's own FrameBlocks as
+    they are. A frame a block cannot hold as ``decode`` would read it (error and remote frames, a
+    dlc other than its data's length, a channel named rather than numbered, as a candump log's
+    ``can0``) goes through ``decode`` alone, its Record to ``take_block``; a block holds channels
+    of None or numbers, not both."""
     part: list[can.Message] = []
     for msg in messages:
+        if isinstance(msg, FrameBlock):
+            if part:
+                yield _block(part)
+                part = []
+            yield msg
+            continue
         channel = msg.channel
         if (
             msg.is_error_frame

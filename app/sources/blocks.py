@@ -1,5 +1,5 @@
 """Many frames at once, as columns: what a bulk reader hands the pipeline instead of a python-can
-Message per frame (``c2n analyze`` on MF4), and what the decoder makes of them.
+Message per frame (``c2n analyze`` and ``c2n gap`` on BLF and MF4), and what the decoder makes of them.
 
 A block holds consecutive frames in arrival order, so the pipeline's result over blocks is its
 result frame by frame (tests/test_log_bulk.py, tests/test_blocks.py).

@@ -197,7 +197,8 @@ def read_log(
 
     With ``triage`` (the decoder), BLF and MF4 files are read in bulk: only the frames the
     pipeline decodes are yielded, the rest are counted by the decoder directly. With ``blocks``
-    too, an MF4 yields them as FrameBlocks (``Pipeline.process_block``)."""
+    too, a BLF or an MF4 yields them as FrameBlocks (``Pipeline.process_block``), and the frames
+    a block does not hold (a BLF's remote and error frames, CAN FD …) as Messages among them."""
     reader = _bulk_reader(path, report, triage, blocks) if triage is not None else None
     if reader is None:
         reader = open_log(path)
@@ -238,7 +239,10 @@ def _triaged_mf4(
 
 
 _BULK_READERS: dict[str, _BulkReader] = {".blf": TriagedBLFReader, ".mf4": _triaged_mf4}
-_BLOCK_READERS: dict[str, _BulkReader] = {".mf4": partial(_triaged_mf4, blocks=True)}
+_BLOCK_READERS: dict[str, _BulkReader] = {
+    ".blf": partial(TriagedBLFReader, blocks=True),
+    ".mf4": partial(_triaged_mf4, blocks=True),
+}
 
 
 def _bulk_reader(
@@ -421,8 +425,8 @@ class LogSource:
         return cast(Iterator[can.Message], self.items(blocks=False))  # no blocks: Messages only
 
     def items(self, blocks: bool) -> Iterator[can.Message | FrameBlock]:
-        """The frames; with ``blocks``, those of an MF4 read in bulk as FrameBlocks (``c2n
-        analyze``: ``Pipeline.process_block``), unless the logs are merged."""
+        """The frames; with ``blocks``, those of a BLF or an MF4 read in bulk as FrameBlocks
+        (``c2n analyze``, ``c2n gap``: ``Pipeline.process_block``), unless the logs are merged."""
         blocks = blocks and not self.merge
         streams = [read_log(p, r, self.triage, blocks) for p, r in zip(self.paths, self.reports, strict=True)]
         if self.merge:

@@ -307,6 +307,27 @@ def fit(
     return Fit(params, values, float(result.cost), result.jac, result.fun)
 
 
+@dataclass(frozen=True)
+class _Job:
+    """A fit to make: its parameters, its rows, and where it may start (the best of ``starts``)."""
+
+    params: tuple[Param, ...]
+    rows: np.ndarray
+    starts: tuple[tuple[float, ...], ...]
+
+
+def _fit_all(pb: Problem, jobs: Sequence[_Job], workers: int) -> list[Fit]:
+    """Each job's fit, in ``workers`` processes (the same fits ``fit`` makes one by one: only
+    their numbers cross the process edge)."""
+
+    def numbers(index: int) -> tuple[tuple[float, ...], float, np.ndarray | None, np.ndarray | None]:
+        job = jobs[index]
+        done = fit(pb, job.params, job.rows, start=_best_start(pb, job.params, job.rows, list(job.starts)))
+        return done.values, done.cost, done.jac, done.fun
+
+    return [Fit(job.params, *out) for job, out in zip(jobs, _map(numbers, len(jobs), workers), strict=True)]
+
+
 MIN_USABLE_S = 60.0  # of driving the model is compared on: less cannot be split into folds
 
 
@@ -499,11 +520,18 @@ class Heldout:
     yaw_spread: float  # the yaw-rate channel's unit, deg/s
 
 
-def heldout(pb: Problem, calibration: Calibration, fold: np.ndarray, effect: str = "none") -> Heldout:
-    """The calibrated model's held-out gaps (with the nuisances ``effect`` is fitted beside)."""
+def heldout(
+    pb: Problem,
+    calibration: Calibration,
+    fold: np.ndarray,
+    effect: str = "none",
+    baseline: tuple[Fit, ...] | None = None,
+) -> Heldout:
+    """The calibrated model's held-out gaps (with the nuisances ``effect`` is fitted beside);
+    ``baseline``: its fits on each training fold, where they were made already (``_baselines``)."""
     held = tuple(pb.rows & (fold == k) for k in (0, 1))
-    params, start = calibration.params_for(effect), calibration.start_for(effect)
-    baseline = tuple(fit(pb, params, pb.rows & (fold != k), start=start) for k in (0, 1))
+    if baseline is None:
+        baseline = tuple(_fit_all(pb, _baseline_jobs(pb, calibration, fold, effect), workers=1))
     sims = [pb.simulate(combine(f.fields())) for f in baseline]
     parts = list(zip(sims, held, strict=True))
     noise = math.sqrt(sum(pb.gap_noise_deg(rows) ** 2 for rows in held) / 2)
@@ -519,51 +547,83 @@ def heldout(pb: Problem, calibration: Calibration, fold: np.ndarray, effect: str
     )
 
 
-def score(
-    pb: Problem, calibration: Calibration, ho: Heldout, candidate: Candidate, rival: Heldout | None = None
-) -> Scored:
-    """The candidate fitted with the nuisances on every sample and on each training fold, and
-    its held-out gaps. The nuisances start both from the calibration and from the config's
-    values (a large effect the calibration could not see may have bent it), the better fit wins;
-    the folds start from it.
+def _baseline_jobs(pb: Problem, calibration: Calibration, fold: np.ndarray, effect: str) -> list[_Job]:
+    """The calibrated model's fits on each training fold (with the nuisances ``effect`` is
+    fitted beside)."""
+    params, start = calibration.params_for(effect), calibration.start_for(effect)
+    return [_Job(params, pb.rows & (fold != k), (start,)) for k in (0, 1)]
 
-    A candidate a nuisance imitates is fitted twice: beside every nuisance (a drive may carry
-    both), and with that nuisance held (``rival``: the calibrated model's gaps without it), where
-    it must explain the drive better than the nuisance does. The lower held-out gap counts."""
+
+def _baselines(
+    pb: Problem, calibration: Calibration, fold: np.ndarray, effects: Sequence[str], workers: int
+) -> list[Heldout]:
+    """``heldout`` for each of ``effects``, their fits made together in ``workers`` processes."""
+    jobs = [job for effect in effects for job in _baseline_jobs(pb, calibration, fold, effect)]
+    fits = _fit_all(pb, jobs, workers)
+    return [
+        heldout(pb, calibration, fold, effect, tuple(fits[2 * k : 2 * k + 2]))
+        for k, effect in enumerate(effects)
+    ]
+
+
+@dataclass(frozen=True)
+class _Variant:
+    """One way a candidate is scored: the nuisances fitted beside it, where they start, and the
+    held-out gaps it is judged against (``held``: its rival nuisance held, those of the
+    calibrated model without it)."""
+
+    candidate: Candidate
+    nuisance_params: tuple[Param, ...]
+    calibrated: tuple[float, ...]
+    ho: Heldout
+    held: bool = False
+
+    @property
+    def params(self) -> tuple[Param, ...]:
+        return (*self.nuisance_params, *self.candidate.params)
+
+
+def _variants(
+    calibration: Calibration, ho: Heldout, candidate: Candidate, rival: Heldout | None
+) -> list[_Variant]:
+    """The candidate with the nuisances; one a nuisance imitates also with that nuisance held."""
     if rival is None:
-        return _score(pb, calibration.params, calibration.values, ho, candidate)
+        return [_Variant(candidate, calibration.params, calibration.values, ho)]
     effect = candidate.effect
-    beside = _score(pb, calibration.params_for(effect, rival_free=True), calibration.values, ho, candidate)
-    held = _score(pb, calibration.params_for(effect), calibration.start_for(effect), rival, candidate)
-    return min((beside, replace(held, rival_gap=ho.gap)), key=lambda s: s.gap_after)
+    return [
+        _Variant(candidate, calibration.params_for(effect, rival_free=True), calibration.values, ho),
+        _Variant(candidate, calibration.params_for(effect), calibration.start_for(effect), rival, held=True),
+    ]
 
 
-def _score(
-    pb: Problem,
-    nuisance_params: tuple[Param, ...],
-    calibrated: tuple[float, ...],
-    ho: Heldout,
-    candidate: Candidate,
-) -> Scored:
-    params = (*nuisance_params, *candidate.params)
-    effect_starts = list(itertools.product(*(p.starts for p in candidate.params)))
-    nominal = tuple(p.nominal for p in nuisance_params)
+def _everything(pb: Problem, variant: _Variant) -> Fit:
+    """The candidate fitted with the nuisances on every sample. The nuisances start both from the
+    calibration and from the config's values (a large effect the calibration could not see may
+    have bent it): the better fit wins."""
+    params = variant.params
+    effect_starts = list(itertools.product(*(p.starts for p in variant.candidate.params)))
 
     def from_(base: tuple[float, ...]) -> Fit:
         return fit(
             pb, params, pb.rows, start=_best_start(pb, params, pb.rows, [(*base, *e) for e in effect_starts])
         )
 
-    everything = from_(calibrated)
+    everything = from_(variant.calibrated)
     if everything.at_bound():  # a large effect may have bent the calibration: start again from the config
+        nominal = tuple(p.nominal for p in variant.nuisance_params)
         everything = min((everything, from_(nominal)), key=lambda f: f.cost)
-    folds = [fit(pb, params, pb.rows & (ho.fold != k), start=everything.values) for k in (0, 1)]
+    return everything
+
+
+def _scored(pb: Problem, variant: _Variant, everything: Fit, folds: tuple[Fit, ...]) -> Scored:
+    """A variant's held-out gaps: each fold's samples from its fit on the other."""
+    ho = variant.ho
     sims = [pb.simulate(combine(f.fields())) for f in folds]
     parts = list(zip(sims, ho.held, strict=True))
     return Scored(
-        candidate,
+        variant.candidate,
         everything,
-        tuple(folds),
+        folds,
         ho.gap,
         _pooled(pb.rms_beta_deg, parts),
         ho.yaw,
@@ -611,18 +671,18 @@ class Added:
         return self.fit.values[-len(self.candidate.params) :]
 
 
-def add_to(pb: Problem, ho: Heldout, best: Scored, other: Candidate) -> Added:
+def add_to(pb: Problem, ho: Heldout, best: Scored, other: Candidate, workers: int = 1) -> Added:
     """``other`` fitted beside the leading effect (and the nuisances) on each training fold and
-    on every sample."""
+    on every sample (the three fits in ``workers`` processes)."""
     params = (*best.fit.params, *other.params)
     starts = list(itertools.product(*(p.starts for p in other.params)))
-    folds = []
-    for k in (0, 1):
-        rows = pb.rows & (ho.fold != k)
-        start = _best_start(pb, params, rows, [(*best.folds[k].values, *s) for s in starts])
-        folds.append(fit(pb, params, rows, start=start))
-    start = _best_start(pb, params, pb.rows, [(*best.fit.values, *s) for s in starts])
-    return Added(other, tuple(folds), fit(pb, params, pb.rows, start=start))
+    jobs = [
+        _Job(params, pb.rows & (ho.fold != k), tuple((*best.folds[k].values, *s) for s in starts))
+        for k in (0, 1)
+    ]
+    jobs.append(_Job(params, pb.rows, tuple((*best.fit.values, *s) for s in starts)))
+    *folds, everything = _fit_all(pb, jobs, workers)
+    return Added(other, tuple(folds), everything)
 
 
 def _params(params: Sequence[Param], values: Sequence[float]) -> dict[str, float]:
@@ -737,45 +797,44 @@ def _map(work: Callable[[int], _T], n: int, workers: int) -> list[_T]:
         _WORK = None
 
 
-_Gaps = tuple[float, float, float, float, float, float]  # sideslip, yaw rate, speed: before, after
-_Numbers = tuple[
-    tuple[float, ...],
-    float,
-    tuple[tuple[float, ...], ...],
-    _Gaps,
-    float | None,
-    tuple[tuple[float, float], ...],
-]
-
-
 def _scores(
     pb: Problem, calibration: Calibration, ho: Heldout, rivals: dict[str, Heldout], workers: int
 ) -> list[tuple[Scored, tuple[tuple[float, float], ...]]]:
-    """Every candidate scored (in ``workers`` processes), with its effect's 95 % intervals; one a
-    nuisance imitates also against the calibrated model with that nuisance held (``rivals``)."""
+    """Every candidate scored, with its effect's 95 % intervals: fitted with the nuisances on every
+    sample, then on each training fold starting from there, and its held-out gaps.
 
-    def numbers(index: int) -> _Numbers:
-        """What crosses the process edge: plain numbers (the candidates hold functions)."""
-        candidate = CANDIDATES[index]
-        s = score(pb, calibration, ho, candidate, rivals.get(candidate.effect))
-        return (
-            s.fit.values,
-            s.fit.cost,
-            tuple(f.values for f in s.folds),
-            (s.gap_before, s.gap_after, s.yaw_before, s.yaw_after, s.speed_before, s.speed_after),
-            s.rival_gap,
-            _intervals(pb, s.fit)[-len(candidate.params) :],
-        )
+    A candidate a nuisance imitates is fitted twice: beside every nuisance (a drive may carry
+    both), and with that nuisance held (``rivals``: the calibrated model's gaps without it), where
+    it must explain the drive better than the nuisance does. The lower held-out gap counts.
 
-    out = []
-    for candidate, (values, cost, fold_values, gaps, rival_gap, ci95) in zip(
-        CANDIDATES, _map(numbers, len(CANDIDATES), workers), strict=True
-    ):  # the rival held where it was (rival_gap), else free beside the effect
-        nuisance_params = calibration.params_for(candidate.effect, rival_free=rival_gap is None)
-        params = (*nuisance_params, *candidate.params)
-        fits = tuple(Fit(params, v, 0.0) for v in fold_values)
-        out.append((Scored(candidate, Fit(params, values, cost), fits, *gaps, rival_gap), ci95))
-    return out
+    The fits on every sample, then the folds', are made in ``workers`` processes, two rounds of
+    independent fits; only numbers cross the process edge (the candidates hold functions)."""
+    variants = [v for c in CANDIDATES for v in _variants(calibration, ho, c, rivals.get(c.effect))]
+
+    def whole(index: int) -> tuple[tuple[float, ...], float, tuple[tuple[float, float], ...]]:
+        variant = variants[index]
+        done = _everything(pb, variant)
+        return done.values, done.cost, _intervals(pb, done)[-len(variant.candidate.params) :]
+
+    firsts = _map(whole, len(variants), workers)
+    everything = [Fit(v.params, values, cost) for v, (values, cost, _) in zip(variants, firsts, strict=True)]
+
+    def fold(index: int) -> tuple[tuple[float, ...], float]:
+        variant, k = variants[index // 2], index % 2
+        done = fit(pb, variant.params, pb.rows & (variant.ho.fold != k), start=everything[index // 2].values)
+        return done.values, done.cost
+
+    seconds = _map(fold, 2 * len(variants), workers)
+    best: dict[str, tuple[Scored, tuple[tuple[float, float], ...]]] = {}
+    for k, variant in enumerate(variants):
+        folds = tuple(Fit(variant.params, *seconds[2 * k + j]) for j in (0, 1))
+        scored = _scored(pb, variant, everything[k], folds)
+        if variant.held:
+            scored = replace(scored, rival_gap=ho.gap)
+        effect = variant.candidate.effect
+        if effect not in best or scored.gap_after < best[effect][0].gap_after:
+            best[effect] = (scored, firsts[k][2])
+    return [best[c.effect] for c in CANDIDATES]
 
 
 def diagnose(m: Measured, config: Config, workers: int = 1) -> Diagnosis:
@@ -889,6 +948,7 @@ def _together(
     ids: np.ndarray,
     bases: dict[str, dict[str, np.ndarray]],
     judged: list[_Judged],
+    workers: int = 1,
 ) -> tuple[list[_Judged], dict[str, Added]]:
     """The findings, fitted together: the one that matters most leads; each other one that
     matters is added to the finding of its channel and kept where it shrinks, held out, what that
@@ -901,7 +961,7 @@ def _together(
         if lead is None:
             findings.append(j)
             continue
-        added = add_to(pb, ho, lead.scored, j.scored.candidate)
+        added = add_to(pb, ho, lead.scored, j.scored.candidate, workers)
         both = _heldout_residuals(pb, ho.fold, added.folds)
         own = channel(j.effect)
         gain = gain_z(_units(pb, ids, lead.after, own), _units(pb, ids, both, own))
@@ -922,7 +982,7 @@ def _together(
                 f"z = {gain:.1f})"
             )
     if findings:
-        findings += _beside(pb, config, calibration, ho, ids, bases, judged, findings, joint)
+        findings += _beside(pb, config, calibration, ho, ids, bases, judged, findings, joint, workers)
     return findings, joint
 
 
@@ -936,6 +996,7 @@ def _beside(
     judged: list[_Judged],
     findings: list[_Judged],
     joint: dict[str, Added],
+    workers: int = 1,
 ) -> list[_Judged]:
     """A candidate whose fit alone bent a nuisance to its bound (making room for an effect it
     does not have: the finding's) is fitted again beside the finding of its channel, or the first
@@ -946,7 +1007,7 @@ def _beside(
         if j in findings or j.confounded or not bent:
             continue
         lead = next((f for f in findings if channel(f.effect) == channel(j.effect)), findings[0])
-        added = add_to(pb, ho, lead.scored, j.scored.candidate)
+        added = add_to(pb, ho, lead.scored, j.scored.candidate, workers)
         sims = [pb.simulate(combine(f.fields())) for f in added.folds]
         parts = list(zip(sims, ho.held, strict=True))
         s = lead.scored
@@ -1024,13 +1085,10 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     calibrated = pb.simulate(calibration.mods())
     ids = manoeuvres(m)
     fold = folds(m, ids)
-    ho = heldout(pb, calibration, fold)
     names = {p.name for p in calibration.params}
-    held = {
-        rival: heldout(pb, calibration, fold, effect)
-        for effect, rival in RIVAL_NUISANCE.items()
-        if rival in names
-    }
+    imitated = {rival: effect for effect, rival in RIVAL_NUISANCE.items() if rival in names}
+    ho, *rival_ho = _baselines(pb, calibration, fold, ["none", *imitated.values()], workers)
+    held = dict(zip(imitated, rival_ho, strict=True))
     rivals = {effect: held[rival] for effect, rival in RIVAL_NUISANCE.items() if rival in held}
     bases = {"none": _heldout_residuals(pb, fold, ho.baseline), "fold": {"fold": fold}}
     for rival in held.values():  # one rival nuisance at most
@@ -1038,7 +1096,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     pairs = sorted(_scores(pb, calibration, ho, rivals, workers), key=lambda p: -p[0].shrink)
     units = test_units(ids)
     judged = [_judge(pb, config, calibration, units, bases, s, ci) for s, ci in pairs]
-    findings, joint = _together(pb, config, calibration, ho, units, bases, judged)
+    findings, joint = _together(pb, config, calibration, ho, units, bases, judged, workers)
     measured_effects = method_effects(m, config)
     # where the method measures an effect's own parameter, its measurement decides, not the fit's
     direct = DIRECT & {e.effect for e in measured_effects}

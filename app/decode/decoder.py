@@ -328,26 +328,25 @@ class Decoder:
         each role value that ``SensorStatus.why_not`` would drop at its frame."""
         status = self.status
         roles = [role for role in checked if status.applies(role)]
-        events: list[tuple[int, dict[str, float]]] = []
-        for rows, values in status_rows:
-            columns = {name: column.tolist() for name, column in values.items()}
-            events += [
-                (row, {name: c[k] for name, c in columns.items()}) for k, row in enumerate(rows.tolist())
-            ]
-        events.sort(key=lambda event: event[0])
+        event_rows, changes = _status_changes(status_rows, status.values)
         # verdicts[k]: each role's verdict after k status frames; times[k]: that status's time
-        verdicts = np.zeros((len(events) + 1, len(roles)), np.int64)
-        times = np.full(len(events) + 1, np.nan)
+        verdicts = np.zeros((len(event_rows) + 1, len(roles)), np.int64)
+        times = np.full(len(event_rows) + 1, np.nan)
         if status.t is None:
             verdicts[0] = reasons.code("no sensor status yet")
         else:
             times[0] = status.t
             verdicts[0] = [reasons.code(status.why_not(role, status.t)) for role in roles]
-        for k, (row, update) in enumerate(events, start=1):
-            times[k] = now = float(t[row])
-            status.update(now, update)
-            verdicts[k] = [reasons.code(status.why_not(role, now)) for role in roles]
-        event_rows = np.array([row for row, _ in events], np.int64)
+        times[1:] = t[event_rows]
+        for k, update in changes.items():
+            status.update(float(times[k]), update)
+            verdicts[k] = [reasons.code(status.why_not(role, float(times[k]))) for role in roles]
+        # a frame that changes no value leaves the verdicts as the frame before it left them
+        source = np.zeros(len(verdicts), np.int64)
+        source[list(changes)] = list(changes)
+        verdicts = verdicts[np.maximum.accumulate(source)]
+        if len(event_rows):
+            status.t = float(times[-1])  # the last frame's time, whatever it changed
         stale = reasons.code(status.stale)
         for j, role in enumerate(roles):
             rows = np.flatnonzero((checked[role] == 0) & ~np.isnan(carried[role]))
@@ -428,6 +427,37 @@ class _Reasons:
             code = self._codes[text] = len(self.texts)
             self.texts.append(str(text))
         return code
+
+
+def _status_changes(
+    status_rows: list[tuple[np.ndarray, dict[str, np.ndarray]]], before: dict[str, float]
+) -> tuple[np.ndarray, dict[int, dict[str, float]]]:
+    """The status frames of a block in arrival order (their rows), and those that change a value
+    the status holds: {k (1 for the first frame): its values}. A value compared with the one before
+    it among frames of its message, the first with ``before`` (NaN is always a change). Messages
+    that share a signal are taken as changing at every frame."""
+    if not status_rows:
+        return np.zeros(0, np.int64), {}
+    rows = np.concatenate([r for r, _ in status_rows])
+    order = np.argsort(rows, kind="stable")
+    names = [name for _, values in status_rows for name in values]
+    shared = len(names) != len(set(names))
+    changed = []
+    for r, values in status_rows:
+        flags = np.zeros(len(r), bool)
+        for name, column in values.items():
+            previous = np.concatenate([[before.get(name, np.nan)], column[:-1]])
+            flags |= ~(column == previous)
+        changed.append(flags | shared)
+    flags = np.concatenate(changed)[order]
+    position = np.concatenate([np.arange(len(r)) for r, _ in status_rows])[order]
+    group = np.concatenate([np.full(len(r), g) for g, (r, _) in enumerate(status_rows)])[order]
+    changes = {
+        k + 1: {name: float(column[i]) for name, column in status_rows[g][1].items()}
+        for k, (i, g) in enumerate(zip(position.tolist(), group.tolist(), strict=True))
+        if flags[k]
+    }
+    return rows[order], changes
 
 
 def _by_key(block: FrameBlock) -> tuple[np.ndarray, np.ndarray, list[int]]:

@@ -563,23 +563,24 @@ class SampleRegression:
         b = self._blocks
         xtx, xty, run, log = self._xtx[:b], self._xty[:b], self._run[:b], self._log[:b]
         yty = self._yty[:b]
-        if self._open:  # the block being filled counts too, without closing it
-            open_xtx, open_xty, open_yty = self._open_stats()
-            xtx = np.concatenate([xtx, open_xtx[None]])
-            xty = np.concatenate([xty, open_xty[None]])
-            yty = np.append(yty, open_yty)
-            run = np.append(run, self._run_id)
-            log = np.append(log, self._log_id)
+        if self._open:  # the block being filled counts too, without closing it: in the slot
+            if b == len(self._n):  # that closing it will fill (written again then)
+                self._grow()
+            self._xtx[b], self._xty[b], self._yty[b] = self._open_stats()
+            self._run[b], self._log[b] = self._run_id, self._log_id
             b += 1
+            xtx, xty, yty = self._xtx[:b], self._xty[:b], self._yty[:b]
+            run, log = self._run[:b], self._log[:b]
         n = self.n_samples
         if n < self.min_samples or b < 10 or self._ay_max - self._ay_min < 0.5:
             return None
         if self.priors is not None:
             return self._fit_marginal(self.priors, xtx, xty, yty, run, log)
         # ψ0 is free where the curvature varies within the drives: else it is d·κ's double
-        spread_k = sum(_within(xtx[log == k]) for k in np.unique(log))
+        drives = np.unique(log)
+        spread_k = sum(_within(xtx[log == k]) for k in drives) if len(drives) > 1 else _within(xtx)
         psi0_free = spread_k >= 0.04 * xtx[:, 1, 1].sum() > 0
-        logs = len(np.unique(log))
+        logs = len(drives)
         offsets, speeds = [0], [(11, 12)]
         if logs > 1:  # each drive its own ψ0 (and speed columns: its own gyro's bias)
             xtx, xty, offsets, speeds = _per_log(xtx, xty, log)

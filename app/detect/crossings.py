@@ -150,6 +150,7 @@ class CrossingDetector:
         self.g = g
         self._runs: dict[Direction | None, _Run] = {}
         self._t_last: dict[Direction | None, float] = {}
+        self._lasts: tuple[float, float] | None = None  # the runs' earliest and latest t_last
         # the pad's slope as the regression last found it (its RegressionFit.tilt), taken out of
         # each crossing's samples before the fit: a crossing happens at one heading
         self.tilt: tuple[float, float, float, float] | None = None
@@ -182,6 +183,7 @@ class CrossingDetector:
         if run is None:
             run = self._runs[key] = _Run(kind)
         self._t_last[key] = t
+        self._lasts = None
         if run.track_speed(u, self.settings.reversal_mps):
             if (pending := run.take_pending()) is not None:
                 events.append(self._fit(run, pending, key))
@@ -198,6 +200,12 @@ class CrossingDetector:
     def end_quiet_runs(self, t: float) -> list[Event]:
         """What ``step`` does with a frame that is not steady: end the runs that have had no
         steady frame for longer than the gap allowed (or whose time ran back)."""
+        lasts = self._lasts
+        if lasts is None and self._runs:
+            times = [self._t_last[key] for key in self._runs]
+            lasts = self._lasts = (min(times), max(times))
+        if lasts is None or (t - lasts[0] <= self.settings.max_gap_s and t - lasts[1] >= -0.05):
+            return []  # every run heard from within the gap (the loop below, for its extremes)
         events: list[Event] = []
         for key in list(self._runs):
             quiet = t - self._t_last[key]
@@ -245,6 +253,7 @@ class CrossingDetector:
     def _end_run(self, key: Direction | None, why: str) -> list[Event]:
         run = self._runs.pop(key)
         self._t_last.pop(key, None)
+        self._lasts = None
         pending = run.take_pending()
         return [self._fit(run, pending, key)] if pending is not None else []
 

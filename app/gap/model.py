@@ -436,7 +436,9 @@ def _run_steps(
         r_out[i] = r
         r_meas_out[i] = r_meas
         ay_out[i] = ay
-        # as step_lateral: A = M·h, exp(A) and h·(I + A/2 + A²/6 + A³/24) by their series
+        # as step_lateral: A = M·h, exp(A) and h·(I + A/2 + A²/6 + A³/24) by their series (written
+        # out again on purpose: step_lateral is run_reference's, and a reference that shared this
+        # code could not catch a fault in it)
         a00, a01, a10, a11 = m00 * h, m01 * h, m10 * h, m11 * h
         b00, b01 = a00 * a00 + a01 * a10, a00 * a01 + a01 * a11  # A²
         b10, b11 = a10 * a00 + a11 * a10, a10 * a01 + a11 * a11

@@ -520,18 +520,10 @@ class Heldout:
     yaw_spread: float  # the yaw-rate channel's unit, deg/s
 
 
-def heldout(
-    pb: Problem,
-    calibration: Calibration,
-    fold: np.ndarray,
-    effect: str = "none",
-    baseline: tuple[Fit, ...] | None = None,
-) -> Heldout:
-    """The calibrated model's held-out gaps (with the nuisances ``effect`` is fitted beside);
-    ``baseline``: its fits on each training fold, where they were made already (``_baselines``)."""
+def heldout(pb: Problem, fold: np.ndarray, baseline: tuple[Fit, ...]) -> Heldout:
+    """The calibrated model's held-out gaps, from its fits on each training fold (``baseline``,
+    made by ``_baselines``)."""
     held = tuple(pb.rows & (fold == k) for k in (0, 1))
-    if baseline is None:
-        baseline = tuple(_fit_all(pb, _baseline_jobs(pb, calibration, fold, effect), workers=1))
     sims = [pb.simulate(combine(f.fields())) for f in baseline]
     parts = list(zip(sims, held, strict=True))
     noise = math.sqrt(sum(pb.gap_noise_deg(rows) ** 2 for rows in held) / 2)
@@ -560,10 +552,7 @@ def _baselines(
     """``heldout`` for each of ``effects``, their fits made together in ``workers`` processes."""
     jobs = [job for effect in effects for job in _baseline_jobs(pb, calibration, fold, effect)]
     fits = _fit_all(pb, jobs, workers)
-    return [
-        heldout(pb, calibration, fold, effect, tuple(fits[2 * k : 2 * k + 2]))
-        for k, effect in enumerate(effects)
-    ]
+    return [heldout(pb, fold, tuple(fits[2 * k : 2 * k + 2])) for k in range(len(effects))]
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,5 @@
 """``python -m app`` is the ``c2n`` command."""
 
-import sys
+from app.cli import entry
 
-from app.cli import main
-
-sys.exit(main())
+entry()

@@ -43,6 +43,17 @@ _LATERAL = {"beta": ("beta",), "vy": ("vy",), "auto": ("beta", "vy")}  # what si
 _U = Estimate._fields.index("u_mps")
 _R = Estimate._fields.index("r_radps")  # the yaw rate's column of the filter's estimates
 _V_MEAS = Estimate._fields.index("v_meas_mps")  # the measured lateral velocity's
+_FIRST_STAGE_FIELDS = (  # the Snapshot's fields that the decoder and ``filter_block`` make
+    "t_first",
+    "t_last",
+    "latest",
+    "sensor_problem",
+    "cornering",
+    "frames",
+    "status",
+    "filter",
+    "message_names",
+)
 _REFIT_EVERY_S = 2.0  # frame time between live refits of the regression
 
 
@@ -63,6 +74,22 @@ class SessionState:
     quasi: RegressionFit | None = None  # every quasi-steady sample, while no sweep crossed zero
     quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's alone, at the end
     signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
+
+
+@dataclass(frozen=True)
+class Filtered:
+    """A block's rows as the filter and the gates took them (``Pipeline.filter_block``): what the
+    detector and the regressions take row by row (``Pipeline.take_filtered``)."""
+
+    t: np.ndarray  # the rows' times
+    out: np.ndarray  # their estimates: rows of Estimate's fields, NaN for None
+    kinds: list[int]  # the steady-state gate's decision (STEADY, HARD, SOFT, SETTLING)
+    directions: list[int]  # its direction, an index into DIRECTIONS
+    quasi: np.ndarray  # bool: the quasi-steady gate held, with a measured lateral velocity
+    headings: np.ndarray  # the integrated heading (rad)
+    ay: np.ndarray  # the lateral acceleration and the steering held at each row (the sign votes')
+    steer: np.ndarray
+    last: Record  # the block's last row, its events still to come
 
 
 class Pipeline:
@@ -92,10 +119,12 @@ class Pipeline:
         # would carry, for a sink of blocks (app/sinks/trace.py's TraceBlocks).
         self.on_block: BlockHook | None = None
 
-    def snapshot(self) -> Snapshot:
-        """The run as it stands, for the sinks: frozen, and copies of what changes."""
+    def snapshot(self, first_stage: Snapshot | None = None) -> Snapshot:
+        """The run as it stands, for the sinks: frozen, and copies of what changes. Where the
+        first stage (``filter_block``) ran in another pipeline, which handed its blocks over to
+        this one's second, ``first_stage`` is that one's snapshot: the fields it made come from it."""
         state, f = self.state, self.filter
-        return Snapshot(
+        snapshot = Snapshot(
             t_first=state.t_first,
             t_last=state.t_last,
             last=state.last,
@@ -120,6 +149,9 @@ class Pipeline:
             profile=self.profile.view(),
             settle_s=self.config.detector.settle_s,
         )
+        if first_stage is None:
+            return snapshot
+        return replace(snapshot, **{name: getattr(first_stage, name) for name in _FIRST_STAGE_FIELDS})
 
     def process(self, msg: can.Message) -> Record | None:
         """Take one frame; return its Record (None for frames that carry no role value)."""
@@ -205,12 +237,19 @@ class Pipeline:
         return self.take_block(self.decoder.decode_block(block))
 
     def take_block(self, block: RecordBlock) -> list[Event]:
-        """``take`` over a block of decoded frames, the filter and the gate's limits run over
-        the whole block at once; the detector and the regression see the estimates they would
-        have seen one by one. Returns the events, in order."""
+        """``take`` over a block of decoded frames: its two stages, ``filter_block`` (the filter and
+        the gates over the whole block at once) and ``take_filtered`` (the detector and the
+        regressions, which see the estimates one by one). Returns the events, in order."""
+        filtered = self.filter_block(block)
+        return [] if filtered is None else self.take_filtered(filtered)
+
+    def filter_block(self, block: RecordBlock) -> "Filtered | None":
+        """The first stage of ``take_block``: the filter, the gates and the heading over the block's
+        rows, which ``on_block`` hears; None where the filter took no row. It needs nothing the
+        second stage makes, so a caller may hold its blocks and take them later (``c2n gap``)."""
         n = len(block)
         if n == 0:
-            return []
+            return None
         state, t = self.state, block.t
         if state.t_first is None:
             state.t_first = float(t[0])
@@ -233,15 +272,43 @@ class Pipeline:
         if not len(rows):
             if self.on_block is not None:
                 self.on_block(block, rows, out, np.zeros(0, np.int64), np.zeros(0, np.int64))
-            return []
+            return None
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
         if self.on_block is not None:
             self.on_block(block, rows, out, np.asarray(kinds), np.asarray(directions))
-        quasi = self.quasi_gate.steps(t[rows], out, problems[rows] < 0) & ~np.isnan(out[:, _V_MEAS])
-        quasi_fields = iter(out[quasi].tolist())
-        quasi_flags = quasi.tolist()
-        headings = self.heading.steps(t[rows], out[:, _R]).tolist()
-        times = t[rows].tolist()
+        last, k = int(rows[-1]), len(rows) - 1
+        estimate = estimate_of(out[k].tolist())
+        problem = problem_texts[problems[last]] if problems[last] >= 0 else None
+        return Filtered(
+            t=t[rows],
+            out=out,
+            kinds=kinds,
+            directions=directions,
+            quasi=self.quasi_gate.steps(t[rows], out, problems[rows] < 0) & ~np.isnan(out[:, _V_MEAS]),
+            headings=self.heading.steps(t[rows], out[:, _R]),
+            ay=ay[rows],
+            steer=steer[rows],
+            last=Record(
+                float(t[last]),
+                block.channel[last],
+                block.frame_id[last],
+                block.signals(last),
+                block.rejected.get(last, {}),
+                estimate,
+                self.gate.verdict(kinds[k], DIRECTIONS[directions[k]], estimate, problem, held[k]),
+            ),
+        )
+
+    def take_filtered(self, filtered: "Filtered") -> list[Event]:
+        """The second stage of ``take_block``: the sign votes, the detector, the sideslip profile
+        and the regressions over a block's filtered rows, one by one, refitting on the frames'
+        clock. Returns the events, in order."""
+        state, out, kinds, directions = self.state, filtered.out, filtered.kinds, filtered.directions
+        ay, steer = filtered.ay, filtered.steer
+        quasi_fields = iter(out[filtered.quasi].tolist())
+        quasi_flags = filtered.quasi.tolist()
+        headings = filtered.headings.tolist()
+        times = filtered.t.tolist()
         # the rows the detector takes samples from: steady, with a measured lateral velocity
         sampled = np.equal(kinds, STEADY) & ~np.isnan(out[:, _V_MEAS])
         sampled_flags = sampled.tolist()
@@ -257,7 +324,7 @@ class Pipeline:
                 and (steady or quasi_flags[k])
                 and not math.isnan(out[k, _R] + out[k, _V_MEAS])
             ):
-                signs.add(now, float(out[k, _U]), float(out[k, _R]), ay[rows[k]], steer[rows[k]])
+                signs.add(now, float(out[k, _U]), float(out[k, _R]), ay[k], steer[k])
             if steady or detector.running:
                 if sampled_flags[k]:
                     estimate = estimate_of(next(sampled_fields))
@@ -284,20 +351,7 @@ class Pipeline:
             if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
                 self._last_fit = now
                 self._refit()
-        last, k = int(rows[-1]), len(rows) - 1
-        estimate = estimate_of(out[k].tolist())
-        problem = problem_texts[problems[last]] if problems[last] >= 0 else None
-        steady_state = self.gate.verdict(kinds[k], DIRECTIONS[directions[k]], estimate, problem, held[k])
-        state.last = Record(
-            times[k],
-            block.channel[last],
-            block.frame_id[last],
-            block.signals(last),
-            block.rejected.get(last, {}),
-            estimate,
-            steady_state,
-            own,
-        )
+        state.last = filtered.last._replace(events=own)
         return events
 
     def _sensor_problems(self, block: RecordBlock) -> tuple[np.ndarray, list[str]]:

@@ -17,7 +17,8 @@ from app.config import load_config
 from app.gap.candidates import CANDIDATES
 from app.gap.check import CaseAnswer, score
 from app.gap.diagnose import diagnose, problem, roll_lever_m
-from app.gap.measured import Measured, measure
+from app.gap.forked import Later
+from app.gap.measured import Measured, Method, measure
 from app.gap.method_effects import BY_RIG
 from app.gap.model import Mods, prepare, run, run_reference, simulate
 from app.gap.result import BeforeAfter, C2nEffect, Effect, GapC2n, GapNoise, GapResult
@@ -44,9 +45,7 @@ def steady_drive(u: float, delta: float, seconds: float = 20.0, dt: float = 0.02
         steady=np.ones(n, dtype=bool),
         speed_source="vehicle speed",
         vehicle_roles=frozenset({"speed", "steer"}),
-        crossings=(),
-        regression=None,
-        summary=Summary(),
+        method=Later.now(Method((), None, Summary())),
     )
 
 

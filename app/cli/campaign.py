@@ -10,13 +10,12 @@ import time
 from concurrent.futures import Executor
 from contextlib import AbstractContextManager
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from app.cli.common import error_console, number
+from app.cli.common import error_console, interrupted_by, number
 from app.config import load_config
 from app.errors import UsageError, need, printable
 from app.output.files import files_together
@@ -108,10 +107,6 @@ def print_comparison(console: Console, comparison: "Comparison", by: str | None)
         )
 
 
-def _interrupt(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
-
-
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.campaign import outputs, work
     from app.campaign.manifest import read_manifest
@@ -165,14 +160,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 return work.dask_workers(args.scheduler)
             return work.local_workers(args.workers or os.cpu_count() or 1)
 
-        # Ctrl-C and SIGTERM both stop it keeping what is done, also where SIGINT was inherited
-        # ignored (a shell starts background jobs so, and Python then leaves it ignored)
-        previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGINT, signal.SIGTERM)}
-        try:
+        with interrupted_by(signal.SIGINT, signal.SIGTERM):  # either stops it, keeping what is done
             rows = work.run(manifest, config, out, workers, arrived)
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
     elapsed = time.perf_counter() - started
     rows, repeats = counted_once(manifest, rows)
     columns, table = outputs.table_rows(manifest, rows)

@@ -2,9 +2,12 @@
 
 import argparse
 import math
+import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from types import FrameType
 
 from rich.console import Console
 
@@ -118,3 +121,21 @@ def add_force(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="replace an existing output file that c2n did not write (never an input of the command)",
     )
+
+
+def interrupt(signum: int, frame: FrameType | None) -> None:
+    """A signal handler: the signal ends the command as Ctrl-C does."""
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def interrupted_by(*signals: signal.Signals) -> Iterator[None]:
+    """While the body runs, each of ``signals`` raises KeyboardInterrupt, Ctrl-C's way out: what the
+    body holds is unwound (a temporary folder, a background process), also where SIGINT was
+    inherited ignored (a shell starts background jobs so, and Python then leaves it ignored)."""
+    previous = {sig: signal.signal(sig, interrupt) for sig in signals}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

@@ -8,13 +8,12 @@ import tempfile
 import threading
 import uuid
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import SEED, add_config, number
+from app.cli.common import SEED, add_config, interrupted_by, number
 from app.config import Config, load_config
 from app.errors import C2nError
 from app.output import files
@@ -81,15 +80,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     console.print(f"the drive: {describe(drive.truth)}", style="dim")
     channel = f"c2n-demo-{uuid.uuid4().hex[:8]}"
     remove_stale()
-    previous = signal.signal(signal.SIGTERM, _interrupt)  # unwinds: the temporary folder goes too
-    try:
+    with interrupted_by(signal.SIGTERM):  # unwinds: the temporary folder goes too
         return _replay(args, console, config, drive, channel)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-def _interrupt(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
 
 
 TEMP_PREFIX = "c2n-demo-"

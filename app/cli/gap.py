@@ -3,11 +3,12 @@ unmodelled effect explains it, and how far the gap shrinks once it is added."""
 
 import argparse
 import os
+import signal
 from pathlib import Path
 
 from rich.console import Console
 
-from app.cli.common import add_config, add_force
+from app.cli.common import add_config, add_force, interrupted_by
 from app.config import load_config
 from app.errors import need
 from app.gap.result import GapResult
@@ -36,7 +37,6 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from app.gap.diagnose import diagnose
     from app.gap.measured import measure
 
     if args.report:
@@ -50,10 +50,14 @@ def run(args: argparse.Namespace, console: Console) -> int:
         [*args.logs, *config_files(config)],
         args.force,
     )
-    with console.status("reading the drive…"):
-        measured = measure(args.logs, config)
-    with console.status("fitting the candidate effects…"):
-        diagnosis = diagnose(measured, config, workers=os.cpu_count() or 1)
+    workers = os.cpu_count() or 1
+    with interrupted_by(signal.SIGINT, signal.SIGTERM):  # either stops the forked processes too
+        with console.status("reading the drive…"):  # the method's detector and regressions go on
+            measured = measure(args.logs, config, background=workers > 1)  # beside the diagnosis
+        with console.status("fitting the candidate effects…"):
+            from app.gap.diagnose import diagnose  # imported while the background works
+
+            diagnosis = diagnose(measured, config, workers=workers)
     result = diagnosis.result
     if args.json:
         write_json(args.json, result.to_json(), "the diagnosis")

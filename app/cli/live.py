@@ -10,13 +10,21 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import add_bus, add_config, add_force, bus_kwargs, channels, error_console, number
+from app.cli.common import (
+    add_bus,
+    add_config,
+    add_force,
+    bus_kwargs,
+    channels,
+    error_console,
+    interrupt,
+    number,
+)
 from app.config import load_config
 from app.errors import C2nError, OutputError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
@@ -89,10 +97,6 @@ def import_python_can() -> None:
     whatever imports it later."""
     with _hidden("asammdf"):
         import can  # noqa: F401
-
-
-def _interrupt(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
 
 
 _MOST_IN_ONE_SECOND = 10_000  # sessions begun in one second: more is a folder c2n cannot write
@@ -175,7 +179,7 @@ def run(
     timer = threading.Timer(args.duration, stop.set) if args.duration else None
     # Ctrl-C and SIGTERM both end the session cleanly, also where SIGINT was inherited ignored
     # (a shell starts background jobs so, and Python then leaves it ignored).
-    previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
+    previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
     console.print(f"c2n live on {shown(title)} — Ctrl-C ends the session", style="dim")
     if args.rate != 1.0:
         console.print(

@@ -21,12 +21,10 @@ shrinks once that effect is added — checked on manoeuvres the fit did not see.
 
 import itertools
 import math
-import multiprocessing
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import TypeVar, cast
+from typing import TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -59,6 +57,7 @@ from app.gap.effects import (
     test_units,
     unit_gaps,
 )
+from app.gap.forked import map_forked
 from app.gap.measured import Measured
 from app.gap.method_effects import DIRECT, HELDOUT_FIT, method_effects, with_method_effects
 from app.gap.model import Mods, Prepared, Simulated, prepare, simulate
@@ -325,7 +324,8 @@ def _fit_all(pb: Problem, jobs: Sequence[_Job], workers: int) -> list[Fit]:
         done = fit(pb, job.params, job.rows, start=_best_start(pb, job.params, job.rows, list(job.starts)))
         return done.values, done.cost, done.jac, done.fun
 
-    return [Fit(job.params, *out) for job, out in zip(jobs, _map(numbers, len(jobs), workers), strict=True)]
+    done = map_forked(numbers, len(jobs), workers)
+    return [Fit(job.params, *out) for job, out in zip(jobs, done, strict=True)]
 
 
 MIN_USABLE_S = 60.0  # of driving the model is compared on: less cannot be split into folds
@@ -761,31 +761,6 @@ class Diagnosis:
     residuals: Residuals
 
 
-_WORK: Callable[[int], object] | None = None  # what forked workers call, by index
-
-
-def _call(index: int) -> object:
-    if _WORK is None:
-        raise RuntimeError("no work: _map sets it before the workers fork")
-    return _WORK(index)
-
-
-def _map(work: Callable[[int], _T], n: int, workers: int) -> list[_T]:
-    """``work(i)`` for i < n; with ``workers`` > 1 in forked processes, which inherit the drive,
-    the fits so far and the compiled model (only the results cross the process edge, as
-    pickles: plain numbers and dataclasses of them)."""
-    if workers <= 1 or n <= 1 or "fork" not in multiprocessing.get_all_start_methods():
-        return [work(i) for i in range(n)]
-    global _WORK
-    _WORK = work
-    try:
-        context = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=min(workers, n), mp_context=context) as pool:
-            return cast(list[_T], list(pool.map(_call, range(n))))
-    finally:
-        _WORK = None
-
-
 def _scores(
     pb: Problem, calibration: Calibration, ho: Heldout, rivals: dict[str, Heldout], workers: int
 ) -> list[tuple[Scored, tuple[tuple[float, float], ...]]]:
@@ -805,7 +780,7 @@ def _scores(
         done = _everything(pb, variant)
         return done.values, done.cost, _intervals(pb, done)[-len(variant.candidate.params) :]
 
-    firsts = _map(whole, len(variants), workers)
+    firsts = map_forked(whole, len(variants), workers)
     everything = [Fit(v.params, values, cost) for v, (values, cost, _) in zip(variants, firsts, strict=True)]
 
     def fold(index: int) -> tuple[tuple[float, ...], float]:
@@ -813,7 +788,7 @@ def _scores(
         done = fit(pb, variant.params, pb.rows & (variant.ho.fold != k), start=everything[index // 2].values)
         return done.values, done.cost
 
-    seconds = _map(fold, 2 * len(variants), workers)
+    seconds = map_forked(fold, 2 * len(variants), workers)
     best: dict[str, tuple[Scored, tuple[tuple[float, float], ...]]] = {}
     for k, variant in enumerate(variants):
         folds = tuple(Fit(variant.params, *seconds[2 * k + j]) for j in (0, 1))

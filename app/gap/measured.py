@@ -18,7 +18,9 @@ import can
 import numpy as np
 
 from app.config import Config
+from app.decode.decoder import Decoder
 from app.errors import NoResultError
+from app.gap.forked import Background, Later
 from app.pipeline import Pipeline
 from app.records import Crossing
 from app.results.regression import RegressionFit
@@ -37,6 +39,15 @@ ACCEL_SMOOTHING_S = 0.5  # the speed is averaged over this before it is differen
 
 
 @dataclass(frozen=True)
+class Method:
+    """What the pipeline's method made of the drive: its crossings, its regression, the summary."""
+
+    crossings: tuple[Crossing, ...]
+    regression: RegressionFit | None
+    summary: Summary
+
+
+@dataclass(frozen=True)
 class Measured:
     """Per grid step (``dt``): the measured drive. Angles in rad, the rest SI; NaN where missing."""
 
@@ -52,9 +63,19 @@ class Measured:
     steady: np.ndarray  # bool: the steady-state gate held
     speed_source: str
     vehicle_roles: frozenset[str]  # roles read from the vehicle bus (they share its latency)
-    crossings: tuple[Crossing, ...]
-    regression: RegressionFit | None
-    summary: Summary
+    method: Later[Method]  # what the pipeline's method made of the drive, maybe still being made
+
+    @property
+    def crossings(self) -> tuple[Crossing, ...]:
+        return self.method.get().crossings
+
+    @property
+    def regression(self) -> RegressionFit | None:
+        return self.method.get().regression
+
+    @property
+    def summary(self) -> Summary:
+        return self.method.get().summary
 
     @property
     def heading(self) -> np.ndarray:
@@ -105,11 +126,16 @@ def _vehicle_roles(config: Config) -> frozenset[str]:
     return frozenset(role for role in config.roles if dbc_of(role) != optical)
 
 
-def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
-    """The drive through the pipeline, its frames taken in blocks (``Pipeline.take_block``: the
-    filter and the gates vectorised), a BLF's or an MF4's as the reader hands them over
-    (``LogSource.items``); the same trace as frame by frame (``measure_by_frame``,
-    tests/test_trace_blocks.py)."""
+def measure(logs: Sequence[Path], config: Config, dt: float = DT_S, *, background: bool = False) -> Measured:
+    """The drive through the pipeline, its frames taken in blocks: the filter and the gates over
+    each block (``Pipeline.filter_block``) give the trace, and the detector and the regressions
+    take the filtered rows after them (``take_filtered``). A BLF's or an MF4's frames come as the
+    reader hands them over (``LogSource.items``); the trace is the same as frame by frame
+    (``measure_by_frame``, tests/test_trace_blocks.py).
+
+    With ``background``, the second stage (row by row: about as long as the first) runs in a
+    forked process, which takes the blocks as the first stage makes them; ``Measured.method``
+    waits for its result while the caller goes on with the trace."""
     pipeline = Pipeline(config)
     source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
     messages = source.items(blocks=True)
@@ -119,8 +145,23 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
     recorder = TraceBlocks(config.roles)
     pipeline.on_block = recorder.on_block
     frames = messages if first is None else itertools.chain([first], messages)
-    run(frame_blocks(frames, pipeline), pipeline, [], blocks=True)
-    return _measured(source, pipeline, recorder.trace(pipeline.snapshot().t0), config, logs, dt)
+
+    def method(first_stage: Snapshot) -> Method:
+        pipeline.finish()
+        return _method(pipeline.snapshot(first_stage), config, logs)
+
+    second = Background(pipeline.take_filtered, method, background)
+    try:
+        for block in frame_blocks(frames, pipeline.decoder):
+            records = pipeline.decoder.decode_block(block) if isinstance(block, FrameBlock) else block
+            filtered = pipeline.filter_block(records)
+            if filtered is not None:
+                second.put(filtered)
+        trace = _checked(source, recorder.trace(pipeline.state.t_first or 0.0), logs)
+    except BaseException:
+        second.stop()
+        raise
+    return _on_grid(trace, config, second.end(pipeline.snapshot()), dt)
 
 
 def measure_by_frame(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
@@ -129,32 +170,40 @@ def measure_by_frame(logs: Sequence[Path], config: Config, dt: float = DT_S) -> 
     source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
     recorder = TraceRecorder(config.roles)
     run(source, pipeline, [recorder])
-    return _measured(source, pipeline, recorder.trace(pipeline.snapshot().t0), config, logs, dt)
+    snapshot = pipeline.snapshot()
+    trace = _checked(source, recorder.trace(snapshot.t0), logs)
+    return _on_grid(trace, config, Later.now(_method(snapshot, config, logs)), dt)
 
 
-def _measured(
-    source: LogSource, pipeline: Pipeline, trace: Trace, config: Config, logs: Sequence[Path], dt: float
-) -> Measured:
+def _checked(source: LogSource, trace: Trace, logs: Sequence[Path]) -> Trace:
+    """The trace, once the reader's notes are logged; refused without an optical sideslip."""
     for report in source.notes:
         if report.stopped:
             log.warning("%s: %s", report.path, report.stopped)
-    snapshot = pipeline.snapshot()
     if not len(trace) or not np.isfinite(trace["sideslip_measured"]).any():
         raise NoResultError(
             f"{', '.join(map(str, logs))}: no optical sideslip — the gap needs the optical sensor's frames"
         )
-    return _on_grid(trace, config, snapshot, logs, dt)
+    return trace
+
+
+def _method(snapshot: Snapshot, config: Config, logs: Sequence[Path]) -> Method:
+    return Method(
+        snapshot.crossings, snapshot.regression, build_summary(snapshot, config, [str(p) for p in logs])
+    )
 
 
 BLOCK_FRAMES = 4096  # frames per block: the per-block work (a few numpy calls per role) amortised
 
 
-def frame_blocks(messages: Iterable[can.Message | FrameBlock], pipeline: Pipeline) -> Iterator[FrameBlock]:
+def frame_blocks(
+    messages: Iterable[can.Message | FrameBlock], decoder: Decoder
+) -> Iterator[FrameBlock | RecordBlock]:
     """The frames as FrameBlocks of up to BLOCK_FRAMES, in order; a reader's own FrameBlocks as
     they are. A frame a block cannot hold as ``decode`` would read it (error and remote frames, a
     dlc other than its data's length, a channel named rather than numbered, as a candump log's
-    ``can0``) goes through ``decode`` alone, its Record to ``take_block``; a block holds channels
-    of None or numbers, not both."""
+    ``can0``) comes decoded, alone, as a RecordBlock; a block holds channels of None or numbers,
+    not both."""
     part: list[can.Message] = []
     for msg in messages:
         if isinstance(msg, FrameBlock):
@@ -173,16 +222,14 @@ def frame_blocks(messages: Iterable[can.Message | FrameBlock], pipeline: Pipelin
             if part:
                 yield _block(part)
                 part = []
-            record = pipeline.decoder.decode(msg)
+            record = decoder.decode(msg)
             if record is not None:
-                pipeline.take_block(
-                    RecordBlock(
-                        np.array([record.t]),
-                        [record.channel],
-                        [record.frame_id],
-                        {role: np.array([value]) for role, value in record.signals.items()},
-                        {0: dict(record.rejected)} if record.rejected else {},
-                    )
+                yield RecordBlock(
+                    np.array([record.t]),
+                    [record.channel],
+                    [record.frame_id],
+                    {role: np.array([value]) for role, value in record.signals.items()},
+                    {0: dict(record.rejected)} if record.rejected else {},
                 )
             continue
         if part and (msg.channel is None) != (part[0].channel is None):
@@ -212,7 +259,7 @@ def _block(part: list[can.Message]) -> FrameBlock:
     )
 
 
-def _on_grid(trace: Trace, config: Config, snapshot: Snapshot, logs: Sequence[Path], dt: float) -> Measured:
+def _on_grid(trace: Trace, config: Config, method: Later[Method], dt: float) -> Measured:
     time = trace["time"]
     n = int(time[-1] / dt) + 1
     index = np.minimum((time / dt).astype(np.int64), n - 1)
@@ -245,7 +292,5 @@ def _on_grid(trace: Trace, config: Config, snapshot: Snapshot, logs: Sequence[Pa
         steady=steady,
         speed_source="vehicle speed" if has_speed else "optical speed",
         vehicle_roles=_vehicle_roles(config),
-        crossings=snapshot.crossings,
-        regression=snapshot.regression,
-        summary=build_summary(snapshot, config, [str(p) for p in logs]),
+        method=method,
     )

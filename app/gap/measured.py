@@ -133,7 +133,7 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S, *, backgroun
     reader hands them over (``LogSource.items``); the trace is the same as frame by frame
     (``measure_by_frame``, tests/test_trace_blocks.py).
 
-    With ``background``, the second stage (row by row: about as long as the first) runs in a
+    With ``background``, the second stage (row by row: twice the first's time) runs in a
     forked process, which takes the blocks as the first stage makes them; ``Measured.method``
     waits for its result while the caller goes on with the trace."""
     pipeline = Pipeline(config)

@@ -117,6 +117,16 @@ def _graded(fit: RegressionFit | None, truth: float, d_tape_m: float) -> dict[st
     }
 
 
+def _todays(config: Config) -> Config:
+    """The config a kept drive was simulated with, as this checkout has it today (its priors'
+    defaults): the kept path where it still exists, else the file of the same name in config/
+    (samples kept by another checkout, since removed)."""
+    path = config.path
+    if path is not None and not path.exists():
+        path = Path(__file__).resolve().parent.parent / "config" / path.name
+    return load_config(path)
+
+
 def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     """The exact binomial interval of a share k/n."""
     tail = (1.0 - level) / 2.0
@@ -187,9 +197,7 @@ def main() -> None:
         rows = []
         for path in sorted(args.refit.glob("*.pickle")):
             kept = pickle.loads(path.read_bytes())
-            config = replace(
-                kept["config"], priors=load_config(kept["config"].path).priors
-            )  # today's defaults
+            config = replace(kept["config"], priors=_todays(kept["config"]).priors)
             rows.append(
                 fitted(kept["kind"], kept["seed"], kept["regression"], kept["truth"], config, args.tape_drawn)
             )

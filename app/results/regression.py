@@ -406,9 +406,11 @@ class SampleRegression:
         if start is None:
             return None
         b_ay = start.coef[start.terms.index(Term.AY)]
-        slope_terms = (
-            [Term.SIN, Term.COS, Term.AY_SIN, Term.AY_COS] if logs == 1 else []
-        )  # headings: per drive
+        # a pad's slope: a plane, whose pull turns with the heading, where the samples are taken on
+        # one place (steady circles); a route's corners (quasi-steady samples) are each their own
+        # place, whose cross-fall no heading gives; and the headings are each drive's own
+        planar = logs == 1 and not self.transient
+        slope_terms = [Term.SIN, Term.COS, Term.AY_SIN, Term.AY_COS] if planar else []
         turn = [Term.TURN] if priors.turn_force_pct > 0 else []
         own = [Term.D, Term.AY, Term.AY3, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
         design = _Design(xtx, xty, yty, run, n, offsets, speeds, [int(t) for t in own])

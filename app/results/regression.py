@@ -129,7 +129,10 @@ _BIAS_ITERATIONS = 5  # refits of a yaw-rate bias's term, its C2n from the fit b
 TIGHT_WHEELBASES = 20.0  # most samples on radii under this many wheelbases: d is held at the tape's
 # (the bicycle model's one-wheel axle misreads the two wheels of a tight turn by a share that d·κ
 # takes: two-track radii of 25–36 m, d fitted 6–10 mm long, C2n 1–2.3 % low; held, within 1 %)
-TIGHT_TERMS = (9, 13)  # on a small pad: the sweeps' load transfer a_y·u̇ and the two wheels' κ²·a_y
+TIGHT_TERMS = (
+    Term.AY_U_DOT,
+    Term.K2_AY,
+)  # on a small pad: the sweeps' load transfer a_y·u̇ and the two wheels' κ²·a_y
 _TERM_LEFT = 0.01  # a term tried only where the others leave this share of it (u̇ never passed: 0)
 _TURN_SPREAD = 0.02  # of sign(κ) beside the other terms beyond which it is tried: one radius each way
 # leaves 0; a small pad, every sample at a_y ≥ 1.2 m/s², 0.024 (at 0.05 it was not tried there, and
@@ -370,10 +373,10 @@ class SampleRegression:
         """How far C2n moves when the held d is ``step_m`` longer: the fit again."""
         if step_m == 0.0:
             return 0.0
-        longer = _solve(xtx, xty - step_m * xtx[:, :, 1], run, held.terms, n)
+        longer = _solve(xtx, xty - step_m * xtx[:, :, Term.D], run, held.terms, n)
         if longer is None:
             return 0.0
-        i = held.terms.index(2)
+        i = held.terms.index(Term.AY)
         return abs(1.0 / (self.g * float(held.coef[i])) - 1.0 / (self.g * float(longer.coef[i])))
 
     def _turn_found(self, fit: "_Solution | None", blocks: int, held: bool) -> bool:
@@ -381,7 +384,7 @@ class SampleRegression:
         in 20 to 7 m/s² took a 0.28 % force for one, C2n +1.5 %), and large enough to be one."""
         return (
             fit is not None
-            and _wald(fit, [10]) > math.log(blocks)
+            and _wald(fit, [Term.TURN]) > math.log(blocks)
             and 100.0 * abs(_turn(fit, self.g)) >= (TURN_MIN_HELD_PCT if held else SLOPE_MIN_PCT)
         )
 
@@ -397,7 +400,8 @@ class SampleRegression:
         """One model, every nuisance with its prior (``marginal.py``); C2n's interval carries what
         the drive cannot tell apart, and names the term that holds it open most."""
         n, logs = self.n_samples, len(np.unique(log))
-        offsets, speeds = [0], [(int(Term.U), int(Term.INV_U))]
+        offsets: list[int] = [Term.PSI0]
+        speeds: list[tuple[int, int]] = [(Term.U, Term.INV_U)]
         if logs > 1:  # each drive its own ψ0 and its own gyro's bias
             xtx, xty, offsets, speeds = _per_log(xtx, xty, log)
         start = _solve(xtx, xty, run, [*offsets, Term.D, Term.AY], n)
@@ -581,13 +585,14 @@ class SampleRegression:
         # ψ0 is free where the curvature varies within the drives: else it is d·κ's double
         drives = np.unique(log)
         spread_k = sum(_within(xtx[log == k]) for k in drives) if len(drives) > 1 else _within(xtx)
-        psi0_free = spread_k >= 0.04 * xtx[:, 1, 1].sum() > 0
+        psi0_free = spread_k >= 0.04 * xtx[:, Term.D, Term.D].sum() > 0
         logs = len(drives)
-        offsets, speeds = [0], [(11, 12)]
+        offsets: list[int] = [Term.PSI0]
+        speeds: list[tuple[int, int]] = [(Term.U, Term.INV_U)]
         if logs > 1:  # each drive its own ψ0 (and speed columns: its own gyro's bias)
             xtx, xty, offsets, speeds = _per_log(xtx, xty, log)
         total = xtx.sum(axis=0)
-        base = [*offsets, 1, 2] if psi0_free else [1, 2]
+        base: list[int] = [*offsets, Term.D, Term.AY] if psi0_free else [Term.D, Term.AY]
         tight = 2 * self._tight_n > n
         wide = self._u_max >= _WIDE_SPEEDS * self._u_min
         if tight and wide and self.d_tape_m is not None:  # a small pad's sweeps: d held (below) and
@@ -595,26 +600,31 @@ class SampleRegression:
             if _solve(xtx, xty, run, [*base, *pad], n) is not None:  # where they leave a fit
                 base += pad
         tilted = None  # the fit with a slope's pull, where the headings let one be fitted
-        if logs == 1 and psi0_free and _spread(total, base, [4, 5], n) >= _SLOPE_SPREAD:
-            tilted = _solve(xtx, xty, run, [*base, 4, 5], n)
+        if logs == 1 and psi0_free and _spread(total, base, [Term.SIN, Term.COS], n) >= _SLOPE_SPREAD:
+            tilted = _solve(xtx, xty, run, [*base, Term.SIN, Term.COS], n)
             if (
                 tilted is not None
-                and _wald(tilted, [4, 5]) > _SLOPE_WALD
+                and _wald(tilted, [Term.SIN, Term.COS]) > _SLOPE_WALD
                 and _tilt_pct(tilted, self.g) >= SLOPE_MIN_PCT
             ):
-                base += [4, 5, 6, 7]  # a slope found: its pull, and its gravity along the heading
+                base += [
+                    Term.SIN,
+                    Term.COS,
+                    Term.AY_SIN,
+                    Term.AY_COS,
+                ]  # a slope found: its pull, and its gravity along the heading
         # the yaw inertia's share of the rear force, and the speed's load transfer: in ordinary
         # driving always there (left out where they are not significant: C2n 1.4 % low on three
         # simulated track laps, the truth outside the interval)
-        quasi_terms = [t for t in (8, 9) if t not in base]
+        quasi_terms = [t for t in (Term.R_DOT, Term.AY_U_DOT) if t not in base]
         transient = self.transient and _solve(xtx, xty, run, [*base, *quasi_terms], n) is not None
         if transient:
             base += quasi_terms
         linear = _solve(xtx, xty, run, base, n)
         d_fixed, narrow, plain_xty = False, False, xty
         if self.d_tape_m is not None:  # β − d·κ on the other terms, d the tape's
-            held_xty = xty - self.d_tape_m * xtx[:, :, 1]
-            held_base = [t for t in base if t != 1]
+            held_xty = xty - self.d_tape_m * xtx[:, :, Term.D]
+            held_base = [t for t in base if t != Term.D]
             held = _solve(xtx, held_xty, run, held_base, n)
             if held is not None:  # a design too narrow to place d beside C2n (one speed)?
                 narrow = linear is None or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(
@@ -630,29 +640,29 @@ class SampleRegression:
             psi0_free
             and wide
             and not narrow
-            and _spread(total, base, [10], n) >= _TURN_SPREAD
-            and self._turn_found(_solve(xtx, xty, run, [*base, 3, 10], n), b, d_fixed)
+            and _spread(total, base, [Term.TURN], n) >= _TURN_SPREAD
+            and self._turn_found(_solve(xtx, xty, run, [*base, Term.AY3, Term.TURN], n), b, d_fixed)
         ):
-            base += [10]  # a force that follows the turn's direction, not its size
+            base += [Term.TURN]  # a force that follows the turn's direction, not its size
             linear = _solve(xtx, xty, run, base, n)
         plain = (xtx, plain_xty, list(base))  # d not held, no yaw-rate bias's term: d_free_m's fit
         yaw_bias = None
         if transient and d_fixed and wide and psi0_free and linear is not None and self.d_tape_m is not None:
             yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
-            if yaw_bias is not None and 10 in base:  # the turn force still there with the bias out?
-                turned = _solve(yaw_bias.xtx, yaw_bias.xty, run, [*base, *yaw_bias.terms, 3], n)
+            if yaw_bias is not None and Term.TURN in base:  # the turn force still there with the bias out?
+                turned = _solve(yaw_bias.xtx, yaw_bias.xty, run, [*base, *yaw_bias.terms, Term.AY3], n)
                 if not self._turn_found(turned, b, d_fixed):  # a gyro's −1 °/s: 0.05 % [−0.09, 0.20]
-                    base = [t for t in base if t != 10]
+                    base = [t for t in base if t != Term.TURN]
                     yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
             if yaw_bias is not None:
                 xtx, xty, linear = yaw_bias.xtx, yaw_bias.xty, yaw_bias.fit
                 base = [*base, *yaw_bias.terms]
-        cubic = _solve(xtx, xty, run, [*base, 3], n)
+        cubic = _solve(xtx, xty, run, [*base, Term.AY3], n)
         if cubic is None or linear is None:
             return None
         t3 = cubic.coef[-1] / math.sqrt(cubic.cov[-1, -1]) if cubic.cov[-1, -1] > 0 else 0.0
         # softening s = b3/b_ay must be positive: a tyre loses stiffness with slip, never gains it
-        softens = cubic.coef[-1] * cubic.coef[cubic.terms.index(2)] > 0
+        softens = cubic.coef[-1] * cubic.coef[cubic.terms.index(Term.AY)] > 0
         chosen = cubic if softens and abs(t3) > self.softening_t else linear
         terms = chosen.terms
         from scipy.special import stdtrit  # the t quantile; imported at the first fit, not at the start
@@ -669,27 +679,27 @@ class SampleRegression:
                 data = self._held_se(model, xtx, xty, run, n, self.d_tape_se_m)
             else:
                 data = _c2n_se(model, self.g)
-            scale = self.scale_se / (self.g * abs(float(model.coef[model.terms.index(2)])))
+            scale = self.scale_se / (self.g * abs(float(model.coef[model.terms.index(Term.AY)])))
             return math.hypot(data, scale)
 
         def model_ci(model: _Solution) -> tuple[float, float] | None:
-            slope = model.coef[model.terms.index(2)]
+            slope = model.coef[model.terms.index(Term.AY)]
             if slope >= 0:  # no stiffness
                 return None
             half = float(stdtrit(max(b - len(model.terms), 1), 0.975)) * model_se(model)
             return (-1.0 / (self.g * slope) - half, -1.0 / (self.g * slope) + half)
 
-        slope = chosen.coef[terms.index(2)]
+        slope = chosen.coef[terms.index(Term.AY)]
         c2n = -1.0 / (self.g * slope)
         c2n_se = model_se(chosen)
         c2n_ci95 = ci(c2n, c2n_se)
-        c2n_linear = -1.0 / (self.g * linear.coef[linear.terms.index(2)])
-        c2n_cubic = -1.0 / (self.g * cubic.coef[cubic.terms.index(2)])
+        c2n_linear = -1.0 / (self.g * linear.coef[linear.terms.index(Term.AY)])
+        c2n_cubic = -1.0 / (self.g * cubic.coef[cubic.terms.index(Term.AY)])
         # the two models differ by the a_y³ term alone, so their difference has the term's t
         hidden = float(200.0 * abs((c2n_cubic - c2n_linear) / t3 / c2n)) if t3 else math.inf
         resolved = bool(chosen is cubic or hidden <= UNRESOLVED_PCT)
         if not resolved:
-            i_cubic = cubic.terms.index(2)
+            i_cubic = cubic.terms.index(Term.AY)
             slope3 = cubic.coef[i_cubic]
             cubic_se = math.sqrt(cubic.cov[i_cubic, i_cubic]) / (self.g * slope3 * slope3)
             low, high = ci(c2n_cubic, cubic_se) if slope3 < 0 else (c2n_ci95[0], math.inf)
@@ -698,11 +708,13 @@ class SampleRegression:
         if d_fixed and self.d_tape_m is not None:
             d, d_se = self.d_tape_m, 0.0
         else:
-            d, d_se = chosen.coef[terms.index(1)], math.sqrt(chosen.cov[terms.index(1), terms.index(1)])
+            i_d = terms.index(Term.D)
+            d, d_se = chosen.coef[i_d], math.sqrt(chosen.cov[i_d, i_d])
         psi0 = psi0_se = None
         if psi0_free:
-            psi0, psi0_se = chosen.coef[0], math.sqrt(chosen.cov[0, 0])
-        slope = _slope(chosen if 4 in terms else tilted, c2n, q) if tilted is not None else None
+            i_psi0 = terms.index(Term.PSI0)
+            psi0, psi0_se = chosen.coef[i_psi0], math.sqrt(chosen.cov[i_psi0, i_psi0])
+        slope = _slope(chosen if Term.SIN in terms else tilted, c2n, q) if tilted is not None else None
         bias = _bias(chosen, yaw_bias.terms[0], q) if yaw_bias is not None else None
         softening = softening_se = None
         if chosen is cubic:
@@ -738,10 +750,10 @@ class SampleRegression:
             else None,
             d_free_m=_plain_d(*plain, run, n, q) if d_fixed and wide else None,
             tilt=_tilt(chosen),
-            turn_force_pct=100.0 * _turn(chosen, self.g) if 10 in terms else None,
-            turn_force_ci95_pct=_turn_ci(chosen, self.g, q) if 10 in terms else None,
-            turn_step_rad=float(chosen.coef[terms.index(10)]) if 10 in terms else None,
-            turn_step_se_rad=_se(chosen, 10) if 10 in terms else None,
+            turn_force_pct=100.0 * _turn(chosen, self.g) if Term.TURN in terms else None,
+            turn_force_ci95_pct=_turn_ci(chosen, self.g, q) if Term.TURN in terms else None,
+            turn_step_rad=float(chosen.coef[terms.index(Term.TURN)]) if Term.TURN in terms else None,
+            turn_step_se_rad=_se(chosen, Term.TURN) if Term.TURN in terms else None,
             yaw_bias_degps=bias[0] if bias else None,
             yaw_bias_ci95_degps=bias[1] if bias else None,
             softening_resolved=resolved,
@@ -768,10 +780,10 @@ def _plain_d(
     """Where d is held: the top of d's 95 % interval as the samples alone place it, in the plain
     fit (ψ0, d, a_y: no term that a narrow design could make d's double)."""
     offsets = [t for t in base if t == 0 or t >= _K]
-    fit = _solve(xtx, xty, run, [*offsets, 1, 2], n)
+    fit = _solve(xtx, xty, run, [*offsets, Term.D, Term.AY], n)
     if fit is None:
         return None
-    i = fit.terms.index(1)
+    i = fit.terms.index(Term.D)
     return float(fit.coef[i]) + q * math.sqrt(max(float(fit.cov[i, i]), 0.0))
 
 
@@ -797,7 +809,7 @@ def _yaw_bias(
     sideslip the fit sees by b·(u/(g·C2n) − d/u): one term per drive, k·u − d/u with k = 1/(g·C2n)
     from the fit, appended and refitted until k settles (``speeds``: each drive's columns u and
     1/u, which combine it)."""
-    k = -float(linear.coef[linear.terms.index(2)])
+    k = -float(linear.coef[linear.terms.index(Term.AY)])
     fit = linear
     for _ in range(_BIAS_ITERATIONS):
         wide_xtx, wide_xty, terms = _combined(xtx, xty, [{u: k, inv_u: -d} for u, inv_u in speeds])
@@ -805,7 +817,7 @@ def _yaw_bias(
         if refit is None:
             return None
         fit, settled = refit, k
-        k = -float(fit.coef[fit.terms.index(2)])
+        k = -float(fit.coef[fit.terms.index(Term.AY)])
         if abs(k - settled) <= 1e-6 * abs(k):
             break
     return _YawBias(wide_xtx, wide_xty, terms, fit)
@@ -865,14 +877,15 @@ def _per_log(
     xtx: np.ndarray, xty: np.ndarray, log: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, list[int], list[tuple[int, int]]]:
     """The blocks' statistics with the intercept and the speed columns u, 1/u split by drive: drive
-    k ≥ 1 has them as terms ``_K + 3·(k − 1)`` on (the first drive's stay terms 0, 11, 12). Returns
-    them, the ψ0 terms and the speed columns' pairs."""
+    k ≥ 1 has them as terms ``_K + 3·(k − 1)`` on (the first drive's stay PSI0, U and INV_U).
+    Returns them, the ψ0 terms and the speed columns' pairs."""
     logs = np.unique(log)
-    split = (0, 11, 12)
+    split = (Term.PSI0, Term.U, Term.INV_U)
     size = _K + len(split) * (len(logs) - 1)
     wide_xtx = np.zeros((len(xtx), size, size))
     wide_xty = np.zeros((len(xty), size))
-    offsets, speeds = [0], [(11, 12)]
+    offsets: list[int] = [Term.PSI0]
+    speeds: list[tuple[int, int]] = [(Term.U, Term.INV_U)]
     for k, drive in enumerate(logs):
         columns = np.arange(_K)
         if k:
@@ -910,29 +923,33 @@ def _tilt(fit: "_Solution") -> tuple[float, float, float, float] | None:
     """The slope's four coefficients (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ), where they were fitted."""
     if 4 not in fit.terms:
         return None
-    a, b, c, d = (float(fit.coef[fit.terms.index(k)]) for k in (4, 5, 6, 7))
+    a, b, c, d = (float(fit.coef[fit.terms.index(k)]) for k in (Term.SIN, Term.COS, Term.AY_SIN, Term.AY_COS))
     return (a, b, c, d)
 
 
 def _turn(fit: "_Solution", g: float) -> float:
     """The force that follows the turn, as a share of the rear axle's weight: the sideslip step
     δ·sign(κ) it makes is f/C2n, so f = δ·C2n (+ towards the turn's inside)."""
-    c2n = -1.0 / (g * float(fit.coef[fit.terms.index(2)]))
-    return float(fit.coef[fit.terms.index(10)]) * c2n
+    c2n = -1.0 / (g * float(fit.coef[fit.terms.index(Term.AY)]))
+    return float(fit.coef[fit.terms.index(Term.TURN)]) * c2n
 
 
 def _turn_ci(fit: "_Solution", g: float, q: float) -> tuple[float, float]:
     """Its 95 % interval in %, from the step's own (C2n's share of the error is second order)."""
-    c2n = -1.0 / (g * float(fit.coef[fit.terms.index(2)]))
-    half = q * _se(fit, 10) * abs(c2n) * 100.0
+    c2n = -1.0 / (g * float(fit.coef[fit.terms.index(Term.AY)]))
+    half = q * _se(fit, Term.TURN) * abs(c2n) * 100.0
     centre = 100.0 * _turn(fit, g)
     return (centre - half, centre + half)
 
 
 def _tilt_pct(fit: "_Solution", g: float) -> float:
     """The slope in % the fit's sin ψ, cos ψ terms say: C2n·√(A² + B²)."""
-    c2n = -1.0 / (g * float(fit.coef[fit.terms.index(2)]))
-    return 100.0 * abs(c2n) * math.hypot(fit.coef[fit.terms.index(4)], fit.coef[fit.terms.index(5)])
+    c2n = -1.0 / (g * float(fit.coef[fit.terms.index(Term.AY)]))
+    return (
+        100.0
+        * abs(c2n)
+        * math.hypot(fit.coef[fit.terms.index(Term.SIN)], fit.coef[fit.terms.index(Term.COS)])
+    )
 
 
 def _se(fit: "_Solution", term: int) -> float:
@@ -943,7 +960,7 @@ def _se(fit: "_Solution", term: int) -> float:
 
 def _c2n_se(fit: "_Solution", g: float) -> float:
     """C2n's standard error: the delta method on C2n = −1/(g·b_ay)."""
-    return _se(fit, 2) / (g * float(fit.coef[fit.terms.index(2)]) ** 2)
+    return _se(fit, Term.AY) / (g * float(fit.coef[fit.terms.index(Term.AY)]) ** 2)
 
 
 def _wald(fit: "_Solution", terms: list[int]) -> float:
@@ -960,7 +977,7 @@ def _slope(fit: "_Solution", c2n: float, q: float) -> tuple[float, tuple[float, 
     """The slope in % with its 95 % interval (delta method on √(A² + B²); from zero where the
     interval reaches it), and the direction it falls to in degrees: A·sin ψ + B·cos ψ is
     g_y/(g·C2n) with g_y = g·s·sin(D − ψ), so A = −s·cos D/C2n and B = s·sin D/C2n."""
-    i, j = fit.terms.index(4), fit.terms.index(5)
+    i, j = fit.terms.index(Term.SIN), fit.terms.index(Term.COS)
     a, b = fit.coef[i], fit.coef[j]
     size = math.hypot(a, b)
     cov = fit.cov[np.ix_([i, j], [i, j])]

@@ -83,7 +83,7 @@ grow with the samples; past ``max_blocks`` the oldest blocks are merged in pairs
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -565,24 +565,44 @@ class SampleRegression:
         )
 
     def fit(self) -> RegressionFit | None:
-        """The fit over every sample so far, or None while the data cannot support one."""
+        """The fit over every sample so far, or None while the data cannot support one: one model
+        with every nuisance's prior (``priors``: ``_fit_marginal``), else the cascade of tests — the
+        terms the drive shows (``_cascade``), d held where the tape places it better
+        (``_hold_d``), a force that follows the turn (``_with_turn_force``), a yaw-rate bias
+        (``_with_yaw_bias``), and the tyres' softening (``_cascade_result``)."""
+        statistics = self._statistics()
+        if statistics is None:
+            return None
+        if self.priors is not None:
+            return self._fit_marginal(self.priors, *statistics)
+        cascade = self._cascade(*statistics)
+        self._hold_d(cascade)
+        self._with_turn_force(cascade)
+        self._with_yaw_bias(cascade)
+        return self._cascade_result(cascade)
+
+    def _statistics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The blocks' statistics (XᵀX, Xᵀy, yᵀy, run, drive), the open block's among them, in the
+        slot closing it will fill (written again then); None while there are too few samples, blocks
+        or a_y's range for a fit."""
         b = self._blocks
-        xtx, xty, run, log = self._xtx[:b], self._xty[:b], self._run[:b], self._log[:b]
-        yty = self._yty[:b]
-        if self._open:  # the block being filled counts too, without closing it: in the slot
-            if b == len(self._n):  # that closing it will fill (written again then)
+        if self._open:
+            if b == len(self._n):
                 self._grow()
             self._xtx[b], self._xty[b], self._yty[b] = self._open_stats()
             self._run[b], self._log[b] = self._run_id, self._log_id
             b += 1
-            xtx, xty, yty = self._xtx[:b], self._xty[:b], self._yty[:b]
-            run, log = self._run[:b], self._log[:b]
-        n = self.n_samples
-        if n < self.min_samples or b < 10 or self._ay_max - self._ay_min < 0.5:
+        if self.n_samples < self.min_samples or b < 10 or self._ay_max - self._ay_min < 0.5:
             return None
-        if self.priors is not None:
-            return self._fit_marginal(self.priors, xtx, xty, yty, run, log)
-        # ψ0 is free where the curvature varies within the drives: else it is d·κ's double
+        return self._xtx[:b], self._xty[:b], self._yty[:b], self._run[:b], self._log[:b]
+
+    def _cascade(
+        self, xtx: np.ndarray, xty: np.ndarray, yty: np.ndarray, run: np.ndarray, log: np.ndarray
+    ) -> "_Cascade":
+        """The cascade's first terms: ψ0 where the curvature varies within the drives (else it is
+        d·κ's double), d and a_y; a small pad's two terms where its sweeps show them; a slope's
+        four where the headings and the Wald test find one; the quasi-steady samples' two."""
+        n, b = self.n_samples, len(run)
         drives = np.unique(log)
         spread_k = sum(_within(xtx[log == k]) for k in drives) if len(drives) > 1 else _within(xtx)
         psi0_free = spread_k >= 0.04 * xtx[:, Term.D, Term.D].sum() > 0
@@ -606,13 +626,8 @@ class SampleRegression:
                 tilted is not None
                 and _wald(tilted, [Term.SIN, Term.COS]) > _SLOPE_WALD
                 and _tilt_pct(tilted, self.g) >= SLOPE_MIN_PCT
-            ):
-                base += [
-                    Term.SIN,
-                    Term.COS,
-                    Term.AY_SIN,
-                    Term.AY_COS,
-                ]  # a slope found: its pull, and its gravity along the heading
+            ):  # a slope found: its pull, and its gravity along the heading
+                base += [Term.SIN, Term.COS, Term.AY_SIN, Term.AY_COS]
         # the yaw inertia's share of the rear force, and the speed's load transfer: in ordinary
         # driving always there (left out where they are not significant: C2n 1.4 % low on three
         # simulated track laps, the truth outside the interval)
@@ -621,53 +636,82 @@ class SampleRegression:
         if transient:
             base += quasi_terms
         linear = _solve(xtx, xty, run, base, n)
-        d_fixed, narrow, plain_xty = False, False, xty
-        if self.d_tape_m is not None:  # β − d·κ on the other terms, d the tape's
-            held_xty = xty - self.d_tape_m * xtx[:, :, Term.D]
-            held_base = [t for t in base if t != Term.D]
-            held = _solve(xtx, held_xty, run, held_base, n)
-            if held is not None:  # a design too narrow to place d beside C2n (one speed)?
-                narrow = linear is None or _c2n_se(linear, self.g) > D_HELD_GAIN * self._held_se(
-                    held, xtx, held_xty, run, n, D_HELD_REF_M
-                )
-            if held is not None and (narrow or tight or self.transient):  # transient: ordinary driving,
-                d_fixed, xty, base, linear = True, held_xty, held_base, held  # where the tape's d is better
-        # a turn force needs radii and speeds apart: at one speed it takes a_y's slope and the a_y³
-        # term's curvature (circles at one speed ±1 %: worst C2n 0.7 → 4.3 %)
-        # tried beside the a_y³ term: a softening tyre's curvature, left to a straight line, leans on
-        # sign(κ) as well
+        return _Cascade(
+            xtx, xty, run, n, b, logs, speeds, psi0_free, tight, wide, total, base, linear, tilted, transient
+        )
+
+    def _hold_d(self, c: "_Cascade") -> None:
+        """d at the tape's value (β − d·κ on the other terms) where the design is too narrow to
+        place it beside C2n (one speed), on a small pad, and in ordinary driving."""
+        if self.d_tape_m is None:
+            return
+        held_xty = c.xty - self.d_tape_m * c.xtx[:, :, Term.D]
+        held_base = [t for t in c.base if t != Term.D]
+        held = _solve(c.xtx, held_xty, c.run, held_base, c.n)
+        if held is None:
+            return
+        c.narrow = c.linear is None or _c2n_se(c.linear, self.g) > D_HELD_GAIN * self._held_se(
+            held, c.xtx, held_xty, c.run, c.n, D_HELD_REF_M
+        )
+        if c.narrow or c.tight or self.transient:  # transient: ordinary driving, where the tape's
+            c.d_fixed, c.xty, c.base, c.linear = True, held_xty, held_base, held  # d is better
+
+    def _with_turn_force(self, c: "_Cascade") -> None:
+        """A force that follows the turn's direction, not its size. It needs radii and speeds
+        apart: at one speed it takes a_y's slope and the a_y³ term's curvature (circles at one speed
+        ±1 %: worst C2n 0.7 → 4.3 %). Tried beside the a_y³ term: a softening tyre's curvature,
+        left to a straight line, leans on sign(κ) as well."""
         if (
-            psi0_free
-            and wide
-            and not narrow
-            and _spread(total, base, [Term.TURN], n) >= _TURN_SPREAD
-            and self._turn_found(_solve(xtx, xty, run, [*base, Term.AY3, Term.TURN], n), b, d_fixed)
+            c.psi0_free
+            and c.wide
+            and not c.narrow
+            and _spread(c.total, c.base, [Term.TURN], c.n) >= _TURN_SPREAD
+            and self._turn_found(
+                _solve(c.xtx, c.xty, c.run, [*c.base, Term.AY3, Term.TURN], c.n), c.blocks, c.d_fixed
+            )
         ):
-            base += [Term.TURN]  # a force that follows the turn's direction, not its size
-            linear = _solve(xtx, xty, run, base, n)
-        plain = (xtx, plain_xty, list(base))  # d not held, no yaw-rate bias's term: d_free_m's fit
-        yaw_bias = None
-        if transient and d_fixed and wide and psi0_free and linear is not None and self.d_tape_m is not None:
-            yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
-            if yaw_bias is not None and Term.TURN in base:  # the turn force still there with the bias out?
-                turned = _solve(yaw_bias.xtx, yaw_bias.xty, run, [*base, *yaw_bias.terms, Term.AY3], n)
-                if not self._turn_found(turned, b, d_fixed):  # a gyro's −1 °/s: 0.05 % [−0.09, 0.20]
-                    base = [t for t in base if t != Term.TURN]
-                    yaw_bias = _yaw_bias(xtx, xty, run, base, n, self.d_tape_m, linear, speeds)
-            if yaw_bias is not None:
-                xtx, xty, linear = yaw_bias.xtx, yaw_bias.xty, yaw_bias.fit
-                base = [*base, *yaw_bias.terms]
-        cubic = _solve(xtx, xty, run, [*base, Term.AY3], n)
-        if cubic is None or linear is None:
+            c.base += [Term.TURN]
+            c.linear = _solve(c.xtx, c.xty, c.run, c.base, c.n)
+
+    def _with_yaw_bias(self, c: "_Cascade") -> None:
+        """A yaw-rate bias's term, on quasi-steady samples with d held and the speeds apart; a turn
+        force found is kept only if it passes again with the bias out."""
+        c.plain = (c.xtx, c.free_xty, list(c.base))
+        if not (
+            c.transient
+            and c.d_fixed
+            and c.wide
+            and c.psi0_free
+            and c.linear is not None
+            and self.d_tape_m is not None
+        ):
+            return
+        yaw_bias = _yaw_bias(c.xtx, c.xty, c.run, c.base, c.n, self.d_tape_m, c.linear, c.speeds)
+        if yaw_bias is not None and Term.TURN in c.base:  # the turn force still there with the bias out?
+            turned = _solve(yaw_bias.xtx, yaw_bias.xty, c.run, [*c.base, *yaw_bias.terms, Term.AY3], c.n)
+            if not self._turn_found(turned, c.blocks, c.d_fixed):  # a gyro's −1 °/s: 0.05 % [−0.09, 0.20]
+                c.base = [t for t in c.base if t != Term.TURN]
+                yaw_bias = _yaw_bias(c.xtx, c.xty, c.run, c.base, c.n, self.d_tape_m, c.linear, c.speeds)
+        if yaw_bias is not None:
+            c.xtx, c.xty, c.linear = yaw_bias.xtx, yaw_bias.xty, yaw_bias.fit
+            c.base = [*c.base, *yaw_bias.terms]
+        c.yaw_bias = yaw_bias
+
+    def _cascade_result(self, c: "_Cascade") -> RegressionFit | None:
+        """The cascade's last test, the tyres' softening: the a_y³ term kept where it softens at
+        |t| > ``softening_t``; where the data could hide more softening than ``UNRESOLVED_PCT``,
+        C2n's interval spans both models'. Then the result, with every term the cascade kept."""
+        cubic = _solve(c.xtx, c.xty, c.run, [*c.base, Term.AY3], c.n)
+        if cubic is None or c.linear is None:
             return None
         t3 = cubic.coef[-1] / math.sqrt(cubic.cov[-1, -1]) if cubic.cov[-1, -1] > 0 else 0.0
         # softening s = b3/b_ay must be positive: a tyre loses stiffness with slip, never gains it
         softens = cubic.coef[-1] * cubic.coef[cubic.terms.index(Term.AY)] > 0
-        chosen = cubic if softens and abs(t3) > self.softening_t else linear
+        chosen = cubic if softens and abs(t3) > self.softening_t else c.linear
         terms = chosen.terms
         from scipy.special import stdtrit  # the t quantile; imported at the first fit, not at the start
 
-        q = float(stdtrit(max(b - len(terms), 1), 0.975))
+        q = float(stdtrit(max(c.blocks - len(terms), 1), 0.975))
 
         def ci(value: float, se: float) -> tuple[float, float]:
             return (value - q * se, value + q * se)
@@ -675,8 +719,8 @@ class SampleRegression:
         def model_se(model: _Solution) -> float:
             """C2n's error: the data's (with the tape's where d is held) and the sensors' scales',
             which no drive can show."""
-            if d_fixed:
-                data = self._held_se(model, xtx, xty, run, n, self.d_tape_se_m)
+            if c.d_fixed:
+                data = self._held_se(model, c.xtx, c.xty, c.run, c.n, self.d_tape_se_m)
             else:
                 data = _c2n_se(model, self.g)
             scale = self.scale_se / (self.g * abs(float(model.coef[model.terms.index(Term.AY)])))
@@ -686,14 +730,14 @@ class SampleRegression:
             slope = model.coef[model.terms.index(Term.AY)]
             if slope >= 0:  # no stiffness
                 return None
-            half = float(stdtrit(max(b - len(model.terms), 1), 0.975)) * model_se(model)
+            half = float(stdtrit(max(c.blocks - len(model.terms), 1), 0.975)) * model_se(model)
             return (-1.0 / (self.g * slope) - half, -1.0 / (self.g * slope) + half)
 
         slope = chosen.coef[terms.index(Term.AY)]
         c2n = -1.0 / (self.g * slope)
         c2n_se = model_se(chosen)
         c2n_ci95 = ci(c2n, c2n_se)
-        c2n_linear = -1.0 / (self.g * linear.coef[linear.terms.index(Term.AY)])
+        c2n_linear = -1.0 / (self.g * c.linear.coef[c.linear.terms.index(Term.AY)])
         c2n_cubic = -1.0 / (self.g * cubic.coef[cubic.terms.index(Term.AY)])
         # the two models differ by the a_y³ term alone, so their difference has the term's t
         hidden = float(200.0 * abs((c2n_cubic - c2n_linear) / t3 / c2n)) if t3 else math.inf
@@ -705,17 +749,17 @@ class SampleRegression:
             low, high = ci(c2n_cubic, cubic_se) if slope3 < 0 else (c2n_ci95[0], math.inf)
             c2n_ci95 = (min(c2n_ci95[0], low), max(c2n_ci95[1], high))
             c2n_se = max(c2n_se, cubic_se)
-        if d_fixed and self.d_tape_m is not None:
+        if c.d_fixed and self.d_tape_m is not None:
             d, d_se = self.d_tape_m, 0.0
         else:
             i_d = terms.index(Term.D)
             d, d_se = chosen.coef[i_d], math.sqrt(chosen.cov[i_d, i_d])
         psi0 = psi0_se = None
-        if psi0_free:
+        if c.psi0_free:
             i_psi0 = terms.index(Term.PSI0)
             psi0, psi0_se = chosen.coef[i_psi0], math.sqrt(chosen.cov[i_psi0, i_psi0])
-        slope = _slope(chosen if Term.SIN in terms else tilted, c2n, q) if tilted is not None else None
-        bias = _bias(chosen, yaw_bias.terms[0], q) if yaw_bias is not None else None
+        slope = _slope(chosen if Term.SIN in terms else c.tilted, c2n, q) if c.tilted is not None else None
+        bias = _bias(chosen, c.yaw_bias.terms[0], q) if c.yaw_bias is not None else None
         softening = softening_se = None
         if chosen is cubic:
             softening = -cubic.coef[-1] * self.g * c2n  # α2 = a_y/(g·C2n)·(1 + s·a_y²)
@@ -734,21 +778,21 @@ class SampleRegression:
             softening_se_per_mps2_2=softening_se,
             c2n_linear_model=c2n_linear,
             c2n_softening_model=c2n_cubic,
-            n_samples=n,
-            n_blocks=b,
+            n_samples=c.n,
+            n_blocks=c.blocks,
             ay_range=(self._ay_min, self._ay_max),
             curvature_range=(self._kappa_min, self._kappa_max),
             speed_range=(self._u_min, self._u_max),
             seconds=self._seconds,
-            logs=logs,
-            transient_terms=transient,
-            d_fixed=d_fixed,
-            d_held_tight=d_fixed and tight and not narrow,
+            logs=c.logs,
+            transient_terms=c.transient,
+            d_fixed=c.d_fixed,
+            d_held_tight=c.d_fixed and c.tight and not c.narrow,
             tight_terms=tuple(_TERMS[t] for t in TIGHT_TERMS if t in terms),
-            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, xtx, xty, run, n, _CM) / c2n
-            if d_fixed
+            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, c.xtx, c.xty, c.run, c.n, _CM) / c2n
+            if c.d_fixed
             else None,
-            d_free_m=_plain_d(*plain, run, n, q) if d_fixed and wide else None,
+            d_free_m=_plain_d(*c.plain, c.run, c.n, q) if c.d_fixed and c.wide else None,
             tilt=_tilt(chosen),
             turn_force_pct=100.0 * _turn(chosen, self.g) if Term.TURN in terms else None,
             turn_force_ci95_pct=_turn_ci(chosen, self.g, q) if Term.TURN in terms else None,
@@ -761,10 +805,43 @@ class SampleRegression:
             slope_pct=slope[0] if slope else None,
             slope_ci95_pct=slope[1] if slope else None,
             slope_downhill_deg=slope[2] if slope else None,
-            c2n_linear_ci95=model_ci(linear),
+            c2n_linear_ci95=model_ci(c.linear),
             c2n_softening_ci95=model_ci(cubic),
             scale_se=self.scale_se,
         )
+
+
+@dataclass
+class _Cascade:
+    """The cascade's working state as its tests go (``SampleRegression.fit``): the statistics
+    (with d held, the tape's d·κ taken out of y; with a yaw-rate bias, its columns added), the terms
+    kept so far and the linear fit on them."""
+
+    xtx: np.ndarray
+    xty: np.ndarray
+    run: np.ndarray
+    n: int  # samples
+    blocks: int
+    logs: int  # drives pooled
+    speeds: list[tuple[int, int]]  # each drive's u and 1/u columns (a yaw-rate bias combines them)
+    psi0_free: bool
+    tight: bool  # most samples on radii under TIGHT_WHEELBASES
+    wide: bool  # the speeds apart (_WIDE_SPEEDS)
+    total: np.ndarray  # XᵀX over every block
+    base: list[int]  # the terms kept
+    linear: "_Solution | None"  # the fit on them
+    tilted: "_Solution | None"  # the fit with a slope's pull, where the headings let one be tried
+    transient: bool  # the quasi-steady terms kept
+    free_xty: np.ndarray = field(init=False)  # Xᵀy with d free
+    d_fixed: bool = False
+    narrow: bool = False  # the design cannot place d beside C2n (one speed)
+    plain: "tuple[np.ndarray, np.ndarray, list[int]]" = field(init=False)  # d free, no yaw-rate
+    # bias's columns, the terms kept before the bias: d_free_m's fit (``_with_yaw_bias`` takes it)
+    yaw_bias: "_YawBias | None" = None
+
+    def __post_init__(self) -> None:
+        self.free_xty = self.xty
+        self.plain = (self.xtx, self.xty, list(self.base))
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,10 @@ Live and offline runs differ only in where the frames come from; both call ``pro
 frame in arrival order and ``finish`` at the end, so the same frames give the same crossings.
 A bulk reader may hand over frames as a FrameBlock instead (``c2n analyze`` on MF4):
 ``process_block`` leaves the pipeline as ``process`` over its frames one by one would
-(tests/test_blocks.py).
+(tests/test_blocks.py). A block goes through two stages: ``filter_block`` (the filter, the gates
+and the heading, vectorised over the block) and ``take_filtered`` (the detector and the
+regressions, row by row); the second needs nothing the first does not hand it, so ``c2n gap``
+runs it in a forked process beside the diagnosis (app/gap/measured.py).
 """
 
 import copy

@@ -68,9 +68,9 @@ class Later(Generic[_T]):
     """A result, maybe still being worked out in a forked process: ``get`` waits for it and raises
     what the work raised. A Later dropped unasked stops its process."""
 
-    def __init__(self, value: _T | None = None, *, receive: Connection | None = None) -> None:
+    def __init__(self, value: _T | None = None) -> None:
         self._value = value
-        self._receive = receive
+        self._receive: Connection | None = None  # where a forked process sends it
         self._process: BaseProcess | None = None
 
     @classmethod
@@ -79,8 +79,8 @@ class Later(Generic[_T]):
 
     @classmethod
     def _from(cls, process: BaseProcess, receive: Connection) -> "Later[_T]":
-        later: Later[_T] = cls(receive=receive)
-        later._process = process
+        later: Later[_T] = cls()
+        later._receive, later._process = receive, process
         weakref.finalize(later, _stop, process)
         return later
 

@@ -24,7 +24,6 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -86,7 +85,6 @@ MAX_EVALUATIONS = 200  # model runs per fit (the Jacobian's are extra)
 FIT_TOLERANCE = 1e-6  # a fit stops when its cost or its parameters (in their typical sizes) move
 # by less than this share: a millionth of a typical size, far inside any interval it reports
 _STRAIGHT_RADPS, _TURNING_RADPS = 0.015, 0.03
-_T = TypeVar("_T")
 _MIN_MANOEUVRE_S = 2.0
 
 

@@ -597,7 +597,7 @@ class SampleRegression:
         return self._xtx[:b], self._xty[:b], self._yty[:b], self._run[:b], self._log[:b]
 
     def _cascade(
-        self, xtx: np.ndarray, xty: np.ndarray, yty: np.ndarray, run: np.ndarray, log: np.ndarray
+        self, xtx: np.ndarray, xty: np.ndarray, _yty: np.ndarray, run: np.ndarray, log: np.ndarray
     ) -> "_Cascade":
         """The cascade's first terms: ψ0 where the curvature varies within the drives (else it is
         d·κ's double), d and a_y; a small pad's two terms where its sweeps show them; a slope's
@@ -841,7 +841,6 @@ class _Cascade:
 
     def __post_init__(self) -> None:
         self.free_xty = self.xty
-        self.plain = (self.xtx, self.xty, list(self.base))
 
 
 @dataclass(frozen=True)

@@ -267,7 +267,9 @@ class Priors:
     slope_pct: float = 2.0
     # how much the rear axle's stiffness changes per unit of longitudinal acceleration in g (a slope's
     # gravity along the heading, braking): the load moved to it, h/l, with cornering stiffness about
-    # proportional to load — a car's centre of gravity at 0.5 m over a 2.5–3 m wheelbase: 0.2
+    # proportional to load — a car's centre of gravity at 0.5 m over a 2.5–3 m wheelbase: 0.2. A
+    # slope's load transfer is tied to its pull with this L as N(L, L²) (our two-track car's 0.45
+    # lies within 1.3 σ): on a level pad it has no room of its own
     load_transfer_per_g: float = 0.2
     # the tyres' softening s in α = a_y/(g·C2n)·(1 + s·a_y²), (m/s²)⁻²: a Magic-Formula tyre loses
     # 3–4 % of its stiffness by 4 m/s² (s ≈ 0.002); 0.004 holds twice that within one σ

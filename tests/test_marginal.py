@@ -9,7 +9,7 @@ from scipy.stats import norm, t
 
 from app.config import Priors, load_config
 from app.errors import ConfigError
-from app.results.marginal import Posterior, Term, mixture, posterior, wide_share
+from app.results.marginal import Blocks, Posterior, Term, mixture, posterior, wide_share
 from app.results.regression import _TERMS, SampleRegression
 from app.sinks import summary
 from tests.simulated import cached_drive, run_pipeline
@@ -36,7 +36,8 @@ def test_posterior_is_the_ridge_closed_form_with_its_noise_variance() -> None:
     y = x @ np.array([0.5, -1.0, 2.0]) + rng.normal(scale=0.3, size=4000)
     xtx, xty, yty, run = _blocks(x, y, 10)
     mean, sd = np.array([0.0, 0.0, 1.5]), np.array([0.2, math.inf, 0.1])
-    post = posterior(xtx, xty, yty, run, [0, 1, 2], mean, sd, 4000)
+    blocks = Blocks(xtx, xty, yty, run, 4000)
+    post = posterior(blocks, blocks.columns([0, 1, 2]), [0, 1, 2], mean, sd)
     assert post is not None
     precision = np.diag([1 / 0.04, 0.0, 1 / 0.01])
     a = x.T @ x + post.sigma2 * precision
@@ -50,11 +51,30 @@ def test_a_flat_prior_is_least_squares_and_a_sharp_one_holds_the_prior_mean() ->
     x = np.column_stack([np.ones(300), rng.normal(size=300)])
     y = x @ np.array([0.2, 3.0]) + rng.normal(scale=0.1, size=300)
     xtx, xty, yty, run = _blocks(x, y, 10)
-    flat = posterior(xtx, xty, yty, run, [0, 1], np.zeros(2), np.array([math.inf, math.inf]), 300)
-    sharp = posterior(xtx, xty, yty, run, [0, 1], np.array([0.0, 7.0]), np.array([math.inf, 1e-5]), 300)
+    blocks = Blocks(xtx, xty, yty, run, 300)
+    flat = posterior(blocks, blocks.columns([0, 1]), [0, 1], np.zeros(2), np.array([math.inf, math.inf]))
+    sharp = posterior(
+        blocks, blocks.columns([0, 1]), [0, 1], np.array([0.0, 7.0]), np.array([math.inf, 1e-5])
+    )
     assert flat is not None and sharp is not None
     np.testing.assert_allclose(flat.coef, np.linalg.lstsq(x, y, rcond=None)[0], rtol=1e-9)
     assert sharp.value(1) == pytest.approx(7.0, abs=1e-3)
+
+
+def test_a_term_made_of_columns_is_fitted_as_that_column() -> None:
+    """A term given as a combination of the statistics' columns (the yaw-rate bias's k·u − d/u) is
+    the least-squares fit on that column built sample by sample."""
+    rng = np.random.default_rng(3)
+    x = np.column_stack([np.ones(600), rng.normal(size=600), rng.normal(size=600)])
+    made = x[:, 1] - 0.5 * x[:, 2]
+    y = 0.3 + 2.0 * made + rng.normal(scale=0.1, size=600)
+    blocks = Blocks(*_blocks(x, y, 20), n=600)
+    weights = np.array([[1.0, 0.0], [0.0, 1.0], [0.0, -0.5]])
+    found = posterior(blocks, weights, [0, 3], np.zeros(2), np.array([math.inf, math.inf]))
+    assert found is not None
+    expected = np.linalg.lstsq(np.column_stack([x[:, 0], made]), y, rcond=None)[0]
+    np.testing.assert_allclose(found.coef, expected, rtol=1e-9)
+    assert found.value(3) == pytest.approx(2.0, abs=0.02)
 
 
 def _drive(regression: SampleRegression, c2n: float, d: float, speeds: list[float], seed: int) -> None:
@@ -140,6 +160,33 @@ def test_the_pipeline_reads_a_simulated_drive_with_the_marginal_regression(confi
     assert result.regression is not None and result.regression.c2n == pytest.approx(fit.c2n, rel=1e-3)
 
 
+def test_a_slopes_load_transfer_follows_its_pull() -> None:
+    """A 2 % grade falling towards 40°: gravity pulls the rear by g·s·sin(D − ψ) and, along the
+    heading, moves its load by L·s·cos(D − ψ) (L = 0.45 per g: our two-track car's, over twice the
+    data sheet's 0.2). The fit finds the grade and its direction, and C2n within its interval."""
+    grade, falls, transfer, c2n, d = 0.02, math.radians(40.0), 0.45, 14.0, 1.1
+    regression = SampleRegression(G, d_tape_m=d, wheelbase_m=2.7, priors=MARGINAL)
+    rng = np.random.default_rng(8)
+    t_s, heading = 0.0, 0.3
+    for radius in (40.0, 80.0):
+        for side in (1.0, -1.0):
+            for u in (8.0, 10.0, 12.0):
+                r = side * u / radius
+                for _ in range(3000):  # 30 s: more than a circle
+                    g_y = G * grade * math.sin(falls - heading)
+                    stiffer = 1.0 + transfer * grade * math.cos(falls - heading)
+                    beta = d * r / u - (u * r - g_y) / (G * c2n * stiffer) + 0.002
+                    regression.add(t_s, u, r, u * (beta + rng.normal(scale=0.001)), heading)
+                    t_s, heading = t_s + 0.01, heading + 0.01 * r
+                t_s += 1.0
+    fit = regression.fit()
+    assert fit is not None and fit.slope_pct is not None and fit.slope_downhill_deg is not None
+    assert fit.slope_pct == pytest.approx(100 * grade, rel=0.05)
+    assert (fit.slope_downhill_deg - 40.0 + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=3.0)
+    assert fit.c2n_ci95[0] <= c2n <= fit.c2n_ci95[1]
+    assert fit.c2n == pytest.approx(c2n, rel=0.005)
+
+
 def _wide_posterior(d_hat: float, v: float, tape: float, wide_sd: float) -> Posterior:
     """The posterior of d alone where the data say d̂ ± √v and the prior is N(tape, wide_sd²)."""
     p = 1.0 / (1.0 / v + 1.0 / wide_sd**2)
@@ -166,10 +213,23 @@ def test_where_the_data_cannot_place_d_the_wide_prior_keeps_its_share() -> None:
 def test_a_mixtures_interval_holds_its_level() -> None:
     one = mixture([2.0], [0.5], [1.0], 30, 0.95)
     assert one == (2.0, pytest.approx((2.0 - t.ppf(0.975, 30) * 0.5, 2.0 + t.ppf(0.975, 30) * 0.5)))
-    mean, (low, high) = mixture([0.0, 10.0], [1.0, 2.0], [0.7, 0.3], 30, 0.95)
-    assert mean == pytest.approx(3.0)
-    for x, p in ((low, 0.025), (high, 0.975)):
-        assert 0.7 * t.cdf(x, 30) + 0.3 * t.cdf((x - 10.0) / 2.0, 30) == pytest.approx(p, abs=1e-9)
+    median, (low, high) = mixture([0.0, 10.0], [1.0, 2.0], [0.7, 0.3], 30, 0.95)
+    for x, p in ((low, 0.025), (median, 0.5), (high, 0.975)):
+        assert 0.7 * t.cdf(x, 30) + 0.3 * t.cdf((x - 10.0) / 2.0, 30) == pytest.approx(p, abs=1e-12)
+
+
+def test_a_far_component_of_small_weight_widens_the_interval_but_does_not_drag_the_estimate() -> None:
+    """d's wide prior at one speed (h_011 of tools/bench_coverage.py): 3 % of weight on a C2n 40 %
+    away. The mixture's mean moves by 3 % of 40 %; its median by the tape component's own quantile
+    of 0.5/0.97, 0.04 of its σ — and the upper bound reaches into the far component."""
+    median, (low, high) = mixture([14.0, 19.6], [0.05, 3.0], [0.97, 0.03], 30, 0.95)
+    mean = 0.97 * 14.0 + 0.03 * 19.6
+    assert mean == pytest.approx(14.168)
+    assert median == pytest.approx(14.0, abs=0.05 * 0.05)
+    assert 0.97 * t.cdf((median - 14.0) / 0.05, 30) + 0.03 * t.cdf(
+        (median - 19.6) / 3.0, 30
+    ) == pytest.approx(0.5)
+    assert low < 14.0 - 0.05 and high > 14.0 + 3 * 0.05
 
 
 def test_a_d_far_from_the_tape_is_found_and_c2n_stays_right() -> None:

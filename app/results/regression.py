@@ -90,7 +90,15 @@ import numpy as np
 
 from app.config import Priors
 from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
-from app.results.marginal import Posterior, Term, mixture, posterior, well_conditioned_inverse, wide_share
+from app.results.marginal import (
+    Blocks,
+    Posterior,
+    Term,
+    mixture,
+    posterior,
+    well_conditioned_inverse,
+    wide_share,
+)
 
 _TERMS = (  # the columns each block keeps; a fit takes a subset
     "psi0",  # 1: the head's yaw on the car
@@ -417,7 +425,7 @@ class SampleRegression:
         slope_terms = [Term.SIN, Term.COS, Term.AY_SIN, Term.AY_COS] if planar else []
         turn = [Term.TURN] if priors.turn_force_pct > 0 else []
         own = [Term.D, Term.AY, Term.AY3, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
-        design = _Design(xtx, xty, yty, run, n, offsets, speeds, [int(t) for t in own])
+        design = _Design(Blocks(xtx, xty, yty, run, n), offsets, speeds, [int(t) for t in own])
         if self.d_tape_m is None:  # no tape: d's prior is flat
             found = self._marginal_posterior(priors, design, b_ay, math.inf)
             if found is None:
@@ -443,36 +451,38 @@ class SampleRegression:
         bias's columns; the priors' scale follows a_y's coefficient until it settles."""
         post: Posterior | None = None
         bias_terms: list[int] = []
-        for _ in range(4):  # the priors' scale and the bias's column follow a_y's coefficient
-            sd = _prior_sd(priors, self.g, b_ay, self.wheelbase_m)
-            wide_xtx, wide_xty = design.xtx, design.xty
+        pull: _Pull | None = None
+        for _ in range(_PASSES):  # the priors follow a_y's coefficient and the slope's pull
+            prior = _priors(priors, self.g, b_ay, self.wheelbase_m, pull)
+            terms = [*design.offsets, *design.own]
+            weights = design.blocks.columns(terms)
             if self.d_tape_m is not None:  # a yaw-rate bias b moves β by b·(k·u − d/u), k = −b_ay
-                combos = [{u: -b_ay, inv_u: -self.d_tape_m} for u, inv_u in design.speeds]
-                wide_xtx, wide_xty, bias_terms = _combined(design.xtx, design.xty, combos)
-            terms = [*design.offsets, *design.own, *bias_terms]
-            mean = np.zeros(len(terms))
-            spread = np.array(
+                bias_terms = list(range(len(weights), len(weights) + len(design.speeds)))
+                bias = np.zeros((len(weights), len(design.speeds)))
+                for j, (u, inv_u) in enumerate(design.speeds):
+                    bias[u, j], bias[inv_u, j] = -b_ay, -self.d_tape_m
+                terms, weights = [*terms, *bias_terms], np.hstack([weights, bias])
+            mean, spread = np.array(
                 [
-                    sd[Term.PSI0]
+                    prior[Term.PSI0]
                     if t in design.offsets
-                    else math.radians(priors.gyro_bias_degps)
+                    else (0.0, math.radians(priors.gyro_bias_degps))
                     if t in bias_terms
-                    else d_sd
+                    else (self.d_tape_m or 0.0, d_sd)
                     if t == Term.D
-                    else sd[t]
+                    else prior[t]
                     for t in terms
                 ]
-            )
-            if self.d_tape_m is not None:
-                mean[terms.index(Term.D)] = self.d_tape_m
-            post = posterior(
-                wide_xtx, wide_xty, design.yty, design.run, [int(t) for t in terms], mean, spread, design.n
-            )
+            ).T
+            post = posterior(design.blocks, weights, [int(t) for t in terms], mean, spread)
             if post is None:
                 return None
+            # settled: the priors' scale was a_y's coefficient's own, and the load transfer's
+            # prior the pull's this pass found
             settled = abs(post.value(Term.AY) - b_ay) <= _SETTLED * abs(b_ay)
-            b_ay = post.value(Term.AY)
-            if settled:  # the priors' scale was a_y's coefficient's own
+            settled = settled and (pull is not None or Term.SIN not in post.terms)
+            b_ay, pull = post.value(Term.AY), _Pull.of(post)
+            if settled:
                 break
         assert post is not None
         return post, bias_terms
@@ -933,17 +943,14 @@ def _within(xtx: np.ndarray) -> float:
 
 D_EXACT_SD_M = 1e-4  # a tape stated exact (d_tolerance_mm 0): its prior 0.1 mm, finer than any tape reads
 _SETTLED = 1e-4  # a_y's coefficient settled: a change under 0.01 % of C2n, far inside its interval
+_PASSES = 5  # at most: a_y's coefficient settles in three, a slope's load transfer takes one more
 
 
 @dataclass(frozen=True)
 class _Design:
     """The marginal fit's statistics and columns: ψ0's, the speed pairs, the drive's own terms."""
 
-    xtx: np.ndarray
-    xty: np.ndarray
-    yty: np.ndarray
-    run: np.ndarray
-    n: int
+    blocks: Blocks
     offsets: list[int]
     speeds: list[tuple[int, int]]
     own: list[int]
@@ -1083,21 +1090,54 @@ def _solve(xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, terms: list[int], 
     return _Solution(terms, coef, cov)
 
 
-def _prior_sd(priors: Priors, g: float, b_ay: float, wheelbase_m: float) -> dict[int, float]:
-    """Each term's prior standard deviation in its coefficient's units; ratios to a_y's coefficient
-    scaled with ``b_ay`` (−1/(g·C2n)) from the fit before."""
+def _priors(
+    priors: Priors, g: float, b_ay: float, wheelbase_m: float, pull: "_Pull | None"
+) -> dict[int, tuple[float, float]]:
+    """Each term's prior (mean, standard deviation) in its coefficient's units; ratios to a_y's
+    coefficient scaled with ``b_ay`` (−1/(g·C2n)) from the fit before.
+
+    A slope's load transfer follows its pull: the grade s falling towards D pulls β by
+    −b·g·s·sin(D − ψ) (sin ψ's and cos ψ's coefficients c_s = b·g·s·cos D, c_c = −b·g·s·sin D)
+    and, its gravity along the heading moving the rear's load by L·s·cos(D − ψ) of it, changes the
+    a_y coefficient by b·L·s·cos(D − ψ): a_y·cos ψ's coefficient is (L/g)·c_s and a_y·sin ψ's
+    −(L/g)·c_c. Given the pull found (``pull``), the pair's prior is that, with L's own spread
+    (N(L, L²)) times the pull's size; before a pull is found, the grade's prior times L."""
     k = abs(b_ay)
     grade = priors.slope_pct / 100.0
+    transfer = priors.load_transfer_per_g
+    if pull is None:
+        ay_sin = ay_cos = (0.0, grade * k * transfer)
+    else:
+        spread = transfer / g * pull.size
+        ay_sin, ay_cos = (-transfer / g * pull.cos, spread), (transfer / g * pull.sin, spread)
     return {
-        Term.PSI0: math.radians(priors.head_yaw_deg),
-        Term.AY: math.inf,
-        Term.AY3: k * priors.softening_per_mps2_2,
-        Term.SIN: grade * k * g,  # g_y/(g·C2n) = g·s·sin(D − ψ)·|b_ay|
-        Term.COS: grade * k * g,
-        Term.AY_SIN: grade * k * priors.load_transfer_per_g,
-        Term.AY_COS: grade * k * priors.load_transfer_per_g,
-        Term.R_DOT: k * priors.yaw_inertia_wheelbases * wheelbase_m,
-        Term.AY_U_DOT: k * priors.load_transfer_per_g / g,
-        Term.TURN: priors.turn_force_pct / 100.0 * k * g,
-        Term.K2_AY: k * (priors.two_wheels_wheelbases2 * wheelbase_m) ** 2,
+        Term.PSI0: (0.0, math.radians(priors.head_yaw_deg)),
+        Term.AY: (0.0, math.inf),
+        Term.AY3: (0.0, k * priors.softening_per_mps2_2),
+        Term.SIN: (0.0, grade * k * g),  # g_y/(g·C2n) = g·s·sin(D − ψ)·|b_ay|
+        Term.COS: (0.0, grade * k * g),
+        Term.AY_SIN: ay_sin,
+        Term.AY_COS: ay_cos,
+        Term.R_DOT: (0.0, k * priors.yaw_inertia_wheelbases * wheelbase_m),
+        Term.AY_U_DOT: (0.0, k * transfer / g),
+        Term.TURN: (0.0, priors.turn_force_pct / 100.0 * k * g),
+        Term.K2_AY: (0.0, k * (priors.two_wheels_wheelbases2 * wheelbase_m) ** 2),
     }
+
+
+@dataclass(frozen=True)
+class _Pull:
+    """A slope's pull as a fit found it: sin ψ's and cos ψ's coefficients, and its size with
+    their variances counted (√(c_s² + c_c² + var c_s + var c_c): never 0 where the data are)."""
+
+    sin: float
+    cos: float
+    size: float
+
+    @classmethod
+    def of(cls, post: Posterior) -> "_Pull | None":
+        if Term.SIN not in post.terms:
+            return None
+        sin, cos = post.value(Term.SIN), post.value(Term.COS)
+        size = math.sqrt(sin * sin + cos * cos + post.se(Term.SIN) ** 2 + post.se(Term.COS) ** 2)
+        return cls(sin, cos, size)

@@ -185,7 +185,7 @@ class Snapshot:
         d, where = fit.d_m, f"{-fit.d_m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
         witness = self._witness
         assert witness is not None  # there is a fit
-        if witness.d_fixed and witness.d_free_m is not None and witness.d_free_m < 0:
+        if witness.d_free_m is not None and witness.d_free_m < 0:
             d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
         elif not witness.d_fixed and witness.d_m < 0:
             d, where = witness.d_m, f"{-witness.d_m:.2f} m behind the rear axle"
@@ -213,7 +213,11 @@ class Snapshot:
     def d_witnessed(self) -> bool:
         """Do the samples place d themselves (speeds apart: ``d_free_m`` where d is held)?"""
         witness = self._witness
-        return witness is not None and (not witness.d_fixed or witness.d_free_m is not None)
+        if witness is None:
+            return False
+        if witness.estimator == "marginal":  # d under the tape's prior: the samples' own, if any
+            return witness.d_free_m is not None
+        return not witness.d_fixed or witness.d_free_m is not None
 
     @property
     def odd_sign(self) -> str | None:

@@ -218,6 +218,16 @@ def test_a_mixtures_interval_holds_its_level() -> None:
         assert 0.7 * t.cdf(x, 30) + 0.3 * t.cdf((x - 10.0) / 2.0, 30) == pytest.approx(p, abs=1e-12)
 
 
+def test_a_component_of_vanishing_weight_still_gives_the_quantiles() -> None:
+    """1 − 3e-16 and 3e-16 (a wide prior's weight where the data place d far from it): rounding put
+    the mixture's CDF on one side at both of the components' own quantiles, and the root finder
+    stopped `c2n gap` on the dev pack's case 08."""
+    weights = [0.9999999999999997, 3.3306690738754696e-16]
+    median, (low, high) = mixture([14.0, 13.998734578528953], [0.0105203, 4.2884473], weights, 30, 0.95)
+    q = t.ppf(0.975, 30) * 0.0105203
+    assert (low, median, high) == pytest.approx((14.0 - q, 14.0, 14.0 + q), abs=1e-9)
+
+
 def test_a_far_component_of_small_weight_widens_the_interval_but_does_not_drag_the_estimate() -> None:
     """d's wide prior at one speed (h_011 of tools/bench_coverage.py): 3 % of weight on a C2n 40 %
     away. The mixture's mean moves by 3 % of 40 %; its median by the tape component's own quantile

@@ -11,7 +11,7 @@
    only iterates python-can's reader over the same file;
 5. memory: peak RSS of a 10-minute and an 8-hour session (accelerated, each in its own process);
    and the compiled motion filter against the reference on filterpy's KalmanFilter, and what each
-   stage costs a frame (``parts``);
+   stage costs a frame, with a refit of the regression under each estimator (``parts``);
 6. startup: wall time and peak RSS of ``c2n --help`` and ``c2n analyze --help``, each in a fresh
    process, and what an install of c2n weighs, alone and with each extra: the files of every
    distribution it needs, from this venv's records, and the launch-to-first-frame time of
@@ -34,6 +34,7 @@ times, and 96 background ids at about 81 Hz each, 9,009 frames/s in all.
 
 import argparse
 import contextlib
+import copy
 import io
 import json
 import os
@@ -46,6 +47,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -57,9 +59,10 @@ from packaging.utils import canonicalize_name
 from rich.console import Console
 
 from app.cli import main as c2n
-from app.config import load_config
+from app.config import Priors, load_config
 from app.pipeline import Pipeline
 from app.records import Record
+from app.results.regression import SampleRegression
 from app.run_loop import run
 from app.sim.session import DriveOptions, simulate_drive
 from app.sinks.dashboard import Dashboard
@@ -469,6 +472,7 @@ def part_costs(messages: list[can.Message]) -> dict[str, float]:
     dashboard = Dashboard("bench")
     dashboard.on_snapshot(pipeline.snapshot())
     costs[_REFRESH] = per_frame(list(range(50)), lambda _: console.print(dashboard))  # µs a refresh
+    costs.update(refit_costs(pipeline.regression, config.priors))
     for name, writer in (
         ("candump line, c2n", _CandumpWriter),
         ("candump line, python-can", can.CanutilsLogWriter),
@@ -483,6 +487,22 @@ def part_costs(messages: list[can.Message]) -> dict[str, float]:
     costs["python-can virtual bus recv"] = per_frame(messages, lambda _: rx.recv(0))
     rx.shutdown()
     tx.shutdown()
+    return costs
+
+
+def refit_costs(regression: SampleRegression, priors: Priors) -> dict[str, float]:
+    """µs a refit of the every-sample regression on the session's samples, each estimator (the
+    median of 15: a refit runs every few seconds of a live session, never per frame)."""
+    costs = {}
+    for name, chosen in (("cascade", None), ("marginal", replace(priors, estimator="marginal"))):
+        fitted = copy.copy(regression)
+        fitted.priors = chosen
+        times = []
+        for _ in range(15):
+            start = time.perf_counter()
+            fitted.fit()
+            times.append(time.perf_counter() - start)
+        costs[f"regression refit, {name}"] = 1e6 * statistics.median(times)
     return costs
 
 
@@ -598,9 +618,11 @@ def main() -> None:
         costs = [part_costs(messages) for _ in range(args.runs)]
         for name in costs[0]:
             values = [c[name] for c in costs]
-            per_frame = name != _REFRESH
+            per_frame = name != _REFRESH and not name.startswith("regression refit")
             shown = summary(values, "µs a frame", digits=2) if per_frame else summary(values, "ms", 1e-3, 2)
             print(f"   {name:31s}{shown}")
+        ratios = [c["regression refit, marginal"] / c["regression refit, cascade"] for c in costs]
+        print(f"   {'refit, marginal / cascade':31s}{summary(ratios, '×', digits=2)}  (goal ≤ 2×)")
     if "live" in only:
         messages = saturated_mix(20.0)
         rates = repeat(args.runs, lambda: live_throughput(messages))

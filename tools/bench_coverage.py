@@ -2,7 +2,7 @@
 
 Each drive runs once through the pipeline; the regression its result rests on (the steady samples',
 or where no sweep crossed zero the quasi-steady samples') is then fitted both ways on the same
-samples: the cascade of tests (today's default) and the marginal model (every nuisance with its
+samples: the cascade of tests (the default before 2026-11-27) and the marginal model (every nuisance with its
 prior, ``[priors]``). Kinds: tools/bench_accuracy.py's cases a–m (our simulator's bicycle and
 two-track models, CommonRoad's multi-body car) and the dev pack's nine drives (an independent
 generator's car; its truth ``c2n.rear_axle_effective_linear``). Printed per kind and estimator: the

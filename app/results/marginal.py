@@ -159,20 +159,32 @@ def _newey_west(scores: np.ndarray, run: np.ndarray) -> np.ndarray:
     return np.asarray(meat + 0.5 * (cross + cross.T))
 
 
+def data_alone(post: Posterior, term: int, prior_mean: float, prior_sd: float) -> tuple[float, float] | None:
+    """What the data alone say of ``term`` under a Gaussian prior: the posterior's precision less
+    the prior's, and the mean that leaves — (mean, variance), or None where the prior holds all of
+    it (one speed for d)."""
+    p = post.se(term) ** 2
+    if p <= 0.0:
+        return post.value(term), 0.0
+    info = 1.0 / p - 1.0 / prior_sd**2
+    if info <= 0.0:
+        return None
+    v = 1.0 / info
+    return v * (post.value(term) / p - prior_mean / prior_sd**2), v
+
+
 def wide_share(wide: Posterior, tape_m: float, tape_sd: float, wide_sd: float, share: float) -> float:
     """The wide d prior's posterior weight: its prior ``share`` times the evidence ratio, the data's
-    own d (found from the wide posterior: its precision less the prior's) under N(tape, v + σ²)
-    for each prior's σ. Where the data hardly place d (one speed) the ratio is 1."""
+    own d (found from the wide posterior: ``data_alone``) under N(tape, v + σ²) for each prior's σ.
+    Where the data hardly place d (one speed) the ratio is 1."""
     if share <= 0.0:
         return 0.0
     if share >= 1.0:
         return 1.0
-    p = wide.se(Term.D) ** 2
-    info = 1.0 / p - 1.0 / wide_sd**2 if p > 0 else math.inf
-    if info <= 0.0:
+    own = data_alone(wide, Term.D, tape_m, wide_sd)
+    if own is None:
         return share
-    v = 1.0 / info
-    x = v * (wide.value(Term.D) / p - tape_m / wide_sd**2) - tape_m
+    x, v = own[0] - tape_m, own[1]
     a, b = v + tape_sd**2, v + wide_sd**2
     log_ratio = 0.5 * math.log(a / b) + 0.5 * x * x * (1.0 / a - 1.0 / b)
     log_odds = log_ratio + math.log(share / (1.0 - share))
@@ -197,9 +209,10 @@ def mixture(
     m, s = np.asarray(means, dtype=float), np.asarray(ses, dtype=float)
     tail = (1.0 - level) / 2.0
     p = np.array([tail, 0.5, 1.0 - tail])
-    # each quantile lies between the components' own (there every F_i is below p, here above)
+    # each quantile lies between the components' own (there every F_i is at most p, here at least),
+    # and strictly inside them widened by the largest σ, where rounding cannot turn a sign
     own = m + s * stdtrit(dof, p)[:, None]
-    low, high = own.min(axis=1), own.max(axis=1)
+    low, high = own.min(axis=1) - s.max(), own.max(axis=1) + s.max()
     scale = np.where(s > 0, s, 1.0)
 
     def below(x: float, target: float) -> float:

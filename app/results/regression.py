@@ -83,7 +83,7 @@ grow with the samples; past ``max_blocks`` the oldest blocks are merged in pairs
 """
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -94,6 +94,7 @@ from app.results.marginal import (
     Blocks,
     Posterior,
     Term,
+    data_alone,
     mixture,
     posterior,
     well_conditioned_inverse,
@@ -174,7 +175,9 @@ class RegressionFit:
     c2n_per_tape_cm_pct: float | None = None  # where d is held: how far 1 cm of d moves C2n, %
     tight_terms: tuple[str, ...] = ()  # on a small pad, TIGHT_TERMS fitted: "ay_u_dot", "k2_ay"
     softening_se_per_mps2_2: float | None = None  # s's standard error, where the term is kept
-    d_free_m: float | None = None  # where d is held: the top of d's interval as the samples alone
+    d_free_m: float | None = (
+        None  # where d is held (marginal: always): the top of d's interval as the samples alone
+    )
     # place it — below zero, the sensor is behind the axle: a role is the wrong way round
     tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
     # tilt · (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ) [rad]; None where no slope was kept in the fit
@@ -200,6 +203,9 @@ class RegressionFit:
     held_open_by: str | None = None  # marginal: the term contributing most to C2n's variance (a
     # drive that cannot separate it from a_y), and the share of the variance it holds
     held_open_share: float | None = None
+    # marginal, with a tape: what the drive tells of d, as its information over the tape's (the
+    # posterior's precision less the prior's, over the prior's); under 1 the tape places d better
+    d_information: float | None = None
 
     @property
     def slope(self) -> SlopeResult | None:
@@ -426,11 +432,19 @@ class SampleRegression:
         turn = [Term.TURN] if priors.turn_force_pct > 0 else []
         own = [Term.D, Term.AY, Term.AY3, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
         design = _Design(Blocks(xtx, xty, yty, run, n), offsets, speeds, [int(t) for t in own])
+        # a slope is reported (and its pull taken out of the crossings) where the headings cover it,
+        # as the cascade tries one: one direction on one circle holds a 2 % "slope" at Wald's 95 %
+        # that C2n's width carries but no crossing should be moved by
+        headings = (
+            planar
+            and _spread(design.blocks.total, [*offsets, Term.D, Term.AY], [Term.SIN, Term.COS], n)
+            >= _SLOPE_SPREAD
+        )
         if self.d_tape_m is None:  # no tape: d's prior is flat
             found = self._marginal_posterior(priors, design, b_ay, math.inf)
             if found is None:
                 return None
-            return self._marginal_result(priors, [found], [1.0], len(run), logs)
+            return self._marginal_result(priors, [found], [1.0], len(run), logs, headings)
         # d's prior: the tape's, and with ``d_gross_share`` a wide one (the tape wrong); each is
         # weighed by its evidence, the density of the data's own d under it (closed form)
         tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
@@ -440,9 +454,25 @@ class SampleRegression:
         wide = self._marginal_posterior(priors, design, settled, wide_sd)  # from the tape's a_y
         if tape is None or wide is None:
             found = tape or wide
-            return None if found is None else self._marginal_result(priors, [found], [1.0], len(run), logs)
+            return (
+                None
+                if found is None
+                else self._marginal_result(priors, [found], [1.0], len(run), logs, headings)
+            )
         share = wide_share(wide[0], self.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
-        return self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs)
+        fit = self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs, headings)
+        if fit is None:
+            return None
+        # what the drive alone says of d: its information against the tape's, and the top of its
+        # interval (a d behind the axle shows a role the wrong way round: Snapshot.sign_problem)
+        alone = data_alone(wide[0], Term.D, self.d_tape_m, wide_sd)
+        if alone is None:
+            return replace(fit, d_information=0.0)
+        from scipy.special import stdtrit
+
+        q = float(stdtrit(max(len(run) - len(wide[0].terms), 1), 0.5 + priors.confidence / 2.0))
+        information = tape_sd**2 / alone[1] if alone[1] > 0 else math.inf
+        return replace(fit, d_information=information, d_free_m=alone[0] + q * math.sqrt(alone[1]))
 
     def _marginal_posterior(
         self, priors: Priors, design: "_Design", b_ay: float, d_sd: float
@@ -494,6 +524,7 @@ class SampleRegression:
         weights: list[float],
         blocks: int,
         logs: int,
+        headings: bool,
     ) -> RegressionFit | None:
         """The result of d's priors' mixture: C2n and d from both posteriors by their weights, the
         rest (terms reported, ``held_open_by``) from the heavier one."""
@@ -507,11 +538,13 @@ class SampleRegression:
         q = float(stdtrit(dof, 0.5 + priors.confidence / 2.0))
         shares = [w for _, w in kept]
         c2ns = [-1.0 / (self.g * f[0].value(Term.AY)) for f, _ in kept]
-        c2n_ses = [
-            math.hypot(f[0].se(Term.AY) * self.g * c * c, self.scale_se * abs(c))
-            for (f, _), c in zip(kept, c2ns, strict=True)
-        ]
-        c2n, c2n_ci = mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
+        data_ses = [f[0].se(Term.AY) * self.g * c * c for (f, _), c in zip(kept, c2ns, strict=True)]
+        c2n_ses = [math.hypot(se, self.scale_se * abs(c)) for se, c in zip(data_ses, c2ns, strict=True)]
+        # the sensors' scales widen the interval; the value is the data's mixture's, which a stated
+        # tolerance does not move (a mixture's median would: its components' widths weigh it)
+        c2n = mixture(c2ns, data_ses, shares, dof, priors.confidence)[0] if self.scale_se else None
+        median, c2n_ci = mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
+        c2n = median if c2n is None else c2n
         c2n_se = (c2n_ci[1] - c2n_ci[0]) / (2.0 * q)
         d_m, d_ci = mixture(
             [f[0].value(Term.D) for f, _ in kept],
@@ -529,7 +562,7 @@ class SampleRegression:
         t3 = post.value(Term.AY3) / post.se(Term.AY3) if post.se(Term.AY3) > 0 else 0.0
         softens = abs(t3) > q and post.value(Term.AY3) * b_ay > 0  # reported where the data show it
         slope = _slope(fit, c2n, q) if Term.SIN in post.terms else None
-        slope_shown = slope is not None and _wald(fit, [Term.SIN, Term.COS]) > _SLOPE_WALD
+        slope_shown = slope is not None and headings and _wald(fit, [Term.SIN, Term.COS]) > _SLOPE_WALD
         turn = Term.TURN in post.terms
         bias = _bias(fit, bias_terms[0], q) if bias_terms else None
         held = post.held_open_by(Term.AY)

@@ -334,12 +334,14 @@ def test_a_speed_sweep_fits_d_even_with_a_tape_value() -> None:
 
 def test_the_summary_says_d_was_held_and_what_to_drive() -> None:
     """Through the pipeline's regression (d from the config) to the summary: the key, the speeds
-    and a warning naming the config's d and the sweep that would measure it."""
+    and a warning naming the config's d and the sweep that would measure it (the cascade's, which
+    holds d; the marginal fit's: the next test)."""
     from app.config import load_config
     from app.pipeline import Pipeline
     from app.sinks import summary
 
     config = load_config()
+    config = dataclasses.replace(config, priors=dataclasses.replace(config.priors, estimator="cascade"))
     pipeline = Pipeline(config)
     rng = np.random.default_rng(3)
     for t, u, r, v in one_speed_samples(14.0, config.d_m, 0.0, 11.0, rng):
@@ -352,6 +354,36 @@ def test_the_summary_says_d_was_held_and_what_to_drive() -> None:
     assert fit["c2n_ci95"][0] <= 14.0 <= fit["c2n_ci95"][1]
     said = [w for w in result["warnings"] if "too narrow to fit the sensor's d" in w]
     assert len(said) == 1 and f"the config's {config.d_m:g} m" in said[0] and "sweep the speed" in said[0]
+
+
+def test_the_summary_says_when_the_tape_places_d_better_than_the_drive() -> None:
+    """The marginal fit at one speed: d keeps the tape's prior (the drive adds nothing to it), C2n's
+    interval is held open by d and counts the tape, and a warning says what C2n rests on and what
+    to drive. Sweeps through u0 on two radii tell more of d than a ±10 mm tape: no warning."""
+    from app.config import load_config
+    from app.pipeline import Pipeline
+    from app.sinks import summary
+
+    config = load_config()
+    config = dataclasses.replace(config, priors=dataclasses.replace(config.priors, estimator="marginal"))
+    pipeline = Pipeline(config)
+    rng = np.random.default_rng(3)
+    for t, u, r, v in one_speed_samples(14.0, config.d_m, 0.0, 11.0, rng):
+        pipeline.regression.add(t, u, r, v)
+    pipeline.finish()
+    result = summary.build(pipeline.snapshot(), config, ["one speed"]).to_json()
+    fit = result["regression"]
+    assert fit["estimator"] == "marginal" and fit["held_open_by"] is not None and fit["d_information"] < 0.1
+    assert fit["c2n_ci95"][0] <= 14.0 <= fit["c2n_ci95"][1]
+    said = [w for w in result["warnings"] if "less well than the tape" in w]
+    assert len(said) == 1 and f"the config's {config.d_m:g} m" in said[0] and "sweep the speed" in said[0]
+    swept = Pipeline(config)
+    for t, u, r, v in sweep_samples(14.0, config.d_m, 0.0, (80.0, -80.0, 40.0, -40.0)):
+        swept.regression.add(t, u, r, v + u * rng.normal(scale=0.001))
+    swept.finish()
+    result = summary.build(swept.snapshot(), config, ["sweeps"]).to_json()
+    assert result["regression"]["d_information"] > 1.0
+    assert not any("less well than the tape" in w for w in result["warnings"])
 
 
 def test_a_force_that_follows_the_turn_is_fitted_and_taken_out_of_c2n() -> None:
@@ -514,12 +546,13 @@ def test_a_turn_force_is_found_where_no_sample_is_near_zero_a_y() -> None:
 def test_the_summary_says_why_d_was_held_on_a_small_pad() -> None:
     """Through the pipeline's regression (the config's d, wheelbase and tape tolerance) to the
     summary: the keys and a warning naming the radii, the share of a centimetre, the tolerance
-    counted and what to do."""
+    counted and what to do (the cascade's, which holds d there)."""
     from app.config import Calibration, load_config
     from app.pipeline import Pipeline
     from app.sinks import summary
 
     config = load_config()
+    config = dataclasses.replace(config, priors=dataclasses.replace(config.priors, estimator="cascade"))
     pipeline = Pipeline(config)
     for t, u, r, v in tight_samples(14.0, config.d_m, 0.0, SMALL_PAD):
         pipeline.regression.add(t, u, r, v)

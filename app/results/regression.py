@@ -465,13 +465,17 @@ class SampleRegression:
             return None
         # what the drive alone says of d: its information against the tape's, and the top of its
         # interval (a d behind the axle shows a role the wrong way round: Snapshot.sign_problem)
+        # — its own d only where it places d at least as well as the tape: at one speed the a_y³
+        # term's curvature lends d a little information that the prior's shape, not the drive, makes
         alone = data_alone(wide[0], Term.D, self.d_tape_m, wide_sd)
         if alone is None:
             return replace(fit, d_information=0.0)
+        information = tape_sd**2 / alone[1] if alone[1] > 0 else math.inf
+        if information < 1.0:
+            return replace(fit, d_information=information)
         from scipy.special import stdtrit
 
         q = float(stdtrit(max(len(run) - len(wide[0].terms), 1), 0.5 + priors.confidence / 2.0))
-        information = tape_sd**2 / alone[1] if alone[1] > 0 else math.inf
         return replace(fit, d_information=information, d_free_m=alone[0] + q * math.sqrt(alone[1]))
 
     def _marginal_posterior(
@@ -528,8 +532,10 @@ class SampleRegression:
     ) -> RegressionFit | None:
         """The result of d's priors' mixture: C2n and d from both posteriors by their weights, the
         rest (terms reported, ``held_open_by``) from the heavier one."""
-        kept = [(f, w) for f, w in zip(found, weights, strict=True) if f[0].value(Term.AY) < 0]
-        if not kept:  # no stiffness
+        # a_y's coefficient above zero is kept, C2n below zero: a role the wrong way round, which
+        # Snapshot.sign_problem explains from d and the signs (the cascade's fits do the same)
+        kept = [(f, w) for f, w in zip(found, weights, strict=True) if f[0].value(Term.AY) != 0]
+        if not kept:
             return None
         post, bias_terms = max(kept, key=lambda fw: fw[1])[0]
         from scipy.special import stdtrit

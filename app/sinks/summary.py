@@ -90,6 +90,10 @@ class RegressionRow:
     transient_terms: bool  # quasi-steady: the yaw inertia's and braking's terms were fitted
     yaw_bias_degps: float | None  # quasi-steady: the yaw rate reads this much high, where fitted
     yaw_bias_ci95_degps: Interval | None
+    estimator: Literal["cascade", "marginal"]  # [priors] estimator: terms chosen by tests, or all with priors
+    held_open_by: str | None  # marginal: the term whose uncertainty holds C2n's interval open most
+    held_open_share: float | None  # ... and its share of C2n's variance
+    d_information: float | None  # marginal: what the drive tells of d over what the tape does
 
 
 @dataclass(frozen=True)
@@ -375,6 +379,18 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"C2n, so d is the config's {config.d_m:g} m (its interval counts the tape's {tape}); sweep the "
             "speed through u0 to measure both"
         )
+    elif fit is not None and fit.d_information is not None and fit.d_information < 1.0:
+        low, high = fit.speed_range
+        where = (
+            "quasi-steady cornering"
+            if fit is snapshot.quasi
+            else f"the steady samples ({low:.1f}–{high:.1f} m/s)"
+        )
+        out.append(
+            f"{where} place the sensor's d less well than the tape does ({fit.d_information:.2f} of its "
+            f"information): C2n rests on the config's {config.d_m:g} m more than on the drive (its interval "
+            f"counts the tape's {tape}); sweep the speed through u0 on two radii to measure both"
+        )
     if fit is not None and fit.model == "softening":
         out.append(
             f"the tyres soften with slip (t = {fit.softening_t:.1f}): C2n is extrapolated to zero lateral "
@@ -615,6 +631,10 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         transient_terms=fit.transient_terms,
         yaw_bias_degps=_maybe(fit.yaw_bias_degps, 4),
         yaw_bias_ci95_degps=_pair(fit.yaw_bias_ci95_degps, digits=4) if fit.yaw_bias_ci95_degps else None,
+        estimator=fit.estimator,
+        held_open_by=fit.held_open_by,
+        held_open_share=_maybe(fit.held_open_share, 3),
+        d_information=_maybe(fit.d_information, 3),
     )
 
 
@@ -625,8 +645,9 @@ def _yaw_bias_warning(fit: RegressionFit | None) -> str | None:
     low, high = fit.yaw_bias_ci95_degps
     if low <= 0.0 <= high:
         return None
+    bias = round(fit.yaw_bias_degps, 4)  # as the result file has it: one rounding, not two
     return (
-        f"the yaw rate reads {fit.yaw_bias_degps:+.3f} °/s [{low:+.3f}, {high:+.3f}] high: the quasi-steady "
+        f"the yaw rate reads {bias:+.3f} °/s [{low:+.3f}, {high:+.3f}] high: the quasi-steady "
         "fit takes it out of C2n (on corners turning mostly one way it would lean on it); zero the gyro "
         "at standstill before the drive"
     )

@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -332,22 +333,27 @@ def test_a_speed_sweep_fits_d_even_with_a_tape_value() -> None:
     assert fit.d_m == pytest.approx(1.11, rel=1e-9) and fit.c2n == pytest.approx(14.99, rel=1e-9)
 
 
-def test_the_summary_says_d_was_held_and_what_to_drive() -> None:
-    """Through the pipeline's regression (d from the config) to the summary: the key, the speeds
-    and a warning naming the config's d and the sweep that would measure it (the cascade's, which
-    holds d; the marginal fit's: the next test)."""
+def _one_speed_summary(estimator: str) -> tuple[Any, dict[str, Any]]:
+    """Circles at 11 m/s through the pipeline's regression (d from the config) to the summary."""
     from app.config import load_config
     from app.pipeline import Pipeline
     from app.sinks import summary
 
     config = load_config()
-    config = dataclasses.replace(config, priors=dataclasses.replace(config.priors, estimator="cascade"))
+    config = dataclasses.replace(config, priors=dataclasses.replace(config.priors, estimator=estimator))
     pipeline = Pipeline(config)
     rng = np.random.default_rng(3)
     for t, u, r, v in one_speed_samples(14.0, config.d_m, 0.0, 11.0, rng):
         pipeline.regression.add(t, u, r, v)
     pipeline.finish()
-    result = summary.build(pipeline.snapshot(), config, ["one speed"]).to_json()
+    return config, summary.build(pipeline.snapshot(), config, ["one speed"]).to_json()
+
+
+def test_the_summary_says_d_was_held_and_what_to_drive() -> None:
+    """Through the pipeline's regression (d from the config) to the summary: the key, the speeds
+    and a warning naming the config's d and the sweep that would measure it (the cascade's, which
+    holds d; the marginal fit's: the next test)."""
+    config, result = _one_speed_summary("cascade")
     fit = result["regression"]
     assert fit["d_fixed"] is True and fit["d_m"] == config.d_m
     assert fit["speed_range_mps"][0] == pytest.approx(10.89, abs=0.01)
@@ -360,18 +366,11 @@ def test_the_summary_says_when_the_tape_places_d_better_than_the_drive() -> None
     """The marginal fit at one speed: d keeps the tape's prior (the drive adds nothing to it), C2n's
     interval is held open by d and counts the tape, and a warning says what C2n rests on and what
     to drive. Sweeps through u0 on two radii tell more of d than a ±10 mm tape: no warning."""
-    from app.config import load_config
     from app.pipeline import Pipeline
     from app.sinks import summary
 
-    config = load_config()
-    config = dataclasses.replace(config, priors=dataclasses.replace(config.priors, estimator="marginal"))
-    pipeline = Pipeline(config)
+    config, result = _one_speed_summary("marginal")
     rng = np.random.default_rng(3)
-    for t, u, r, v in one_speed_samples(14.0, config.d_m, 0.0, 11.0, rng):
-        pipeline.regression.add(t, u, r, v)
-    pipeline.finish()
-    result = summary.build(pipeline.snapshot(), config, ["one speed"]).to_json()
     fit = result["regression"]
     assert fit["estimator"] == "marginal" and fit["held_open_by"] is not None and fit["d_information"] < 0.1
     assert fit["c2n_ci95"][0] <= 14.0 <= fit["c2n_ci95"][1]

@@ -175,10 +175,9 @@ class RegressionFit:
     c2n_per_tape_cm_pct: float | None = None  # where d is held: how far 1 cm of d moves C2n, %
     tight_terms: tuple[str, ...] = ()  # on a small pad, TIGHT_TERMS fitted: "ay_u_dot", "k2_ay"
     softening_se_per_mps2_2: float | None = None  # s's standard error, where the term is kept
-    d_free_m: float | None = (
-        None  # where d is held (marginal: always): the top of d's interval as the samples alone
-    )
-    # place it — below zero, the sensor is behind the axle: a role is the wrong way round
+    d_free_m: float | None = None  # d held, or under the marginal fit's tape prior: the top of d's
+    # interval as the samples alone place it (marginal: where they place it as well as the tape);
+    # below zero, the sensor is behind the axle: a role is the wrong way round
     tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
     # tilt · (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ) [rad]; None where no slope was kept in the fit
     softening_resolved: bool = True  # False: the data cannot tell linear tyres from softening ones
@@ -486,16 +485,17 @@ class SampleRegression:
         post: Posterior | None = None
         bias_terms: list[int] = []
         pull: _Pull | None = None
+        own_terms = [*design.offsets, *design.own]
+        own_weights = design.blocks.columns(own_terms)
+        k = len(own_weights)
         for _ in range(_PASSES):  # the priors follow a_y's coefficient and the slope's pull
             prior = _priors(priors, self.g, b_ay, self.wheelbase_m, pull)
-            terms = [*design.offsets, *design.own]
-            weights = design.blocks.columns(terms)
+            terms, weights = own_terms, own_weights
             if self.d_tape_m is not None:  # a yaw-rate bias b moves β by b·(k·u − d/u), k = −b_ay
-                bias_terms = list(range(len(weights), len(weights) + len(design.speeds)))
-                bias = np.zeros((len(weights), len(design.speeds)))
-                for j, (u, inv_u) in enumerate(design.speeds):
-                    bias[u, j], bias[inv_u, j] = -b_ay, -self.d_tape_m
-                terms, weights = [*terms, *bias_terms], np.hstack([weights, bias])
+                combos = [{u: -b_ay, inv_u: -self.d_tape_m} for u, inv_u in design.speeds]
+                bias_terms = list(range(k, k + len(combos)))
+                terms = [*own_terms, *bias_terms]
+                weights = np.hstack([own_weights, _combination_weights(k, combos)])
             mean, spread = np.array(
                 [
                     prior[Term.PSI0]
@@ -546,11 +546,10 @@ class SampleRegression:
         c2ns = [-1.0 / (self.g * f[0].value(Term.AY)) for f, _ in kept]
         data_ses = [f[0].se(Term.AY) * self.g * c * c for (f, _), c in zip(kept, c2ns, strict=True)]
         c2n_ses = [math.hypot(se, self.scale_se * abs(c)) for se, c in zip(data_ses, c2ns, strict=True)]
-        # the sensors' scales widen the interval; the value is the data's mixture's, which a stated
-        # tolerance does not move (a mixture's median would: its components' widths weigh it)
-        c2n = mixture(c2ns, data_ses, shares, dof, priors.confidence)[0] if self.scale_se else None
-        median, c2n_ci = mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
-        c2n = median if c2n is None else c2n
+        c2n, c2n_ci = mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
+        if self.scale_se:  # the sensors' scales widen the interval; the value is the data's mixture's,
+            # which a stated tolerance does not move (its median would: the widths weigh it)
+            c2n = mixture(c2ns, data_ses, shares, dof, priors.confidence)[0]
         c2n_se = (c2n_ci[1] - c2n_ci[0]) / (2.0 * q)
         d_m, d_ci = mixture(
             [f[0].value(Term.D) for f, _ in kept],
@@ -948,16 +947,22 @@ def _yaw_bias(
     return _YawBias(wide_xtx, wide_xty, terms, fit)
 
 
+def _combination_weights(k: int, combinations: list[dict[int, float]]) -> np.ndarray:
+    """The weights (k × combinations) that make each combination (Σ weight·term) of k columns."""
+    w = np.zeros((k, len(combinations)))
+    for j, combination in enumerate(combinations):
+        for term, weight in combination.items():
+            w[term, j] = weight
+    return w
+
+
 def _combined(
     xtx: np.ndarray, xty: np.ndarray, combinations: list[dict[int, float]]
 ) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """The blocks' statistics with a term appended for each combination (Σ weight·term); returns
     their indices too."""
     k, extra = xtx.shape[1], len(combinations)
-    w = np.zeros((k, extra))
-    for j, combination in enumerate(combinations):
-        for term, weight in combination.items():
-            w[term, j] = weight
+    w = _combination_weights(k, combinations)
     cross = xtx @ w  # (blocks, k, extra)
     wide_xtx = np.zeros((len(xtx), k + extra, k + extra))
     wide_xtx[:, :k, :k] = xtx

@@ -185,7 +185,12 @@ class Snapshot:
         d, where = fit.d_m, f"{-fit.d_m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
         witness = self._witness
         assert witness is not None  # there is a fit
-        if witness.d_free_m is not None and witness.d_free_m < 0:
+        if witness.estimator == "marginal" and not self.d_witnessed:  # d is the tape's prior's: the
+            problem = yaw_rate_problem(self.signs)  # votes alone show the signs, as where d is held
+            if problem is not None or _positive(fit.c2n):
+                return problem
+            d = 0.0
+        elif witness.d_free_m is not None and witness.d_free_m < 0:
             d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
         elif not witness.d_fixed and witness.d_m < 0:
             d, where = witness.d_m, f"{-witness.d_m:.2f} m behind the rear axle"

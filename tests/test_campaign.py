@@ -241,11 +241,11 @@ def test_a_campaign_measures_every_session_and_compares_the_tyre_sets(
             if row["regression.model"] == "softening":
                 softened.append(row["log"])
     # each session as accurate as c2n analyze is on its own (README, Accuracy), a 0.2 % median,
-    # and every one within 1 % as compared: its own fit can take a softening term for real on
-    # linear tyres (|t| > 2 by chance, about 1.5 % of drives) and read 2 % high; its tyre set's
-    # sessions together show no softening, so it is compared on its linear fit
+    # and every one within 1 % as compared; and within 1 % on its own fit, whose softening is under
+    # its prior, not kept by a test (the cascade's |t| > 2 took it by chance on this campaign's
+    # session 7 and read it 1.6 % high)
     assert len(errors) == N and float(np.median(errors)) < 0.003 and max(errors) < 0.01
-    assert max(own_errors) > 0.015 and softened  # this campaign has such a session
+    assert max(own_errors) < 0.01
     assert covered >= 0.9 * N
     comparison = json.loads((out / "comparison.json").read_text())
     assert {name: s["model"] for name, s in comparison["softening"].items()} == dict.fromkeys("ABC", "linear")

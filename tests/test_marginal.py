@@ -9,7 +9,15 @@ from scipy.stats import norm, t
 
 from app.config import Priors, load_config
 from app.errors import ConfigError
-from app.results.marginal import Blocks, Posterior, Term, mixture, posterior, wide_share
+from app.results.marginal import (
+    Blocks,
+    Posterior,
+    Term,
+    mixture,
+    mixture_quantiles,
+    posterior,
+    wide_share,
+)
 from app.results.regression import _TERMS, SampleRegression
 from app.sinks import summary
 from tests.simulated import cached_drive, run_pipeline
@@ -77,13 +85,20 @@ def test_a_term_made_of_columns_is_fitted_as_that_column() -> None:
     assert found.value(3) == pytest.approx(2.0, abs=0.02)
 
 
-def _drive(regression: SampleRegression, c2n: float, d: float, speeds: list[float], seed: int) -> None:
-    """Steady circles on a level pad: each radius both ways, at each speed, 100 Hz, sideslip noise
-    1 mrad, the heading integrated."""
+def _drive(
+    regression: SampleRegression,
+    c2n: float,
+    d: float,
+    speeds: list[float],
+    seed: int,
+    sides: tuple[float, ...] = (1.0, -1.0),
+) -> None:
+    """Steady circles on a level pad: each radius each way of ``sides``, at each speed, 100 Hz,
+    sideslip noise 1 mrad, the heading integrated."""
     rng = np.random.default_rng(seed)
     t, heading = 0.0, 0.0
     for radius in (40.0, 80.0):
-        for side in (1.0, -1.0):
+        for side in sides:
             for u in speeds:
                 r = side * u / radius
                 for _ in range(2000):  # 20 s: most of a circle
@@ -119,6 +134,24 @@ def test_the_result_reads_in_typed_groups() -> None:
     turn = fit.turn_force
     assert turn is not None and turn.pct == fit.turn_force_pct and turn.ci95_pct is not None
     assert turn.ci95_pct[0] <= 0.0 <= turn.ci95_pct[1]  # none in the drive: its interval holds zero
+
+
+def test_a_turn_force_is_reported_only_where_the_turns_directions_show_it() -> None:
+    """The turn force (sign(κ)) is in the model under its prior whatever the drive; turning one way
+    only, it is ψ0's double, so its value is the prior's and the fit reports none (nor hands its
+    step to the crossings: CommonRoad's sweeps, one direction so far, read their crossings 39–55 %
+    low by it). Both ways, it is reported."""
+    found = {}
+    for sides in ((1.0,), (1.0, -1.0)):
+        regression = SampleRegression(
+            G, d_tape_m=1.1, wheelbase_m=2.7, priors=replace(MARGINAL, turn_force_pct=3.0)
+        )
+        _drive(regression, 14.0, 1.1, [8.0, 10.0, 12.0], 9, sides)
+        fit = regression.fit()
+        assert fit is not None and fit.c2n == pytest.approx(14.0, rel=0.02)
+        found[len(sides)] = fit
+    assert found[1].turn_step_rad is None and found[1].turn_force is None
+    assert found[2].turn_step_rad is not None and found[2].turn_force is not None
 
 
 def test_one_speed_leaves_c2n_to_the_tape_and_says_so() -> None:
@@ -240,6 +273,37 @@ def test_a_far_component_of_small_weight_widens_the_interval_but_does_not_drag_t
         (median - 19.6) / 3.0, 30
     ) == pytest.approx(0.5)
     assert low < 14.0 - 0.05 and high > 14.0 + 3 * 0.05
+
+
+def test_the_mixtures_quantiles_are_brents_on_its_cdf() -> None:
+    """Newton's steps inside a bracket (mixture_quantiles) against the reference, scipy's brentq on
+    the mixture's CDF, over 300 seeded mixtures of two or three components: near and far, narrow
+    and wide, weights down to 1e-12, and a component with no width."""
+    from scipy.optimize import brentq
+
+    rng = np.random.default_rng(38)
+    p = np.array([0.025, 0.5, 0.975])
+    for case in range(300):
+        k = 2 + case % 2
+        means = list(14.0 + rng.normal(0.0, 1.0, k) * 10.0 ** rng.uniform(-3, 1, k))
+        ses = list(10.0 ** rng.uniform(-3, 0.5, k))
+        if case % 50 == 0:
+            ses[-1] = 0.0
+        weights = 10.0 ** rng.uniform(-12, 0, k)
+        weights /= weights.sum()
+        dof = float(rng.choice([5, 30, 500]))
+        found = mixture_quantiles(means, ses, weights, dof, p)
+
+        def cdf(x: float) -> float:
+            return sum(
+                w * (t.cdf((x - m) / s, dof) if s > 0 else float(x >= m))
+                for m, s, w in zip(means, ses, weights, strict=True)
+            )
+
+        span = max(ses) * 200 + max(abs(m - 14.0) for m in means) + 1.0
+        for x, target in zip(found, p, strict=True):
+            reference = brentq(lambda x, target=target: cdf(x) - target, 14.0 - span, 14.0 + span, xtol=1e-13)
+            assert x == pytest.approx(reference, abs=1e-9 * (1.0 + max(ses))), (case, target)
 
 
 def test_a_d_far_from_the_tape_is_found_and_c2n_stays_right() -> None:

@@ -43,10 +43,36 @@ def test_unequal_radii_still_cancel() -> None:
         crossing(14.0, "right", "up", -120.0, 0.3, 0.004, 0.0),
     ]
     paired = pair(crossings, D, G)
-    assert paired is not None and paired.c2n == pytest.approx(14.0, rel=1e-9) and paired.lag_s is None
+    # one sweep direction: the lag is under its prior alone (not reported), and the head's prior
+    # shrinks ψ by a few millionths of itself, which the radii's mean carries into C2n
+    assert paired is not None and paired.c2n == pytest.approx(14.0, rel=1e-5) and paired.lag_s is None
+    assert paired.misalignment_rad == pytest.approx(0.004, rel=1e-5)
 
 
 def test_one_direction_cannot_give_a_misalignment() -> None:
     crossings = [crossing(14.0, "left", s, 80.0, rate, 0.0, 0.1) for s, rate in (("up", 0.3), ("down", -0.3))]
     paired = pair(crossings, D, G)
     assert paired is not None and paired.misalignment_rad is None and paired.lag_s is not None
+
+
+def test_one_direction_on_one_radius_leaves_the_misalignment_to_its_prior() -> None:
+    """Left circles of one radius: ψ·R/d and C2n move every crossing alike, so nothing in them tells
+    a yawed head from the tyres. The head's prior (±1° at 95 %) stays in C2n's interval: at
+    R/d = 73 that is ±0.64 of C2n at 1σ, and the interval holds the truth the crossings miss by 29 %."""
+    psi = 0.004
+    crossings = [crossing(14.0, "left", s, 80.0, rate, psi, 0.0) for s, rate in (("up", 0.3), ("down", -0.3))]
+    paired = pair(crossings, D, G)
+    assert paired is not None and paired.misalignment_rad is None
+    assert paired.c2n == pytest.approx(14.0 * (1 - psi * 80.0 / D), rel=1e-6)  # the prior's mean: no yaw
+    assert paired.se == pytest.approx(paired.c2n * math.radians(0.5) * 80.0 / D, rel=0.02)
+    assert paired.ci95[0] <= 14.0 <= paired.ci95[1]
+
+
+def test_one_direction_on_two_radii_measures_the_misalignment() -> None:
+    """Left circles on 80 and 120 m: the crossings' error grows with the radius (ψ·R/d), which
+    places ψ apart from C2n (CommonRoad's sweeps, four left crossings on 112 and 157 m, read 39–55 %
+    low with ψ left out of the pairing)."""
+    crossings = [crossing(14.0, "left", "up", radius, 0.3, 0.004, 0.0) for radius in (80.0, 120.0)]
+    paired = pair(crossings, D, G)
+    assert paired is not None and paired.misalignment_rad == pytest.approx(0.004, rel=1e-3)
+    assert paired.c2n == pytest.approx(14.0, rel=2e-4) and paired.ci95[0] <= 14.0 <= paired.ci95[1]

@@ -268,33 +268,44 @@ def test_circles_beyond_the_linear_range_are_flagged_not_a_confident_interval(
 ) -> None:
     """Magic-Formula tyres at μ = 0.9 swept on a 30-m circle to a_y ≈ 8 m/s²: u0 lies beyond the
     4 m/s² gate, and the steady samples lie at 2.3–4 m/s². With d fitted they could not tell
-    linear from softening tyres (a straight line read 6 % low with a ±1.5 % interval); on a circle
-    under twenty wheelbases d is held at the tape's value, and the softening shows. The result
-    must carry an interval that holds the truth and say what to drive."""
+    linear from softening tyres (a straight line read 6 % low with a ±1.5 % interval). The marginal
+    fit (the default) keeps d under the tape's prior, which then holds C2n's interval open, and
+    says the drive places d less well than the tape; the cascade holds d at the tape on a circle
+    under twenty wheelbases. Either way the softening shows, the result carries an interval that
+    holds the truth, and says what to drive."""
     log = tmp_path / "mf.blf"
     code, _, err = run_cli(
         ["simulate", "--tyre", "magic", "--mu", "0.9", "--ay-max", "10", "--seed", "5", "--out", str(log)]
     )
     assert code == 0, err
     truth = json.loads(log.with_name("mf.blf.truth.json").read_text())
-    code, out, _ = run_cli(["analyze", str(log), "--json", str(tmp_path / "mf.json")])
-    summary = json.loads((tmp_path / "mf.json").read_text())
-    fit = summary["regression"]
-    assert code == 0
-    assert fit["d_held_tight"] and fit["model"] == "softening" and fit["softening_resolved"]
-    assert (
-        abs(fit["c2n"] / truth["c2n"] - 1) < 0.01 and fit["c2n_ci95"][0] <= truth["c2n"] <= fit["c2n_ci95"][1]
-    )
-    assert abs(fit["c2n_linear_model"] / truth["c2n"] - 1) > 0.02  # the straight line is wrong ...
-    # no sweep crossed zero (u0 is beyond the gate): the headline is the quasi-steady fit, d held,
-    # whose cornering reached lower a_y and shows the softening; its interval holds the truth
-    low, high = summary["c2n_ci95"]
-    assert summary["c2n_method"] == "quasi-steady" and "quasi-steady cornering" in out
-    assert low <= truth["c2n"] <= high
-    beyond = next(w for w in summary["warnings"] if "beyond the tyres' linear range" in w)
-    radius = float(beyond.split("radius ≥ ")[1].split(" m")[0])
-    assert truth["u0_mps"] ** 2 / radius < 4.0  # eq. 7's u0 on the circle advised is within the gate
-    assert not any("sweep the speed through u0" in w for w in summary["warnings"])
+    cascade = config_with(tmp_path, ("[vehicle]", '[priors]\nestimator = "cascade"\n\n[vehicle]'))
+    for estimator, options in (("marginal", []), ("cascade", ["--config", str(cascade)])):
+        code, out, _ = run_cli(["analyze", str(log), *options, "--json", str(tmp_path / f"{estimator}.json")])
+        summary = json.loads((tmp_path / f"{estimator}.json").read_text())
+        fit = summary["regression"]
+        assert code == 0 and fit["estimator"] == estimator
+        assert fit["model"] == "softening" and fit["softening_resolved"]
+        assert abs(fit["c2n"] / truth["c2n"] - 1) < 0.01
+        assert fit["c2n_ci95"][0] <= truth["c2n"] <= fit["c2n_ci95"][1]
+        if estimator == "cascade":
+            assert fit["d_held_tight"]
+            assert abs(fit["c2n_linear_model"] / truth["c2n"] - 1) > 0.02  # the straight line is wrong ...
+        else:
+            assert fit["held_open_by"] == "d" and fit["d_information"] < 1.0
+            assert any("place the sensor's d less well than the tape does" in w for w in summary["warnings"])
+            assert not any("a straight-line fit would give" in w for w in summary["warnings"])  # none made
+        # no sweep crossed zero (u0 is beyond the gate): the headline is the quasi-steady fit,
+        # whose cornering reached lower a_y and shows the softening; its interval holds the truth
+        low, high = summary["c2n_ci95"]
+        assert summary["c2n_method"] == "quasi-steady" and "quasi-steady cornering" in out
+        assert low <= truth["c2n"] <= high
+        beyond = next(w for w in summary["warnings"] if "beyond the tyres' linear range" in w)
+        radius = float(beyond.split("radius ≥ ")[1].split(" m")[0])
+        assert truth["u0_mps"] ** 2 / radius < 4.0  # eq. 7's u0 on the circle advised is within the gate
+        assert not any(
+            "sweep the speed through u0" in w for w in summary["warnings"] if "d less well" not in w
+        )
     # a drive inside the linear range is neither widened nor flagged
     run_cli(["analyze", str(drive_log), "--json", str(tmp_path / "ok.json")])
     ok = json.loads((tmp_path / "ok.json").read_text())

@@ -433,44 +433,61 @@ class SampleRegression:
         design = _Design(Blocks(xtx, xty, yty, run, n), offsets, speeds, [int(t) for t in own])
         # a slope is reported (and its pull taken out of the crossings) where the headings cover it,
         # as the cascade tries one: one direction on one circle holds a 2 % "slope" at Wald's 95 %
-        # that C2n's width carries but no crossing should be moved by
-        headings = (
-            planar
-            and _spread(design.blocks.total, [*offsets, Term.D, Term.AY], [Term.SIN, Term.COS], n)
-            >= _SLOPE_SPREAD
+        # that C2n's width carries but no crossing should be moved by; a turn force likewise where
+        # the turns' directions and sizes cover it (CommonRoad's sweeps: the early fits, one turn
+        # direction so far, handed the paired crossings a step that read them 39–55 % low)
+        base = [*offsets, Term.D, Term.AY]
+        covered = frozenset(
+            term
+            for term, layout, least in (
+                (Term.SIN, [Term.SIN, Term.COS], _SLOPE_SPREAD),
+                (Term.TURN, [Term.TURN], _TURN_SPREAD),
+            )
+            if term in own and _spread(design.blocks.total, base, [int(t) for t in layout], n) >= least
         )
         if self.d_tape_m is None:  # no tape: d's prior is flat
             found = self._marginal_posterior(priors, design, b_ay, math.inf)
             if found is None:
                 return None
-            return self._marginal_result(priors, [found], [1.0], len(run), logs, headings)
+            return self._marginal_result(priors, [found], [1.0], len(run), logs, covered)
         # d's prior: the tape's, and with ``d_gross_share`` a wide one (the tape wrong); each is
         # weighed by its evidence, the density of the data's own d under it (closed form)
         tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
         tape = self._marginal_posterior(priors, design, b_ay, tape_sd)
         wide_sd = priors.d_gross_wheelbases * self.wheelbase_m
         settled = b_ay if tape is None else tape[0].value(Term.AY)
-        wide = self._marginal_posterior(priors, design, settled, wide_sd)  # from the tape's a_y
+        wide = self._marginal_posterior(  # from the tape's a_y, noise and pull
+            priors, design, settled, wide_sd, None if tape is None else tape[0]
+        )
         if tape is None or wide is None:
             found = tape or wide
             return (
                 None
                 if found is None
-                else self._marginal_result(priors, [found], [1.0], len(run), logs, headings)
+                else self._marginal_result(priors, [found], [1.0], len(run), logs, covered)
             )
-        share = wide_share(wide[0], self.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
-        fit = self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs, headings)
+        # the wide prior's weight by the evidence where the speeds are apart; at one speed d and C2n
+        # move together, and what places d there is the other terms' priors (a_y³'s curvature), not
+        # the drive: the weight stays the prior's (a flipped sideslip at one speed put it at 1.0,
+        # d 0.76 m behind the axle)
+        apart = self._u_max >= _WIDE_SPEEDS * self._u_min
+        share = (
+            wide_share(wide[0], self.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
+            if apart
+            else priors.d_gross_share
+        )
+        fit = self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs, covered)
         if fit is None:
             return None
         # what the drive alone says of d: its information against the tape's, and the top of its
         # interval (a d behind the axle shows a role the wrong way round: Snapshot.sign_problem)
-        # — its own d only where it places d at least as well as the tape: at one speed the a_y³
+        # — its own d only where its speeds are apart, as the cascade's: at one speed the a_y³
         # term's curvature lends d a little information that the prior's shape, not the drive, makes
         alone = data_alone(wide[0], Term.D, self.d_tape_m, wide_sd)
         if alone is None:
             return replace(fit, d_information=0.0)
         information = tape_sd**2 / alone[1] if alone[1] > 0 else math.inf
-        if information < 1.0:
+        if not apart:
             return replace(fit, d_information=information)
         from scipy.special import stdtrit
 
@@ -478,13 +495,15 @@ class SampleRegression:
         return replace(fit, d_information=information, d_free_m=alone[0] + q * math.sqrt(alone[1]))
 
     def _marginal_posterior(
-        self, priors: Priors, design: "_Design", b_ay: float, d_sd: float
+        self, priors: Priors, design: "_Design", b_ay: float, d_sd: float, start: Posterior | None = None
     ) -> tuple[Posterior, list[int]] | None:
         """The posterior with d's prior N(tape, d_sd²) (flat without a tape), and the yaw-rate
-        bias's columns; the priors' scale follows a_y's coefficient until it settles."""
-        post: Posterior | None = None
+        bias's columns; the priors' scale follows a_y's coefficient until it settles, each pass
+        from the noise and the pull the one before found (the first from ``start``'s, a fit under
+        the other prior on d)."""
+        post: Posterior | None = start
         bias_terms: list[int] = []
-        pull: _Pull | None = None
+        pull = None if start is None else _Pull.of(start)
         own_terms = [*design.offsets, *design.own]
         own_weights = design.blocks.columns(own_terms)
         k = len(own_weights)
@@ -508,7 +527,8 @@ class SampleRegression:
                     for t in terms
                 ]
             ).T
-            post = posterior(design.blocks, weights, [int(t) for t in terms], mean, spread)
+            sigma2 = None if post is None else post.sigma2
+            post = posterior(design.blocks, weights, [int(t) for t in terms], mean, spread, sigma2)
             if post is None:
                 return None
             # settled: the priors' scale was a_y's coefficient's own, and the load transfer's
@@ -528,10 +548,11 @@ class SampleRegression:
         weights: list[float],
         blocks: int,
         logs: int,
-        headings: bool,
+        covered: frozenset[Term],
     ) -> RegressionFit | None:
         """The result of d's priors' mixture: C2n and d from both posteriors by their weights, the
-        rest (terms reported, ``held_open_by``) from the heavier one."""
+        rest (terms reported, ``held_open_by``) from the heavier one; a slope and a turn force
+        reported only where the drive's layout covers them (``covered``: headings, turns' directions)."""
         # a_y's coefficient above zero is kept, C2n below zero: a role the wrong way round, which
         # Snapshot.sign_problem explains from d and the signs (the cascade's fits do the same)
         kept = [(f, w) for f, w in zip(found, weights, strict=True) if f[0].value(Term.AY) != 0]
@@ -567,8 +588,10 @@ class SampleRegression:
         t3 = post.value(Term.AY3) / post.se(Term.AY3) if post.se(Term.AY3) > 0 else 0.0
         softens = abs(t3) > q and post.value(Term.AY3) * b_ay > 0  # reported where the data show it
         slope = _slope(fit, c2n, q) if Term.SIN in post.terms else None
-        slope_shown = slope is not None and headings and _wald(fit, [Term.SIN, Term.COS]) > _SLOPE_WALD
-        turn = Term.TURN in post.terms
+        slope_shown = (
+            slope is not None and Term.SIN in covered and _wald(fit, [Term.SIN, Term.COS]) > _SLOPE_WALD
+        )
+        turn = Term.TURN in post.terms and Term.TURN in covered
         bias = _bias(fit, bias_terms[0], q) if bias_terms else None
         held = post.held_open_by(Term.AY)
         names = {t.value: t.name.lower() for t in Term}

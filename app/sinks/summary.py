@@ -392,9 +392,14 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             f"counts the tape's {tape}); sweep the speed through u0 on two radii to measure both"
         )
     if fit is not None and fit.model == "softening":
+        beside = (  # the marginal fit has the softening in its model whatever the drive: no other line
+            "its interval counts the softening's spread"
+            if fit.estimator == "marginal"
+            else f"a straight-line fit would give {fit.c2n_linear_model:.3f}"
+        )
         out.append(
             f"the tyres soften with slip (t = {fit.softening_t:.1f}): C2n is extrapolated to zero lateral "
-            f"acceleration ({fit.c2n:.3f}; a straight-line fit would give {fit.c2n_linear_model:.3f})"
+            f"acceleration ({fit.c2n:.3f}; {beside})"
         )
     if fit is not None and not fit.softening_resolved:
         low, high = fit.ay_range

@@ -167,7 +167,6 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("gap", "latency_s"): (0.0, 10.0, _OPEN),
     ("priors", "confidence"): (0.0, 1.0, _OPEN),
     ("priors", "head_yaw_deg"): (0.0, 10.0, _OPEN),
-    ("priors", "lag_s"): (0.0, 10.0, _OPEN),
     ("priors", "slope_pct"): (0.0, 20.0, _OPEN),
     ("priors", "load_transfer_per_g"): (0.0, 2.0, _OPEN),
     ("priors", "softening_per_mps2_2"): (0.0, 0.1, _OPEN),
@@ -263,10 +262,6 @@ class Priors:
     confidence: float = 0.95
     # the head's yaw on the car: mounted by eye against the body, ±1° at 95 %
     head_yaw_deg: float = 0.5
-    # the crossings' pairing: the sideslip's lag behind the speed in a slow sweep — the car's
-    # sideslip time constant m·u/(C_f + C_r), about 0.1 s at u0, and a vehicle bus's latency of a few
-    # 10–20 ms cycles ([gap] latency_s: beyond 0.1 s, late): 0.1 s, both within 2 σ
-    lag_s: float = 0.1
     # a test pad's grade, each of its two components: ISO 4138 asks for a test surface within 2 %
     # in any direction, and drainage slopes of 1–2 % are common
     slope_pct: float = 2.0

@@ -456,7 +456,9 @@ class Pipeline:
             s, s_se = fit.softening_per_mps2_2, fit.softening_se_per_mps2_2 or 0.0
             used = [at_zero_ay(c, s, s_se) for c in used]
         state.combined = combine(used)
-        state.paired = pair(used, self.config.d_m, g, self.config.priors)
+        state.paired = pair(
+            used, self.config.d_m, g, self.config.priors.head_yaw_deg, self.config.detector.settle_s
+        )
         scale = self.config.calibration.crossing_se(self.config.d_m)  # the speed's scale, the tape's d:
         # in every crossing alike
         if scale > 0:

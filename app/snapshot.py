@@ -5,7 +5,6 @@ summary read it. It is frozen and holds copies, so a sink can neither change the
 change under its feet.
 """
 
-import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -15,6 +14,7 @@ from app.detect.quasi_steady import NO_CORNERING, Cornering
 from app.detect.signs import SignVotes, odd_sign, which_of_the_two, yaw_rate_problem
 from app.estimate.model import FilterCounts
 from app.records import Crossing, CrossingRejected, Direction, Record
+from app.results.agreement import DriveResult, disagreement
 from app.results.combine import Combined
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
@@ -153,16 +153,14 @@ class Snapshot:
 
     @property
     def drives_disagree(self) -> str | None:
-        """Why drives pooled give no one C2n: two of them, each alone, with 95 % intervals apart —
-        not one car on one set of tyres, whose C2n a pooled fit would bend its terms to split."""
+        """Why drives pooled give no one C2n: drives each alone whose C2n differ beyond their errors
+        (each pair's z, Holm's step-down at 95 % over all pairs: ``agreement.py``, as analyze checks
+        drives before pooling them) — not one car on one set of tyres, whose C2n a pooled fit would
+        bend its terms to split."""
         if self.fit is None or self.fit is not self.quasi:
             return None
         alone = [(k, f) for k, f in enumerate(self.quasi_drives, 1) if f is not None and _positive(f.c2n)]
-        apart = any(
-            a.c2n_ci95[1] < b.c2n_ci95[0] or b.c2n_ci95[1] < a.c2n_ci95[0]
-            for (_, a), (_, b) in itertools.combinations(alone, 2)
-        )
-        if not apart:
+        if disagreement([DriveResult(f"drive {k}", f.c2n, f.c2n_ci95) for k, f in alone]) is None:
             return None
         each = "; ".join(
             f"drive {k} {f.c2n:.3f} [{f.c2n_ci95[0]:.3f}, {f.c2n_ci95[1]:.3f}]" for k, f in alone

@@ -470,3 +470,27 @@ def test_track_laps_with_the_yaw_rate_the_wrong_way_round_give_no_c2n_but_the_re
     result = json.loads(out.read_text())
     assert result["c2n"] is None and result["u0_mps"] is None
     assert result["warnings"][0].startswith("the sideslip and the yaw rate disagree in sign")
+
+
+def test_pooled_drives_are_judged_together_at_the_stated_level(config: Config) -> None:
+    """Three drives, each alone: 14.00 ± 0.01, 14.45 ± 0.2, 14.20 ± 0.2 (1σ). The first two's 95 %
+    intervals are just apart, as one of three pairs of one tyre set's drives can be by chance;
+    Holm's step-down over the pairs (p = 0.025 against 0.05/3) keeps them one set. At 14.60 the
+    pair differs at p = 0.003 and the drives are named."""
+    regression = SampleRegression(9.81, d_tape_m=1.1, wheelbase_m=2.7)
+    rng = np.random.default_rng(5)
+    for k in range(3000):
+        u, r = 8.0 + 4.0 * (k % 300) / 300, (1.0 if k < 1500 else -1.0) * 0.2
+        beta = 1.1 * r / u - u * r / (9.81 * 14.0)
+        regression.add(0.01 * k, u, r, u * (beta + rng.normal(scale=0.001)), 0.0)
+    fit = regression.fit()
+    assert fit is not None
+    empty = Pipeline(config).snapshot()
+
+    def pooled(*drives: tuple[float, float]) -> str | None:
+        alone = tuple(replace(fit, c2n=c, c2n_ci95=(c - 1.96 * se, c + 1.96 * se)) for c, se in drives)
+        return replace(empty, regression=None, quasi=fit, quasi_drives=alone, crossings=()).drives_disagree
+
+    assert pooled((14.0, 0.01), (14.45, 0.2), (14.2, 0.2)) is None
+    said = pooled((14.0, 0.01), (14.6, 0.2), (14.2, 0.2))
+    assert said is not None and "drive 1 14.000" in said and "drive 2 14.600" in said

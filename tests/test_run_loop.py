@@ -115,4 +115,4 @@ def test_the_summary_is_the_result_file_in_json_types(config: Config) -> None:
         "frames",
     ]
     assert data["c2n"] == result.c2n and data["crossings"][0]["u0_mps"] == result.crossings[0].u0_mps
-    assert result.warned(["one more"]).warnings == (*result.warnings, "one more")
+    assert result.warned(["a loss"]).warnings == ("a loss", *result.warnings)

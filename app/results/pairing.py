@@ -10,15 +10,14 @@ and a weighted regression over the crossings' signed radius R_i and sweep rate u
 both errors removed — for equal radii and rates, simply the mean of the left/right and up/down
 pairs — and ψ and τ themselves.
 
-Both terms are always in the model, each under its prior (``Priors``: the head's yaw on the car,
-as the regression's; the lag's, the sideslip's time constant and a bus's latency), so crossings that
+Both terms are always in the model, ψ under the head's prior (as the regression's ψ0) and τ, where
+one sweep direction cannot place it, under the steady-state gate's (``pair``), so crossings that
 cannot tell ψ or τ from C2n (one direction on one radius, one sweep direction) widen C2n's
 interval by what the prior allows instead of leaving the term out: CommonRoad's sweeps, four left
-crossings on one radius each of two, read 39–55 % low with intervals that held nothing when ψ was
-left out. The prior's coefficients are ratios to C2n (−C2n·ψ/d, 2·C2n·τ/u0), so they follow the fit
+crossings on radii of 112 and 157 m, read 39–55 % low with intervals that held nothing when ψ was
+left out. The priors' coefficients are ratios to C2n (−C2n·ψ/d, 2·C2n·τ/u0), so they follow the fit
 before until it settles. ψ and τ are reported as the crossings alone measure them (the posterior's
-information less the prior's), and only where that is more than the prior's: the lag is a check
-on the method's premise (``support.py``), which a prior must not soften.
+information less the prior's), and only where that is more than the prior's.
 """
 
 import math
@@ -27,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.config import Priors
 from app.records import Crossing
 
 
@@ -60,9 +58,17 @@ class Paired:
 
 _PASSES = 5  # the priors follow C2n: settled in two or three
 _SETTLED = 1e-9  # C2n settled: far inside any crossing's error
+_SWEEPING = 0.02  # m/s²: a sweep up or down (a constant speed's drift is 100 times slower)
 
 
-def pair(crossings: Sequence[Crossing], d_m: float, g: float, priors: Priors | None = None) -> Paired | None:
+def pair(
+    crossings: Sequence[Crossing], d_m: float, g: float, head_yaw_deg: float = 0.5, settle_s: float = 1.0
+) -> Paired | None:
+    """The crossings' C2n with a head's yaw ψ (prior N(0, ``head_yaw_deg``²)) and a lag τ taken
+    out. τ is the data's own where both sweep directions were driven (flat: a lag beyond the
+    steady-state gate's ``settle_s`` is the premise failing, ``support.py``, which a prior must not
+    hide — on ice it explained the sweeps' disagreement away as noise); with one sweep direction it
+    is under N(0, (settle_s/2)²), the longest lag the gate lets the car settle at 95 %."""
     usable = [c for c in crossings if c.c2n_se > 0 and math.isfinite(c.c2n_se) and math.isfinite(c.radius_m)]
     if not usable:
         return None
@@ -71,8 +77,8 @@ def pair(crossings: Sequence[Crossing], d_m: float, g: float, priors: Priors | N
     rates = np.array([c.sweep_rate_mps2 for c in usable])
     x = np.column_stack([np.ones(len(usable)), [c.radius_m for c in usable], rates])
     c2n = float(w @ y / w.sum())  # to start: the crossings' weighted mean
-    priors = priors or Priors()
-    head_yaw, lag_sd = math.radians(priors.head_yaw_deg), priors.lag_s
+    both_sweeps = rates.max() > _SWEEPING and rates.min() < -_SWEEPING
+    head_yaw, lag_sd = math.radians(head_yaw_deg), math.inf if both_sweeps else settle_s / 2.0
     found: _Fit | None = None
     for _ in range(_PASSES):
         u0 = math.sqrt(max(c2n * g * d_m, 1e-12))

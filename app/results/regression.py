@@ -411,18 +411,72 @@ class SampleRegression:
         log: np.ndarray,
     ) -> RegressionFit | None:
         """One model, every nuisance with its prior (``marginal.py``); C2n's interval carries what
-        the drive cannot tell apart, and names the term that holds it open most."""
+        the drive cannot tell apart, and names the term that holds it open most. d's prior: the
+        tape's, and with ``d_gross_share`` a wide one (the tape wrong), each weighed by its evidence
+        (``wide_share``); without a tape, a flat one."""
+        made = self._marginal_design(priors, xtx, xty, yty, run, log)
+        if made is None:
+            return None
+        design, b_ay, covered = made
+        blocks, logs = len(run), len(np.unique(log))
+        if self.d_tape_m is None:
+            found = self._marginal_posterior(priors, design, b_ay, math.inf)
+            return (
+                None
+                if found is None
+                else self._marginal_result(priors, [found], [1.0], blocks, logs, covered)
+            )
+        tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
+        wide_sd = priors.d_gross_wheelbases * self.wheelbase_m
+        tape = self._marginal_posterior(priors, design, b_ay, tape_sd)
+        wide = self._marginal_posterior(  # from the tape's a_y, noise and pull
+            priors,
+            design,
+            b_ay if tape is None else tape[0].value(Term.AY),
+            wide_sd,
+            None if tape is None else tape[0],
+        )
+        if tape is None or wide is None:
+            found = tape or wide
+            return (
+                None
+                if found is None
+                else self._marginal_result(priors, [found], [1.0], blocks, logs, covered)
+            )
+        # the wide prior's weight by the evidence where the speeds are apart; at one speed d and C2n
+        # move together, and what places d there is the other terms' priors (a_y³'s curvature), not
+        # the drive: the weight stays the prior's (a flipped sideslip at one speed put it at 1.0,
+        # d 0.76 m behind the axle)
+        apart = self._u_max >= _WIDE_SPEEDS * self._u_min
+        share = (
+            wide_share(wide[0], self.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
+            if apart
+            else priors.d_gross_share
+        )
+        fit = self._marginal_result(priors, [tape, wide], [1.0 - share, share], blocks, logs, covered)
+        return None if fit is None else self._with_own_d(fit, wide[0], wide_sd, apart, priors.confidence)
+
+    def _marginal_design(
+        self,
+        priors: Priors,
+        xtx: np.ndarray,
+        xty: np.ndarray,
+        yty: np.ndarray,
+        run: np.ndarray,
+        log: np.ndarray,
+    ) -> tuple["_Design", float, frozenset[Term]] | None:
+        """The marginal fit's terms (each drive its own ψ0 and gyro's bias), a_y's coefficient to
+        scale the priors from (a least-squares start), and the terms the drive's layout covers."""
         n, logs = self.n_samples, len(np.unique(log))
         offsets: list[int] = [Term.PSI0]
         speeds: list[tuple[int, int]] = [(Term.U, Term.INV_U)]
-        if logs > 1:  # each drive its own ψ0 and its own gyro's bias
+        if logs > 1:
             xtx, xty, offsets, speeds = _per_log(xtx, xty, log)
         start = _solve(xtx, xty, run, [*offsets, Term.D, Term.AY], n)
         if start is None and self.d_tape_m is not None:  # one speed: d at the tape's to start
             start = _solve(xtx, xty - self.d_tape_m * xtx[:, :, Term.D], run, [*offsets, Term.AY], n)
         if start is None:
             return None
-        b_ay = start.coef[start.terms.index(Term.AY)]
         # a pad's slope: a plane, whose pull turns with the heading, where the samples are taken on
         # one place (steady circles); a route's corners (quasi-steady samples) are each their own
         # place, whose cross-fall no heading gives; and the headings are each drive's own
@@ -445,53 +499,27 @@ class SampleRegression:
             )
             if term in own and _spread(design.blocks.total, base, [int(t) for t in layout], n) >= least
         )
-        if self.d_tape_m is None:  # no tape: d's prior is flat
-            found = self._marginal_posterior(priors, design, b_ay, math.inf)
-            if found is None:
-                return None
-            return self._marginal_result(priors, [found], [1.0], len(run), logs, covered)
-        # d's prior: the tape's, and with ``d_gross_share`` a wide one (the tape wrong); each is
-        # weighed by its evidence, the density of the data's own d under it (closed form)
-        tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
-        tape = self._marginal_posterior(priors, design, b_ay, tape_sd)
-        wide_sd = priors.d_gross_wheelbases * self.wheelbase_m
-        settled = b_ay if tape is None else tape[0].value(Term.AY)
-        wide = self._marginal_posterior(  # from the tape's a_y, noise and pull
-            priors, design, settled, wide_sd, None if tape is None else tape[0]
-        )
-        if tape is None or wide is None:
-            found = tape or wide
-            return (
-                None
-                if found is None
-                else self._marginal_result(priors, [found], [1.0], len(run), logs, covered)
-            )
-        # the wide prior's weight by the evidence where the speeds are apart; at one speed d and C2n
-        # move together, and what places d there is the other terms' priors (a_y³'s curvature), not
-        # the drive: the weight stays the prior's (a flipped sideslip at one speed put it at 1.0,
-        # d 0.76 m behind the axle)
-        apart = self._u_max >= _WIDE_SPEEDS * self._u_min
-        share = (
-            wide_share(wide[0], self.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
-            if apart
-            else priors.d_gross_share
-        )
-        fit = self._marginal_result(priors, [tape, wide], [1.0 - share, share], len(run), logs, covered)
-        if fit is None:
-            return None
-        # what the drive alone says of d: its information against the tape's, and the top of its
-        # interval (a d behind the axle shows a role the wrong way round: Snapshot.sign_problem)
-        # — its own d only where its speeds are apart, as the cascade's: at one speed the a_y³
-        # term's curvature lends d a little information that the prior's shape, not the drive, makes
-        alone = data_alone(wide[0], Term.D, self.d_tape_m, wide_sd)
+        return design, float(start.coef[start.terms.index(Term.AY)]), covered
+
+    def _with_own_d(
+        self, fit: RegressionFit, wide: Posterior, wide_sd: float, apart: bool, confidence: float
+    ) -> RegressionFit:
+        """The fit with what the drive alone says of d (the wide prior's posterior less that prior):
+        its information over the tape's, and — where the speeds are apart, as the cascade's — the
+        top of its interval (a d behind the axle shows a role the wrong way round:
+        ``Snapshot.sign_problem``). At one speed the a_y³ term's curvature lends d a little
+        information that the prior's shape, not the drive, makes."""
+        assert self.d_tape_m is not None
+        alone = data_alone(wide, Term.D, self.d_tape_m, wide_sd)
         if alone is None:
             return replace(fit, d_information=0.0)
+        tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
         information = tape_sd**2 / alone[1] if alone[1] > 0 else math.inf
         if not apart:
             return replace(fit, d_information=information)
         from scipy.special import stdtrit
 
-        q = float(stdtrit(max(len(run) - len(wide[0].terms), 1), 0.5 + priors.confidence / 2.0))
+        q = float(stdtrit(max(fit.n_blocks - len(wide.terms), 1), 0.5 + confidence / 2.0))
         return replace(fit, d_information=information, d_free_m=alone[0] + q * math.sqrt(alone[1]))
 
     def _marginal_posterior(

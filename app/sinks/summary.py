@@ -207,9 +207,10 @@ class Summary:
         """The file's content: JSON types only, in the file's key order."""
         return dict(json_ready(self))
 
-    def warned(self, more: Sequence[str]) -> "Summary":
-        """The same summary with more warnings after its own."""
-        return replace(self, warnings=(*self.warnings, *more)) if more else self
+    def warned(self, lost: Sequence[str]) -> "Summary":
+        """The same summary with what the run lost (a recording stopped, a bus gone) first, before
+        what the drive shows: the user reads the loss of data before any advice."""
+        return replace(self, warnings=(*lost, *self.warnings)) if lost else self
 
 
 def build(

@@ -472,10 +472,11 @@ class SampleRegression:
         speeds: list[tuple[int, int]] = [(Term.U, Term.INV_U)]
         if logs > 1:
             xtx, xty, offsets, speeds = _per_log(xtx, xty, log)
-        start = _solve(xtx, xty, run, [*offsets, Term.D, Term.AY], n)
-        if start is None and self.d_tape_m is not None:  # one speed: d at the tape's to start
-            start = _solve(xtx, xty - self.d_tape_m * xtx[:, :, Term.D], run, [*offsets, Term.AY], n)
-        if start is None:
+        total, rhs = xtx.sum(axis=0), xty.sum(axis=0)
+        b_ay = _least_squares_ay(total, rhs, [*offsets, Term.D, Term.AY])
+        if b_ay is None and self.d_tape_m is not None:  # one speed: d at the tape's to start
+            b_ay = _least_squares_ay(total, rhs - self.d_tape_m * total[:, Term.D], [*offsets, Term.AY])
+        if b_ay is None:
             return None
         # a pad's slope: a plane, whose pull turns with the heading, where the samples are taken on
         # one place (steady circles); a route's corners (quasi-steady samples) are each their own
@@ -499,7 +500,7 @@ class SampleRegression:
             )
             if term in own and _spread(design.blocks.total, base, [int(t) for t in layout], n) >= least
         )
-        return design, float(start.coef[start.terms.index(Term.AY)]), covered
+        return design, b_ay, covered
 
     def _with_own_d(
         self, fit: RegressionFit, wide: Posterior, wide_sd: float, apart: bool, confidence: float
@@ -622,7 +623,6 @@ class SampleRegression:
         turn = Term.TURN in post.terms and Term.TURN in covered
         bias = _bias(fit, bias_terms[0], q) if bias_terms else None
         held = post.held_open_by(Term.AY)
-        names = {t.value: t.name.lower() for t in Term}
         return RegressionFit(
             c2n=c2n,
             c2n_se=c2n_se,
@@ -659,7 +659,7 @@ class SampleRegression:
             c2n_softening_ci95=c2n_ci,
             scale_se=self.scale_se,
             estimator="marginal",
-            held_open_by=names.get(held[0], "psi0" if held[0] >= _K else None) if held else None,
+            held_open_by=_NAMES.get(held[0], "psi0" if held[0] >= _K else None) if held else None,
             held_open_share=held[1] if held else None,
         )
 
@@ -1164,6 +1164,16 @@ def _slope(fit: "_Solution", c2n: float, q: float) -> tuple[float, tuple[float, 
     pct = 100.0 * abs(c2n)
     interval = (max(pct * (size - q * se), 0.0), pct * (size + q * se))
     return pct * size, interval, math.degrees(math.atan2(b, -a))
+
+
+_NAMES = {t.value: t.name.lower() for t in Term}  # the result file's names of the terms
+
+
+def _least_squares_ay(total: np.ndarray, rhs: np.ndarray, terms: list[int]) -> float | None:
+    """a_y's coefficient of the least-squares fit on ``terms`` (the summed statistics), where the
+    terms can be told apart: the marginal fit's start, whose priors it scales."""
+    inverse = well_conditioned_inverse(total[np.ix_(terms, terms)])
+    return None if inverse is None else float((inverse @ rhs[terms])[terms.index(Term.AY)])
 
 
 def _solve(xtx: np.ndarray, xty: np.ndarray, run: np.ndarray, terms: list[int], n: int) -> _Solution | None:

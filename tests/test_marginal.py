@@ -275,6 +275,17 @@ def test_a_far_component_of_small_weight_widens_the_interval_but_does_not_drag_t
     assert low < 14.0 - 0.05 and high > 14.0 + 3 * 0.05
 
 
+def _mixture_cdf(
+    x: float, means: list[float], ses: list[float], weights: np.ndarray, dof: float, less: float = 0.0
+) -> float:
+    """The mixture's CDF at ``x``, less ``less`` (a quantile's level: the root finder's function)."""
+    cdf = sum(
+        w * (t.cdf((x - m) / s, dof) if s > 0 else float(x >= m))
+        for m, s, w in zip(means, ses, weights, strict=True)
+    )
+    return float(cdf) - less
+
+
 def test_the_mixtures_quantiles_are_brents_on_its_cdf() -> None:
     """Newton's steps inside a bracket (mixture_quantiles) against the reference, scipy's brentq on
     the mixture's CDF, over 300 seeded mixtures of two or three components: near and far, narrow
@@ -294,15 +305,11 @@ def test_the_mixtures_quantiles_are_brents_on_its_cdf() -> None:
         dof = float(rng.choice([5, 30, 500]))
         found = mixture_quantiles(means, ses, weights, dof, p)
 
-        def cdf(x: float) -> float:
-            return sum(
-                w * (t.cdf((x - m) / s, dof) if s > 0 else float(x >= m))
-                for m, s, w in zip(means, ses, weights, strict=True)
-            )
-
         span = max(ses) * 200 + max(abs(m - 14.0) for m in means) + 1.0
         for x, target in zip(found, p, strict=True):
-            reference = brentq(lambda x, target=target: cdf(x) - target, 14.0 - span, 14.0 + span, xtol=1e-13)
+            reference = brentq(
+                _mixture_cdf, 14.0 - span, 14.0 + span, args=(means, ses, weights, dof, target), xtol=1e-13
+            )
             assert x == pytest.approx(reference, abs=1e-9 * (1.0 + max(ses))), (case, target)
 
 

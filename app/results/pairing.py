@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.records import Crossing
+from app.results.marginal import Posterior, data_alone
 
 
 @dataclass(frozen=True)
@@ -135,15 +136,15 @@ class _Fit:
 
     def own(self, term: int) -> tuple[float, float] | None:
         """What the crossings alone say of ``term`` (mean, se): the posterior's information less
-        the prior's, where it is more than the prior's (else None: the value is the prior's)."""
-        p = float(self.cov[term, term])
+        the prior's (``data_alone``, the regression's), where it is more than the prior's (else
+        None: the value is the prior's)."""
         prior = float(self.precision[term])
-        info = 1.0 / p - prior if p > 0 else math.inf
-        if not info > prior:
+        prior_sd = 1.0 / math.sqrt(prior) if prior > 0 else math.inf
+        posterior = Posterior([0, 1, 2], self.coef, self.cov, 1.0, 1.0)
+        alone = data_alone(posterior, term, 0.0, prior_sd)
+        if alone is None or not alone[1] * prior < 1.0:  # the data's variance under the prior's
             return None
-        if math.isinf(info):
-            return float(self.coef[term]), 0.0
-        return float(self.coef[term]) / p / info, math.sqrt(1.0 / info)
+        return alone[0], math.sqrt(alone[1])
 
 
 def _fit(x: np.ndarray, y: np.ndarray, w: np.ndarray, prior_sd: np.ndarray) -> _Fit:

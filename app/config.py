@@ -256,8 +256,8 @@ class Priors:
     """The policy of the marginal fit: its confidence level and each nuisance's prior standard
     deviation (mean zero unless said), each from physics or a data sheet, never from a bench."""
 
-    # which regression gives the result: "cascade" (terms chosen by tests, the default) or
-    # "marginal" (this one, every nuisance under its prior)
+    # which regression gives the result: "marginal" (this one, every nuisance under its prior: the
+    # default) or "cascade" (terms chosen by tests)
     estimator: Literal["cascade", "marginal"] = "marginal"
     confidence: float = 0.95
     # the head's yaw on the car: mounted by eye against the body, ±1° at 95 %

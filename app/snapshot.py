@@ -16,6 +16,7 @@ from app.estimate.model import FilterCounts
 from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.agreement import DriveResult, disagreement
 from app.results.combine import Combined
+from app.results.headline import Headline, headline, positive
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
 from app.results.sideslip_profile import ProfileView
@@ -23,21 +24,6 @@ from app.results.support import unsteady_crossings
 
 _SENSOR_MAX_HZ = 400.0  # an optical sensor sends at 50–250 Hz; far beyond that is not its own pace
 _HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
-
-
-def _positive(c2n: float) -> bool:
-    return math.isfinite(c2n) and c2n > 0.0
-
-
-@dataclass(frozen=True)
-class Headline:
-    """The C2n to report: the regression's (linear, at zero a_y) where there is one, else the
-    paired crossings', else the crossings' mean. Where no sweep crossed zero, the quasi-steady
-    samples' regression."""
-
-    c2n: float
-    ci95: tuple[float, float]
-    method: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,22 +79,16 @@ class Snapshot:
 
     @property
     def headline(self) -> Headline | None:
-        """The C2n to report; a stiffness that is not positive is not one, nor one whose roles'
-        signs disagree (see ``sign_problem``)."""
+        """The C2n to report (``headline.py``: by what the drive held), unless a refusal stands: a
+        role's sign the wrong way round (``sign_problem``), pooled drives that disagree, or — with
+        no fit to rest on — crossings whose sweeps disagree."""
         if self.sign_problem:
             return None
         fit = self.fit
-        if fit is not None and fit is self.quasi:  # no sweep crossed zero
-            return Headline(fit.c2n, fit.c2n_ci95, "quasi-steady") if not self.drives_disagree else None
-        if self.regression is not None and _positive(self.regression.c2n):
-            return Headline(self.regression.c2n, self.regression.c2n_ci95, "regression")
-        if self.unsteady_crossings:
+        quasi = fit if fit is not None and fit is self.quasi else None  # no sweep crossed zero
+        if (quasi is not None and self.drives_disagree) or (fit is None and self.unsteady_crossings):
             return None
-        if self.paired is not None and _positive(self.paired.c2n):
-            return Headline(self.paired.c2n, self.paired.ci95, "paired crossings")
-        if self.combined is not None and _positive(self.combined.c2n):
-            return Headline(self.combined.c2n, self.combined.ci95, "crossings")
-        return None
+        return headline(None if quasi else self.regression, quasi, self.paired, self.combined)
 
     @property
     def fit(self) -> RegressionFit | None:
@@ -129,7 +109,7 @@ class Snapshot:
             return self.sign_problem
         if self.drives_disagree:
             return self.drives_disagree
-        if self.unsteady_crossings and (self.regression is None or not _positive(self.regression.c2n)):
+        if self.unsteady_crossings and (self.regression is None or not positive(self.regression.c2n)):
             return self.unsteady_crossings
         c = self.cornering
         if c.turning_s < 1.0:
@@ -159,7 +139,7 @@ class Snapshot:
         bend its terms to split."""
         if self.fit is None or self.fit is not self.quasi:
             return None
-        alone = [(k, f) for k, f in enumerate(self.quasi_drives, 1) if f is not None and _positive(f.c2n)]
+        alone = [(k, f) for k, f in enumerate(self.quasi_drives, 1) if f is not None and positive(f.c2n)]
         if disagreement([DriveResult(f"drive {k}", f.c2n, f.c2n_ci95) for k, f in alone]) is None:
             return None
         each = "; ".join(
@@ -185,14 +165,14 @@ class Snapshot:
         assert witness is not None  # there is a fit
         if witness.estimator == "marginal" and not self.d_witnessed:  # d is the tape's prior's: the
             problem = yaw_rate_problem(self.signs)  # votes alone show the signs, as where d is held
-            if problem is not None or _positive(fit.c2n):
+            if problem is not None or positive(fit.c2n):
                 return problem
             d = 0.0
         elif witness.d_free_m is not None and witness.d_free_m < 0:
             d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
         elif not witness.d_fixed and witness.d_m < 0:
             d, where = witness.d_m, f"{-witness.d_m:.2f} m behind the rear axle"
-        if _positive(fit.c2n) and d >= 0:  # no d of the samples' own (one speed): the votes show the signs
+        if positive(fit.c2n) and d >= 0:  # no d of the samples' own (one speed): the votes show the signs
             return None if self.d_witnessed else yaw_rate_problem(self.signs)
         if d < 0:
             return (

@@ -13,8 +13,11 @@ Whether tyres soften is a property of the tyre set, not of one drive, so a group
 its sessions together: a session's a_y³ term passes |t| > 2 by chance in about 1.5 % of drives on
 linear tyres (C2n then 0.6–2.4 % high), and a campaign of 42 meets one about every second time.
 The sessions' t statistics combine (Stouffer: z = Σt/√k, each t about N(0, 1) on linear tyres) and
-face the same bar a session's t does; each session is then compared on its fit of the group's
-model, the linear one or the one with the softening term.
+face the same bar a session's t does. A session whose fit chose its model by that test (the
+cascade, ``[priors] estimator = "cascade"``) is then compared on its fit of the group's model, the
+linear one or the one with the softening term. A marginal fit (the default) chose nothing: its C2n
+carries the softening under its prior, so it is pooled as it is, and z only says what the
+sessions together show of the tyres.
 
 A session's interval may hold the sensors' scale tolerance (``c2n_scale_se_pct``): one sensor
 drove them all, so it is taken out before the sessions are pooled and counted once in each

@@ -28,6 +28,7 @@ from app.campaign.manifest import Manifest
 from app.errors import OutputError
 from app.output.files import json_ready, write_atomically, write_json
 from app.output.paths import HTML_REPORT, json_with
+from app.results.headline import Method
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")
@@ -156,7 +157,9 @@ class Comparison:
                 for tag, per in self.trends.items()
             },
             "method": "random effects: DerSimonian–Laird τ², Hartung–Knapp t interval (modified, max(1, q)); "
-            "tyre softening decided per group (Stouffer's z of the sessions' a_y³ t, |z| > 2)",
+            "tyre softening per group: Stouffer's z of the sessions' a_y³ t (|z| > 2); a marginal fit's C2n "
+            "(the default) carries the softening under its prior and is pooled as it is, a cascade fit's is "
+            "compared on its group's model",
         }
 
 
@@ -180,8 +183,9 @@ class _Session(NamedTuple):
     group: str
     c2n: float  # the headline's
     ci95: tuple[float, float]
-    fits: Fits | None  # its two fits, where the headline is one that could take either model
+    fits: Fits | None  # its two fits, where the headline chose between them by a test (the cascade)
     scale: float  # C2n's relative error from the sensors' scales, in its interval
+    softening_t: float | None  # its fit's a_y³ t: the group's evidence that its tyres soften
 
     def compared(self, decided: dict[str, Softening]) -> Compared:
         """Its fit of its group's tyre model, where it has both fits; else its own headline."""
@@ -205,10 +209,12 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
         scale = row.get("c2n_scale_se_pct")
         share = float(scale) / 100.0 if scale is not None and _finite(scale) else 0.0
         group = entry.tags[by] if by else "all"
-        done.append(_Session(entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row), share))
+        t = _softening_t(row)
+        done.append(_Session(entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row), share, t))
     evidence: dict[str, list[float]] = {}
     for session in done:
-        evidence.setdefault(session.group, []).extend([session.fits.softening_t] if session.fits else [])
+        if session.softening_t is not None:
+            evidence.setdefault(session.group, []).append(session.softening_t)
     decided = {group: tyres for group, t in sorted(evidence.items()) if (tyres := softening(t)) is not None}
     sessions: dict[str, list[tuple[float, float]]] = {}
     tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
@@ -261,18 +267,34 @@ def _data_se(se: float, c2n: float, scale: float) -> float:
     return math.sqrt(max(se * se - (scale * c2n) ** 2, (0.01 * se) ** 2))
 
 
-def _fits(row: dict[str, Any]) -> Fits | None:
-    """The session's two fits, where its headline is a regression's that could take either model
-    (not where its a_y range cannot tell them apart: its own interval spans both)."""
-    prefix = {"regression": "regression.", "quasi-steady": "quasi_steady."}.get(str(row.get("c2n_method")))
+def _softening_t(row: dict[str, Any]) -> float | None:
+    """The a_y³ term's t of the session's headline fit, where it is a regression's whose a_y range
+    could tell linear tyres from softening ones (else its own interval spans both)."""
+    prefix = _prefix(row)
     if prefix is None or row.get(f"{prefix}softening_resolved") is not True:
         return None
     t = row.get(f"{prefix}softening_t")
+    return float(t) if t is not None and _finite(t) else None
+
+
+def _fits(row: dict[str, Any]) -> Fits | None:
+    """The session's two fits, where its headline is a regression's that chose between them by a
+    test (the cascade) and could take either. A marginal fit has one C2n, the softening's prior in
+    its interval: there is nothing to choose, and it is pooled as it is."""
+    prefix, t = _prefix(row), _softening_t(row)
+    if prefix is None or t is None or row.get(f"{prefix}estimator") == "marginal":
+        return None
     linear = _model(row, f"{prefix}c2n_linear")
-    if linear is None or t is None or not _finite(t):
+    if linear is None:
         return None
     chosen: Model = "softening" if row.get(f"{prefix}model") == "softening" else "linear"
-    return Fits(float(t), linear, _model(row, f"{prefix}c2n_softening"), chosen)
+    return Fits(t, linear, _model(row, f"{prefix}c2n_softening"), chosen)
+
+
+def _prefix(row: dict[str, Any]) -> str | None:
+    """The columns' prefix of the fit the session's headline is, where it is a regression's."""
+    prefixes: dict[str, str] = {Method.REGRESSION: "regression.", Method.QUASI_STEADY: "quasi_steady."}
+    return prefixes.get(str(row.get("c2n_method")))
 
 
 def _model(row: dict[str, Any], name: str) -> tuple[float, tuple[float, float]] | None:
@@ -334,7 +356,10 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
             paragraph(
                 "Whether tyres soften is decided per group, over its sessions' a_y³ t statistics together "
                 "(Stouffer's z; softening where z < −2): a session's own t passes 2 by chance in about "
-                "1.5 % of drives on linear tyres. These sessions' own fits chose the other model."
+                "1.5 % of drives on linear tyres. A fit that chose its model by that test (the cascade "
+                "estimator) is compared on its group's; these sessions' own fits chose the other model. "
+                "A marginal fit (the default) chose none: its C2n carries the softening under its prior "
+                "and is compared as it is."
             ),
             table(
                 ("log", "own fit", "t", "compared on", "C2n [1/rad]", "95 % [1/rad]"),
@@ -352,7 +377,7 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
                 (False, False, True, False, True, True),
             )
             if comparison.switched
-            else none("none: every session's own fit chose its group's model"),
+            else none("none: every session is compared on its own fit"),
         ),
         section(
             "Differences [1/rad]",

@@ -11,6 +11,7 @@ from app.cli.common import add_config, add_force, error_console
 from app.config import load_config
 from app.errors import NoResultError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
+from app.results.headline import Method
 
 if TYPE_CHECKING:
     from app.config import Config
@@ -62,7 +63,7 @@ def _each_alone(logs: list[Path], config: "Config", merge: bool, console: Consol
             headline = pipeline.snapshot().headline
             if headline is not None:
                 alone.append(DriveResult(str(log), headline.c2n, headline.ci95))
-                quasi_only = quasi_only and headline.method == "quasi-steady"
+                quasi_only = quasi_only and headline.method is Method.QUASI_STEADY
     if merge and len(alone) < 2:
         return
     if quasi_only and not merge:  # the pooled run fits each drive's quasi-steady samples alone too

@@ -30,6 +30,7 @@ from app.gap import effects
 from app.gap.effects import Z_INTERVAL, Z_TEST, C2nShift
 from app.gap.measured import Measured
 from app.gap.result import C2nEffect, Effect
+from app.results.headline import Method
 
 HELDOUT_FIT = "held-out fit"
 # effects whose own parameter the method measures on every steady sample, where the bicycle
@@ -145,7 +146,7 @@ def _sensor_position(m: Measured, config: Config) -> Effect | None:
     lo, hi = fit.d_ci95
     est = _Estimate(fit.d_m - tape, (hi - lo) / (2.0 * Z_INTERVAL))
     crossing = 100.0 * (fit.d_m / tape - 1.0)  # u0²/(g·tape) against u0²/(g·d)
-    headline = 0.0 if m.summary.c2n_method == "regression" else crossing
+    headline = 0.0 if m.summary.c2n_method == Method.REGRESSION else crossing
     shift = C2nEffect(round(crossing, 3), round(headline, 3))
     tolerance_m = config.calibration.d_tolerance_mm / 1000.0
     what = (
@@ -229,7 +230,7 @@ def _softening(m: Measured, config: Config) -> Effect | None:
     s = _Estimate(fit.softening_per_mps2_2, fit.softening_se_per_mps2_2)
     ay = np.asarray(_crossing_ay(m))
     crossing = float(np.mean(-100.0 * s.value * ay**2 / (1.0 + s.value * ay**2))) if len(ay) else None
-    headline = 0.0 if fit.model == "softening" and m.summary.c2n_method == "regression" else crossing
+    headline = 0.0 if fit.model == "softening" and m.summary.c2n_method == Method.REGRESSION else crossing
     shift = C2nEffect(
         None if crossing is None else round(crossing, 3), None if headline is None else round(headline, 3)
     )

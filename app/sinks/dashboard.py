@@ -18,6 +18,7 @@ from rich.text import Text
 from app.config import OPTICAL_ROLES
 from app.errors import printable
 from app.records import Reason, SteadyState
+from app.results.headline import Method
 from app.sinks.event_printer import result_line
 from app.sinks.sideslip_plot import MIN_HEIGHT as PLOT_MIN_LINES
 from app.sinks.sideslip_plot import SideslipPlot
@@ -291,7 +292,7 @@ class Dashboard(Display):
             model = "softening tyre model" if fit.model == "softening" else "linear"
             if not fit.softening_resolved:
                 model += " (softening not ruled out: interval widened)"
-            name = "quasi-steady" if fit is snapshot.quasi else "regression"
+            name = Method.QUASI_STEADY if fit is snapshot.quasi else Method.REGRESSION
             lines.append(
                 Text(
                     f"{name}: d {fit.d_m:.3f} m [{fit.d_ci95[0]:.3f}, {fit.d_ci95[1]:.3f}] "

@@ -8,6 +8,7 @@ from rich.console import Console
 from rich.text import Text
 
 from app.records import Crossing, CrossingRejected, Event
+from app.results.headline import Method
 from app.sinks.sink import Sink
 from app.snapshot import Snapshot
 
@@ -35,9 +36,9 @@ def result_line(snapshot: Snapshot) -> str:
     if headline is None:
         return f"C2n: no result ({snapshot.refusal})"
     lo, hi = headline.ci95
-    how = headline.method
+    how = headline.method.value
     fit = snapshot.fit
-    if fit is not None and headline.method == "quasi-steady":
+    if fit is not None and headline.method is Method.QUASI_STEADY:
         how = (
             f"quasi-steady cornering: {fit.seconds:.0f} s, {fit.n_samples:,} samples at "
             f"{fit.speed_range[0]:.1f}–{fit.speed_range[1]:.1f} m/s, a_y {fit.ay_range[0]:.1f}–"
@@ -53,12 +54,12 @@ def result_line(snapshot: Snapshot) -> str:
             how += ", extrapolated to zero a_y"
         elif not fit.softening_resolved:
             how += "; interval widened: the a_y range cannot rule out softening tyres"
-    if fit is not None and fit.scale_se > 0 and headline.method in ("regression", "quasi-steady"):
+    if fit is not None and fit.scale_se > 0 and headline.method.is_fit:
         how += f"; the sensors' scale counted, σ {100 * fit.scale_se:.2f} %"
     text = f"C2n = {headline.c2n:.3f} 1/rad [{lo:.3f}, {hi:.3f}] (95 %, {how}); "
     text += f"u0 = {u0:.3f} m/s = {u0 * 3.6:.2f} km/h" if u0 is not None else "u0: none (C2n is not positive)"
     crossings = snapshot.paired or snapshot.combined
-    if crossings is not None and headline.method == "regression":
+    if crossings is not None and headline.method is Method.REGRESSION:
         clo, chi = crossings.ci95
         paired = " paired" if snapshot.paired is not None else ""
         text += f"; {crossings.n}{paired} crossings: {crossings.c2n:.3f} [{clo:.3f}, {chi:.3f}]"

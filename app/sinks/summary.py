@@ -18,6 +18,7 @@ from app.detect.steady_state import WHEELBASE_M
 from app.output.files import json_ready, write_json
 from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results.combine import Combined
+from app.results.headline import Method
 from app.results.pairing import Paired
 from app.results.regression import TIGHT_WHEELBASES, RegressionFit
 from app.snapshot import Snapshot
@@ -224,7 +225,7 @@ def build(
     return Summary(
         c2n=_round(headline.c2n) if headline else None,
         c2n_ci95=_pair(headline.ci95) if headline else None,
-        c2n_method=headline.method if headline else None,
+        c2n_method=headline.method.value if headline else None,
         c2n_scale_se_pct=_scale_se_pct(headline.method, config) if headline else None,
         u0_mps=_round(u0) if u0 is not None else None,
         crossings=tuple(_crossing(c, t0) for c in snapshot.crossings),
@@ -441,7 +442,7 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
     rejected = snapshot.rejections
     if rejected:
         out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
-    quasi = snapshot.headline is not None and snapshot.headline.method == "quasi-steady"
+    quasi = snapshot.headline is not None and snapshot.headline.method is Method.QUASI_STEADY
     if quasi:
         out.append(
             "no sweep crossed the sideslip's sign change: C2n is the quasi-steady estimate from cornering "
@@ -545,7 +546,7 @@ def _crossings_apart(snapshot: Snapshot) -> str | None:
     """Where the paired crossings' interval and the regression's headline's do not meet: which to
     believe, and why they differ."""
     head, paired = snapshot.headline, snapshot.paired
-    if head is None or head.method != "regression" or paired is None:
+    if head is None or head.method is not Method.REGRESSION or paired is None:
         return None
     (low, high), (h_low, h_high) = paired.ci95, head.ci95
     if low <= h_high and h_low <= high:
@@ -591,12 +592,11 @@ def _rejected(r: CrossingRejected, t0: float) -> RejectedRow:
     return RejectedRow(_round(r.t - t0, 3), r.direction, r.sweep, _round(r.u_mps, 3), r.reason)
 
 
-def _scale_se_pct(method: str, config: Config) -> float:
+def _scale_se_pct(method: Method, config: Config) -> float:
     """What the sensors' scales add to the headline's error: a fit's C2n scales with the gyro's
     and the speed's, a crossing's with the speed's twice."""
     calibration = config.calibration
-    fit = method in ("regression", "quasi-steady")
-    share = calibration.fit_se if fit else calibration.crossing_se(config.d_m)
+    share = calibration.fit_se if method.is_fit else calibration.crossing_se(config.d_m)
     return round(100.0 * share, 4)
 
 

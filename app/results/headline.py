@@ -1,0 +1,69 @@
+"""The one C2n a drive reports, and which of the drive's estimates it is.
+
+There is one estimator: the regression of every steady sample's sideslip on the model
+β = ψ0 + d·κ − a_y/(g·C2n) + the nuisances' terms (``regression.py``), its interval counting what
+the drive cannot tell. The crossings are samples of the same drive (those where β changes sign),
+so they are not a second measurement to average in: combining the two would count those samples
+twice. What the headline is depends only on what the drive held, never on which estimate reads
+best:
+
+- a sweep crossed zero and the steady samples support a fit: the regression;
+- no sweep crossed zero: the same regression over the quasi-steady samples (corners held at
+  several speeds, their slow transients' terms fitted);
+- crossings but too few steady samples for a fit (under 200, ten blocks or 0.5 m/s² of a_y): the
+  crossings paired (misalignment and lag taken out), else their inverse-variance mean.
+
+A C2n that is not positive is no stiffness, and none is reported.
+"""
+
+import math
+from dataclasses import dataclass
+from enum import StrEnum
+
+from app.results.combine import Combined
+from app.results.pairing import Paired
+from app.results.regression import RegressionFit
+
+
+class Method(StrEnum):
+    """Which estimate the headline is (``c2n_method`` in the summary)."""
+
+    REGRESSION = "regression"
+    QUASI_STEADY = "quasi-steady"
+    PAIRED = "paired crossings"
+    CROSSINGS = "crossings"
+
+    @property
+    def is_fit(self) -> bool:
+        """A regression's (with its fit's terms), not the crossings'."""
+        return self in (Method.REGRESSION, Method.QUASI_STEADY)
+
+
+@dataclass(frozen=True)
+class Headline:
+    c2n: float
+    ci95: tuple[float, float]
+    method: Method
+
+
+def positive(c2n: float) -> bool:
+    return math.isfinite(c2n) and c2n > 0.0
+
+
+def headline(
+    regression: RegressionFit | None,
+    quasi: RegressionFit | None,
+    paired: Paired | None,
+    combined: Combined | None,
+) -> Headline | None:
+    """The drive's C2n by what it held (the module's list); ``quasi`` is given only where no sweep
+    crossed zero. Refusals (a sign the wrong way round, drives that disagree, crossings whose sweeps
+    disagree) are the caller's: they decide whether there is a result, not which one."""
+    fit, method = (quasi, Method.QUASI_STEADY) if quasi is not None else (regression, Method.REGRESSION)
+    if fit is not None:
+        return Headline(fit.c2n, fit.c2n_ci95, method) if positive(fit.c2n) else None
+    if paired is not None and positive(paired.c2n):
+        return Headline(paired.c2n, paired.ci95, Method.PAIRED)
+    if combined is not None and positive(combined.c2n):
+        return Headline(combined.c2n, combined.ci95, Method.CROSSINGS)
+    return None

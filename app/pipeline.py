@@ -434,7 +434,7 @@ class Pipeline:
         before = self.state.regression
         self.state.quasi = self.quasi.fit() if not self.state.crossings else None
         fit = self.state.regression = self.regression.fit()
-        self.detector.tilt = fit.tilt if fit is not None else None
+        self.detector.tilt = fit.slope.tilt if fit is not None and fit.slope is not None else None
         if self.state.crossings and _pairing_terms(before) != _pairing_terms(fit):
             self._pair()
 
@@ -449,12 +449,12 @@ class Pipeline:
         if self.detector.tilt is not None:  # a crossing without a lever ("beta") keeps what it had
             used = [c for c in used if c.slope_corrected] or used
         fit = state.regression
-        if fit is not None and fit.turn_step_rad is not None:  # every crossing carries it: out
-            step, step_se = fit.turn_step_rad, fit.turn_step_se_rad or 0.0
-            used = [without_step(c, step, step_se, self.config.d_m, g) for c in used]
-        if fit is not None and fit.softening_per_mps2_2 is not None:  # each reads its own a_y's secant
-            s, s_se = fit.softening_per_mps2_2, fit.softening_se_per_mps2_2 or 0.0
-            used = [at_zero_ay(c, s, s_se) for c in used]
+        turn = fit.turn_force if fit is not None else None
+        if turn is not None:  # every crossing carries it: out
+            used = [without_step(c, turn.step_rad, turn.step_se_rad, self.config.d_m, g) for c in used]
+        softening = fit.softening if fit is not None else None
+        if softening is not None:  # each reads its own a_y's secant
+            used = [at_zero_ay(c, softening.per_mps2_2, softening.se_per_mps2_2) for c in used]
         state.combined = combine(used)
         state.paired = pair(
             used, self.config.d_m, g, self.config.priors.head_yaw_deg, self.config.detector.settle_s
@@ -490,7 +490,11 @@ def _pairing_terms(
     takes out of every crossing. A change pairs them again."""
     if fit is None:
         return (None, None, None)
-    return (fit.tilt, fit.turn_step_rad, fit.softening_per_mps2_2)
+    return (
+        fit.slope.tilt if fit.slope is not None else None,
+        fit.turn_force.step_rad if fit.turn_force is not None else None,
+        fit.softening.per_mps2_2 if fit.softening is not None else None,
+    )
 
 
 def _held(column: np.ndarray | None, before: float | None, n: int) -> np.ndarray:

@@ -160,7 +160,7 @@ class Snapshot:
         fit = self.fit
         if fit is None:
             return None
-        d, where = fit.d_m, f"{-fit.d_m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
+        d, where = fit.d.m, f"{-fit.d.m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
         witness = self._witness
         assert witness is not None  # there is a fit
         if witness.estimator == "marginal" and not self.d_witnessed:  # d is the tape's prior's: the
@@ -168,10 +168,10 @@ class Snapshot:
             if problem is not None or positive(fit.c2n):
                 return problem
             d = 0.0
-        elif witness.d_free_m is not None and witness.d_free_m < 0:
-            d, where = witness.d_free_m, f"at least {-witness.d_free_m:.2f} m behind the rear axle"
-        elif not witness.d_fixed and witness.d_m < 0:
-            d, where = witness.d_m, f"{-witness.d_m:.2f} m behind the rear axle"
+        elif witness.d.free_m is not None and witness.d.free_m < 0:
+            d, where = witness.d.free_m, f"at least {-witness.d.free_m:.2f} m behind the rear axle"
+        elif not witness.d.held and witness.d.m < 0:
+            d, where = witness.d.m, f"{-witness.d.m:.2f} m behind the rear axle"
         if positive(fit.c2n) and d >= 0:  # no d of the samples' own (one speed): the votes show the signs
             return None if self.d_witnessed else yaw_rate_problem(self.signs)
         if d < 0:
@@ -194,13 +194,13 @@ class Snapshot:
 
     @property
     def d_witnessed(self) -> bool:
-        """Do the samples place d themselves (speeds apart: ``d_free_m`` where d is held)?"""
+        """Do the samples place d themselves (speeds apart: ``DResult.free_m`` where d is held)?"""
         witness = self._witness
         if witness is None:
             return False
         if witness.estimator == "marginal":  # d under the tape's prior: the samples' own, if any
-            return witness.d_free_m is not None
-        return not witness.d_fixed or witness.d_free_m is not None
+            return witness.d.free_m is not None
+        return not witness.d.held or witness.d.free_m is not None
 
     @property
     def odd_sign(self) -> str | None:

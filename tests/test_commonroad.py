@@ -201,7 +201,7 @@ def test_on_the_commonroad_car_c2n_is_its_rear_axle_s_with_the_turn_force_taken_
     assert 1.05 < axle / tyre < 1.12
     snapshot = run_pipeline(config, drive).snapshot()
     fit = snapshot.regression
-    assert fit is not None and fit.turn_force_pct is not None and 1.5 < fit.turn_force_pct < 4.0
+    assert fit is not None and fit.turn_force is not None and 1.5 < fit.turn_force.pct < 4.0
     headline = snapshot.headline
     # this test day reads 1.5 % low (20 others, tools/bench_accuracy.py case j: 0.6 % median, all
     # within 1 %); without the term it read 18 % high

@@ -39,7 +39,7 @@ def test_dashboard_after_a_drive(analysed: Pipeline) -> None:
         assert label in text, label
     assert "C2n = " in text and "regression over" in text and "4 paired crossings" in text
     fit = analysed.state.regression
-    assert fit is not None and f"d {fit.d_m:.3f} m" in text and "(config 1.11)" in text
+    assert fit is not None and f"d {fit.d.m:.3f} m" in text and "(config 1.11)" in text
     assert "pairing: head misalignment" in text and "lag" in text
     assert "0x7E5" in text and "Correvit" in text and "0x415" in text and "BrakeSysFeatures" in text
     assert f"total {analysed.decoder.counts.total}" in text

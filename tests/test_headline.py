@@ -8,6 +8,7 @@ from typing import Any
 import pytest
 
 from app.results.combine import Combined
+from app.results.fit_groups import DResult, FitSamples, ModelChoice, ModelFit, Psi0Result
 from app.results.headline import Headline, Method, headline
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
@@ -16,19 +17,12 @@ FIT = RegressionFit(
     c2n=14.0,
     c2n_se=0.1,
     c2n_ci95=(13.8, 14.2),
-    d_m=1.2,
-    d_ci95=(1.19, 1.21),
-    psi0_rad=0.0,
-    psi0_ci95=(-0.001, 0.001),
-    model="linear",
-    softening_t=0.3,
-    softening_per_mps2_2=None,
-    c2n_linear_model=14.0,
-    c2n_softening_model=14.0,
-    n_samples=5000,
-    n_blocks=200,
-    ay_range=(1.0, 4.0),
-    curvature_range=(0.01, 0.02),
+    samples=FitSamples(count=5000, blocks=200, ay_range_mps2=(1.0, 4.0), curvature_range_per_m=(0.01, 0.02)),
+    d=DResult(m=1.2, ci95_m=(1.19, 1.21)),
+    psi0=Psi0Result(rad=0.0, ci95_rad=(-0.001, 0.001)),
+    models=ModelChoice(
+        chosen="linear", softening_t=0.3, linear=ModelFit(14.0, None), softening=ModelFit(14.0, None)
+    ),
 )
 PAIRED = Paired(15.0, 0.2, None, None, None, None, {}, 4, 1.0)  # read far from the fit: not chosen for it
 COMBINED = Combined(16.0, 0.3, 4, 1.0)

@@ -20,6 +20,7 @@ from app.gap.method_effects import (
     with_method_effects,
 )
 from app.gap.result import C2nEffect, Effect
+from app.results.fit_groups import DResult, SofteningResult
 
 G = 9.81
 
@@ -46,13 +47,9 @@ def _measured(
 ) -> Any:
     fit = SimpleNamespace(
         c2n=headline,
-        d_m=d,
-        d_ci95=d_ci,
-        d_fixed=False,
-        d_held_tight=False,
-        softening_per_mps2_2=s,
-        softening_se_per_mps2_2=s_se,
-        model="softening" if s is not None else "linear",
+        d=DResult(m=d, ci95_m=d_ci),
+        softening=None if s is None else SofteningResult(s, s_se or 0.0),
+        models=SimpleNamespace(chosen="softening" if s is not None else "linear"),
     )
     paired = (
         None
@@ -113,7 +110,7 @@ def test_d_within_its_interval_of_the_tape_or_held_at_it_is_no_finding() -> None
     near = _one(method_effects(_measured(d=0.797, d_ci=(0.786, 0.808)), _config()), "sensor_position_error")
     assert not near.matters
     held = _measured(d=0.7, d_ci=(0.7, 0.7))
-    held.regression.d_fixed = True
+    held.regression.d = replace(held.regression.d, held=True)
     assert not [e for e in method_effects(held, _config()) if e.effect == "sensor_position_error"]
 
 

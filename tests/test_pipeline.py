@@ -127,8 +127,8 @@ def test_misaligned_head_on_two_radii(config: Config) -> None:
     fit, paired = pipeline.state.regression, pipeline.state.paired
     assert fit is not None and paired is not None
     assert abs(fit.c2n / 14.6 - 1) <= 0.01 and fit.c2n_ci95[0] <= 14.6 <= fit.c2n_ci95[1]
-    assert fit.psi0_rad is not None and math.degrees(fit.psi0_rad) == pytest.approx(-0.3, abs=0.01)
-    assert abs(fit.d_m - 1.11) < 0.02
+    assert fit.psi0 is not None and math.degrees(fit.psi0.rad) == pytest.approx(-0.3, abs=0.01)
+    assert abs(fit.d.m - 1.11) < 0.02
     assert abs(paired.c2n / 14.6 - 1) <= 0.01
     assert paired.misalignment_rad is not None and math.degrees(paired.misalignment_rad) == pytest.approx(
         0.3, abs=0.02
@@ -176,7 +176,7 @@ def test_the_tape_s_d_widens_the_crossings_not_a_fit_that_places_d(config: Confi
     exact_config = dataclasses.replace(config, calibration=Calibration(d_tolerance_mm=0.0))
     exact = run_pipeline(exact_config, drive).snapshot()
     assert stated.regression is not None and exact.regression is not None
-    assert not stated.regression.d_fixed and stated.regression.c2n_se == exact.regression.c2n_se
+    assert not stated.regression.d.held and stated.regression.c2n_se == exact.regression.c2n_se
     paired, widened = exact.paired, stated.paired
     assert paired is not None and widened is not None and widened.c2n == pytest.approx(paired.c2n)
     tape = 0.010 / 1.96 / config.d_m
@@ -204,8 +204,8 @@ def test_a_small_pad_holds_d_at_the_tape_and_reads_the_rear_axle(config: Config)
     config = dataclasses.replace(config, priors=dataclasses.replace(config.priors, estimator="cascade"))
     snapshot = run_pipeline(config, drive).snapshot()
     fit, head, truth = snapshot.regression, snapshot.headline, drive.truth["c2n"]
-    assert fit is not None and fit.d_held_tight and fit.d_m == config.d_m
-    assert fit.tight_terms == ("ay_u_dot", "k2_ay")
+    assert fit is not None and fit.d.held_tight and fit.d.m == config.d_m
+    assert fit.samples.tight_terms == ("ay_u_dot", "k2_ay")
     assert head is not None and head.method == "regression"
     assert head.c2n == pytest.approx(truth, rel=0.005) and head.ci95[0] <= truth <= head.ci95[1]
     warnings = summary.build(snapshot, config, ["small pad"]).to_json()["warnings"]
@@ -225,7 +225,7 @@ def test_paired_crossings_on_softening_tyres_read_the_slope_at_zero_a_y(config: 
     drive = simulate_drive(config, options)
     snapshot = run_pipeline(config, drive).snapshot()
     truth, paired = drive.truth["c2n"], snapshot.paired
-    assert snapshot.regression is not None and snapshot.regression.model == "softening"
+    assert snapshot.regression is not None and snapshot.regression.models.chosen == "softening"
     assert paired is not None and paired.c2n == pytest.approx(truth, rel=0.005)
     assert paired.ci95[0] <= truth <= paired.ci95[1]
     raw = [c.c2n for c in snapshot.crossings]

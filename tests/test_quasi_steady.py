@@ -87,16 +87,18 @@ def fit_of(*drives: list[tuple[float, ...]], transient: bool = True, pooled: boo
 
 def test_the_yaw_inertia_s_and_the_load_transfer_s_terms_are_taken_apart_exactly() -> None:
     fit = fit_of(list(corners(math.radians(0.25))))
-    assert fit is not None and fit.transient_terms and fit.model == "linear"
+    assert fit is not None and fit.samples.transient_terms and fit.models.chosen == "linear"
     assert fit.c2n == pytest.approx(C2N, rel=1e-8)
-    assert fit.d_m == pytest.approx(D, rel=1e-8)
-    assert fit.psi0_rad == pytest.approx(math.radians(0.25), abs=1e-10)
-    assert fit.seconds == pytest.approx(2 * sum(8.0 + lap for lap in range(2)) / 2 * len(CORNERS), rel=0.01)
+    assert fit.d.m == pytest.approx(D, rel=1e-8)
+    assert fit.psi0 is not None and fit.psi0.rad == pytest.approx(math.radians(0.25), abs=1e-10)
+    assert fit.samples.duration_s == pytest.approx(
+        2 * sum(8.0 + lap for lap in range(2)) / 2 * len(CORNERS), rel=0.01
+    )
 
 
 def test_without_them_the_same_corners_read_c2n_wrong() -> None:
     fit = fit_of(list(corners(math.radians(0.25))), transient=False)
-    assert fit is not None and not fit.transient_terms
+    assert fit is not None and not fit.samples.transient_terms
     assert abs(fit.c2n / C2N - 1.0) > 0.005
 
 
@@ -105,11 +107,13 @@ def test_drives_pooled_each_keep_their_own_offset() -> None:
     first = list(corners(math.radians(0.3)))
     second = list(corners(math.radians(-0.2), t0=first[-1][0] + 100.0))
     fit = fit_of(first, second)
-    assert fit is not None and fit.logs == 2
-    assert fit.c2n == pytest.approx(C2N, rel=1e-8) and fit.d_m == pytest.approx(D, rel=1e-8)
-    assert fit.psi0_rad == pytest.approx(math.radians(0.3), abs=1e-10)  # the first drive's
+    assert fit is not None and fit.samples.logs == 2
+    assert fit.c2n == pytest.approx(C2N, rel=1e-8) and fit.d.m == pytest.approx(D, rel=1e-8)
+    assert fit.psi0 is not None and fit.psi0.rad == pytest.approx(
+        math.radians(0.3), abs=1e-10
+    )  # the first drive's
     one_offset = fit_of(first, second, pooled=False)
-    assert one_offset is not None and one_offset.logs == 1
+    assert one_offset is not None and one_offset.samples.logs == 1
     assert one_offset.c2n_se > 100 * fit.c2n_se  # the offsets' step is misfit: C2n lost in it
 
 
@@ -134,16 +138,15 @@ def test_a_yaw_rate_bias_is_fitted_and_taken_out_where_d_is_held() -> None:
         for t, u, r, v, r_dot, u_dot in corners(math.radians(0.25), circuit=LEFT_HANDED):
             regression.add(t, u, r + b, v, 0.0, r_dot, u_dot)
         fit = regression.fit()
-        assert fit is not None and fit.d_fixed and fit.transient_terms
+        assert fit is not None and fit.d.held and fit.samples.transient_terms
         return fit
 
     clean, biased = held(0.0), held(bias)
     assert clean.c2n == pytest.approx(C2N, rel=1e-8)
-    assert clean.yaw_bias_degps == pytest.approx(0.0, abs=1e-8)
+    assert clean.yaw_bias is not None and clean.yaw_bias.degps == pytest.approx(0.0, abs=1e-8)
     assert biased.c2n == pytest.approx(C2N, rel=2e-4)  # what is left: braking's a_y·u̇ with b in it
-    assert biased.yaw_bias_degps == pytest.approx(0.06, rel=0.01)
-    assert biased.yaw_bias_ci95_degps is not None
-    assert biased.yaw_bias_ci95_degps[0] <= biased.yaw_bias_degps <= biased.yaw_bias_ci95_degps[1]
+    assert biased.yaw_bias is not None and biased.yaw_bias.degps == pytest.approx(0.06, rel=0.01)
+    assert biased.yaw_bias.ci95_degps[0] <= biased.yaw_bias.degps <= biased.yaw_bias.ci95_degps[1]
 
 
 def test_drives_pooled_each_keep_their_own_yaw_rate_bias() -> None:
@@ -156,10 +159,12 @@ def test_drives_pooled_each_keep_their_own_yaw_rate_bias() -> None:
             regression.add(t, u, r + math.radians(bias), v, 0.0, r_dot, u_dot)
         t0 = t + 100.0
     fit = regression.fit()
-    assert fit is not None and fit.logs == 2 and fit.d_fixed
+    assert fit is not None and fit.samples.logs == 2 and fit.d.held
     assert fit.c2n == pytest.approx(C2N, rel=2e-4)
-    assert fit.yaw_bias_degps == pytest.approx(0.06, rel=0.05)  # the first's (one term shared: their mean)
-    assert fit.psi0_rad == pytest.approx(math.radians(0.3), abs=1e-5)
+    assert fit.yaw_bias is not None and fit.yaw_bias.degps == pytest.approx(
+        0.06, rel=0.05
+    )  # the first's (one term shared: their mean)
+    assert fit.psi0 is not None and fit.psi0.rad == pytest.approx(math.radians(0.3), abs=1e-5)
 
 
 def test_a_gyro_s_large_bias_is_not_taken_for_a_turn_force(config: Config) -> None:
@@ -174,8 +179,8 @@ def test_a_gyro_s_large_bias_is_not_taken_for_a_turn_force(config: Config) -> No
     pipeline.finish()
     fit = pipeline.snapshot().fit
     assert fit is not None and fit is pipeline.snapshot().quasi
-    assert fit.turn_force_pct is None
-    assert fit.yaw_bias_degps == pytest.approx(-1.0, abs=0.15)
+    assert fit.turn_force is None
+    assert fit.yaw_bias is not None and fit.yaw_bias.degps == pytest.approx(-1.0, abs=0.15)
     assert fit.c2n_ci95[0] <= drive.truth["c2n"] <= fit.c2n_ci95[1]
     assert fit.c2n == pytest.approx(drive.truth["c2n"], rel=0.015)
 
@@ -191,9 +196,9 @@ def test_the_yaw_rate_bias_s_interval_holds_it_at_its_stated_rate() -> None:
         for t, u, r, v, r_dot, u_dot in laps:
             regression.add(t, u, r + math.radians(bias), v + rng.normal(0.0, 0.02), 0.0, r_dot, u_dot)
         fit = regression.fit()
-        assert fit is not None and fit.yaw_bias_degps is not None and fit.yaw_bias_ci95_degps is not None
-        held += fit.yaw_bias_ci95_degps[0] <= bias <= fit.yaw_bias_ci95_degps[1]
-        errors.append(fit.yaw_bias_degps - bias)
+        assert fit is not None and fit.yaw_bias is not None
+        held += fit.yaw_bias.ci95_degps[0] <= bias <= fit.yaw_bias.ci95_degps[1]
+        errors.append(fit.yaw_bias.degps - bias)
     assert 54 <= held <= 60  # 90–100 % of 95 % intervals
     assert abs(float(np.mean(errors))) < 0.01  # unbiased: the noise's share is ±0.03 °/s a drive
 
@@ -334,8 +339,8 @@ def test_track_laps_give_c2n_from_their_quasi_steady_corners(
     assert headline.c2n == pytest.approx(truth, rel=0.01)
     assert headline.ci95[0] <= truth <= headline.ci95[1]
     fit = snapshot.quasi
-    assert fit is not None and fit.transient_terms and fit.psi0_rad is not None
-    assert math.degrees(fit.psi0_rad) == pytest.approx(-0.2, abs=0.05)
+    assert fit is not None and fit.samples.transient_terms and fit.psi0 is not None
+    assert math.degrees(fit.psi0.rad) == pytest.approx(-0.2, abs=0.05)
     result = summary.build(snapshot, config, ["track"]).to_json()
     assert result["c2n_method"] == "quasi-steady" and result["quasi_steady"]["seconds"] > 120
     cornering = result["cornering"]

@@ -42,11 +42,13 @@ def fitted(samples, **kwargs):
 
 def test_recovers_c2n_d_and_offset_exactly() -> None:
     fit = fitted(sweep_samples(14.99, 1.11, math.radians(-0.3), (80.0, -80.0)))
-    assert fit is not None and fit.model == "linear"
+    assert fit is not None and fit.models.chosen == "linear"
     assert fit.c2n == pytest.approx(14.99, rel=1e-9)
-    assert fit.d_m == pytest.approx(1.11, rel=1e-9)
-    assert fit.psi0_rad == pytest.approx(math.radians(-0.3), abs=1e-12)
-    assert fit.ay_range[1] == pytest.approx((1.4 * paper.crossing_speed(14.99, 1.11)) ** 2 / 80.0, rel=1e-6)
+    assert fit.d.m == pytest.approx(1.11, rel=1e-9)
+    assert fit.psi0 is not None and fit.psi0.rad == pytest.approx(math.radians(-0.3), abs=1e-12)
+    assert fit.samples.ay_range_mps2[1] == pytest.approx(
+        (1.4 * paper.crossing_speed(14.99, 1.11)) ** 2 / 80.0, rel=1e-6
+    )
 
 
 def test_softening_is_found_and_c2n_is_the_slope_at_zero() -> None:
@@ -57,10 +59,10 @@ def test_softening_is_found_and_c2n_is_the_slope_at_zero() -> None:
         for t, u, r, v in sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0, 120.0, -120.0), softening=0.002)
     ]
     fit = fitted(samples)
-    assert fit is not None and fit.model == "softening" and fit.softening_t < -5
+    assert fit is not None and fit.models.chosen == "softening" and fit.models.softening_t < -5
     assert fit.c2n == pytest.approx(12.0, rel=0.005)
-    assert fit.softening_per_mps2_2 == pytest.approx(0.002, rel=0.1)
-    assert fit.c2n_linear_model < 0.98 * 12.0  # what ignoring it would have said
+    assert fit.softening is not None and fit.softening.per_mps2_2 == pytest.approx(0.002, rel=0.1)
+    assert fit.models.linear.c2n < 0.98 * 12.0  # what ignoring it would have said
 
 
 def test_each_model_has_its_own_interval_whichever_is_chosen() -> None:
@@ -73,28 +75,30 @@ def test_each_model_has_its_own_interval_whichever_is_chosen() -> None:
             for t, u, r, v in sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0, 120.0, -120.0), softening=softening)
         ]
         fit = fitted(samples)
-        assert fit is not None and fit.model == chosen
-        assert fit.c2n_linear_ci95 is not None and fit.c2n_softening_ci95 is not None
+        assert fit is not None and fit.models.chosen == chosen
+        assert fit.models.softening is not None
+        assert fit.models.linear.ci95 is not None and fit.models.softening.ci95 is not None
         own, other = (
-            (fit.c2n_softening_ci95, fit.c2n_linear_ci95)
+            (fit.models.softening.ci95, fit.models.linear.ci95)
             if chosen == "softening"
-            else (fit.c2n_linear_ci95, fit.c2n_softening_ci95)
+            else (fit.models.linear.ci95, fit.models.softening.ci95)
         )
         assert own == pytest.approx(fit.c2n_ci95, rel=1e-12)
         # each interval is about its own model's C2n
-        assert sum(fit.c2n_linear_ci95) / 2 == pytest.approx(fit.c2n_linear_model, rel=1e-12)
-        assert fit.c2n_softening_model is not None
-        assert sum(fit.c2n_softening_ci95) / 2 == pytest.approx(fit.c2n_softening_model, rel=1e-12)
+        assert sum(fit.models.linear.ci95) / 2 == pytest.approx(fit.models.linear.c2n, rel=1e-12)
+        assert sum(fit.models.softening.ci95) / 2 == pytest.approx(fit.models.softening.c2n, rel=1e-12)
         assert other != own
         if chosen == "softening":  # the straight line misses the truth, the softening model holds it
             assert (
-                fit.c2n_linear_ci95[1] < 12.0
-                and fit.c2n_softening_ci95[0] <= 12.0 <= fit.c2n_softening_ci95[1]
+                fit.models.linear.ci95[1] < 12.0
+                and fit.models.softening.ci95[0] <= 12.0 <= fit.models.softening.ci95[1]
             )
         else:  # on linear tyres both hold it, the softening model's (a term more) the wider
-            width = fit.c2n_softening_ci95[1] - fit.c2n_softening_ci95[0]
-            assert width > fit.c2n_linear_ci95[1] - fit.c2n_linear_ci95[0]
-            assert all(low <= 12.0 <= high for low, high in (fit.c2n_linear_ci95, fit.c2n_softening_ci95))
+            width = fit.models.softening.ci95[1] - fit.models.softening.ci95[0]
+            assert width > fit.models.linear.ci95[1] - fit.models.linear.ci95[0]
+            assert all(
+                low <= 12.0 <= high for low, high in (fit.models.linear.ci95, fit.models.softening.ci95)
+            )
 
 
 def test_the_sensors_scale_tolerance_widens_the_interval_by_its_share() -> None:
@@ -111,27 +115,31 @@ def test_the_sensors_scale_tolerance_widens_the_interval_by_its_share() -> None:
     assert counted.c2n_se == pytest.approx(math.hypot(plain.c2n_se, 0.003 * plain.c2n), rel=1e-9)
     assert counted.c2n_ci95[1] - counted.c2n == pytest.approx(q * counted.c2n_se, rel=1e-9)
     assert counted.scale_se == 0.003 and plain.scale_se == 0.0
-    assert counted.c2n_linear_ci95 is not None and plain.c2n_linear_ci95 is not None
+    assert counted.models.linear.ci95 is not None and plain.models.linear.ci95 is not None
     assert (
-        counted.c2n_linear_ci95[1] - counted.c2n_linear_ci95[0]
-        > plain.c2n_linear_ci95[1] - plain.c2n_linear_ci95[0]
+        counted.models.linear.ci95[1] - counted.models.linear.ci95[0]
+        > plain.models.linear.ci95[1] - plain.models.linear.ci95[0]
     )
 
 
 def test_stiffening_is_not_taken_for_softening() -> None:
     fit = fitted(sweep_samples(12.0, 1.2, 0.0, (60.0, -60.0), softening=-0.002))
-    assert fit is not None and fit.model == "linear"
+    assert fit is not None and fit.models.chosen == "linear"
 
 
 def test_one_direction_one_radius_cannot_tell_offset_from_d() -> None:
     fit = fitted(sweep_samples(14.0, 1.0, 0.0, (70.0,)))
-    assert fit is not None and fit.psi0_rad is None
-    assert fit.c2n == pytest.approx(14.0, rel=1e-9) and fit.d_m == pytest.approx(1.0, rel=1e-9)
+    assert fit is not None and fit.psi0 is None
+    assert fit.c2n == pytest.approx(14.0, rel=1e-9) and fit.d.m == pytest.approx(1.0, rel=1e-9)
 
 
 def test_two_radii_one_direction_do_tell_them_apart() -> None:
     fit = fitted(sweep_samples(14.0, 1.0, math.radians(0.2), (70.0, 140.0)))
-    assert fit is not None and fit.psi0_rad == pytest.approx(math.radians(0.2), abs=1e-12)
+    assert (
+        fit is not None
+        and fit.psi0 is not None
+        and fit.psi0.rad == pytest.approx(math.radians(0.2), abs=1e-12)
+    )
 
 
 def test_too_little_data_gives_no_fit() -> None:
@@ -147,7 +155,7 @@ def test_merging_old_blocks_keeps_the_estimate() -> None:
     full = fitted(samples, max_blocks=4096)
     merged = fitted(samples, max_blocks=64)
     assert full is not None and merged is not None
-    assert merged.n_blocks <= 64 < full.n_blocks
+    assert merged.samples.blocks <= 64 < full.samples.blocks
     assert merged.c2n == pytest.approx(full.c2n, rel=1e-12)
     assert merged.c2n_se == pytest.approx(full.c2n_se, rel=0.5)  # coarser blocks, similar honesty
 
@@ -186,12 +194,12 @@ def test_a_narrow_ay_band_that_cannot_see_softening_widens_the_interval_to_both_
             t += 1.0 / hz
 
     narrow = fitted(circle(30.0, 3.0, 4.0))
-    assert narrow is not None and narrow.model == "linear" and not narrow.softening_resolved
-    assert narrow.softening_hidden_pct > 3.0
-    assert narrow.c2n_linear_model < 0.97 * c2n  # a confident straight line would be wrong ...
+    assert narrow is not None and narrow.models.chosen == "linear" and not narrow.models.resolved
+    assert narrow.models.hidden_pct > 3.0
+    assert narrow.models.linear.c2n < 0.97 * c2n  # a confident straight line would be wrong ...
     assert narrow.c2n_ci95[0] <= c2n <= narrow.c2n_ci95[1]  # ... the widened interval holds the truth
     wide = fitted(circle(30.0, 0.5, 4.0))
-    assert wide is not None and wide.softening_resolved and wide.softening_hidden_pct < 3.0
+    assert wide is not None and wide.models.resolved and wide.models.hidden_pct < 3.0
 
 
 def circle_samples(
@@ -228,17 +236,17 @@ def test_a_sloping_pad_is_fitted_and_taken_out_of_c2n() -> None:
     for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.02, -90.0, (60.0, -60.0, 90.0, -90.0)):
         regression.add(t, u, r, v, heading)
     fit = regression.fit()
-    assert fit is not None and fit.slope_pct is not None and fit.slope_ci95_pct is not None
+    assert fit is not None and fit.slope is not None
     assert fit.c2n == pytest.approx(14.0, rel=1e-9)
-    assert fit.d_m == pytest.approx(1.2, rel=1e-9)
-    assert fit.slope_pct == pytest.approx(2.0, rel=1e-9)
-    assert fit.slope_downhill_deg == pytest.approx(-90.0, abs=1e-6)
+    assert fit.d.m == pytest.approx(1.2, rel=1e-9)
+    assert fit.slope.pct == pytest.approx(2.0, rel=1e-9)
+    assert fit.slope.downhill_deg == pytest.approx(-90.0, abs=1e-6)
     falling_left = SampleRegression(G)
     for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.03, 45.0, (60.0, -60.0, 90.0, -90.0), 60.0):
         falling_left.add(t, u, r, v, heading)
     fit = falling_left.fit()
-    assert fit is not None and fit.slope_pct == pytest.approx(3.0, rel=1e-9)
-    assert fit.slope_downhill_deg == pytest.approx(45.0, abs=1e-6)
+    assert fit is not None and fit.slope is not None and fit.slope.pct == pytest.approx(3.0, rel=1e-9)
+    assert fit.slope.downhill_deg == pytest.approx(45.0, abs=1e-6)
     assert fit.c2n == pytest.approx(14.0, rel=1e-9)
 
 
@@ -250,15 +258,17 @@ def test_a_slope_s_load_transfer_is_fitted_and_leaves_c2n_as_on_the_level() -> N
     for t, u, r, v, heading in samples:
         regression.add(t, u, r, v, heading)
     fit = regression.fit()
-    assert fit is not None and fit.slope_pct == pytest.approx(3.0, rel=1e-9)
-    assert fit.slope_downhill_deg == pytest.approx(130.0, abs=1e-6)
-    assert fit.c2n == pytest.approx(14.0, rel=1e-9) and fit.d_m == pytest.approx(1.2, rel=1e-9)
+    assert fit is not None and fit.slope is not None and fit.slope.pct == pytest.approx(3.0, rel=1e-9)
+    assert fit.slope.downhill_deg == pytest.approx(130.0, abs=1e-6)
+    assert fit.c2n == pytest.approx(14.0, rel=1e-9) and fit.d.m == pytest.approx(1.2, rel=1e-9)
     level = SampleRegression(G)
     for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.0, 0.0, (60.0, -60.0, 90.0, -90.0)):
         level.add(t, u, r, v, heading)
     flat = level.fit()
     assert flat is not None and flat.c2n == pytest.approx(14.0, rel=1e-9)
-    assert flat.slope_pct == pytest.approx(0.0, abs=1e-6)  # no slope: its transfer terms stay out
+    assert flat.slope is not None and flat.slope.pct == pytest.approx(
+        0.0, abs=1e-6
+    )  # no slope: its transfer terms stay out
 
 
 def test_a_quarter_turn_of_headings_fits_no_slope() -> None:
@@ -267,7 +277,7 @@ def test_a_quarter_turn_of_headings_fits_no_slope() -> None:
     for t, u, r, v, heading in circle_samples(14.0, 1.2, 0.0, 0.0, (60.0, -60.0)):
         regression.add(t, u, r, v, heading % (math.pi / 4))
     fit = regression.fit()
-    assert fit is not None and fit.slope_pct is None and fit.slope_downhill_deg is None
+    assert fit is not None and fit.slope is None
 
 
 def test_the_heading_is_the_same_frame_by_frame_and_in_blocks() -> None:
@@ -307,7 +317,7 @@ def test_samples_at_one_speed_hold_d_at_the_tape_s_value_and_say_so(tolerance_mm
     at about their rate — neither narrower nor wider — when the tape is as good as stated."""
     rng = np.random.default_rng(8)
     free = fitted(one_speed_samples(14.0, 1.2, math.radians(0.2), 11.0, rng))
-    assert free is not None and not free.d_fixed  # no tape value: d fitted, and C2n barely placed
+    assert free is not None and not free.d.held  # no tape value: d fitted, and C2n barely placed
     assert free.c2n_ci95[1] - free.c2n_ci95[0] > 0.1 * 14.0
     tape_se = {} if tolerance_mm == 10.0 else {"d_tape_se_m": tolerance_mm / 1000.0 / 1.96}
     covered, errors, z = 0, [], []
@@ -316,8 +326,8 @@ def test_samples_at_one_speed_hold_d_at_the_tape_s_value_and_say_so(tolerance_mm
         tape = 1.2 + rng.normal(0.0, tolerance_mm / 1000.0 / 1.96)  # 95 % within the tolerance
         samples = one_speed_samples(14.0, 1.2, math.radians(0.2), 11.0, rng)
         fit = fitted(samples, d_tape_m=tape, **tape_se)
-        assert fit is not None and fit.d_fixed and fit.d_m == tape and fit.d_ci95 == (tape, tape)
-        assert fit.speed_range[0] == pytest.approx(11.0 * 0.99, rel=1e-3)
+        assert fit is not None and fit.d.held and fit.d.m == tape and fit.d.ci95_m == (tape, tape)
+        assert fit.samples.speed_range_mps[0] == pytest.approx(11.0 * 0.99, rel=1e-3)
         covered += fit.c2n_ci95[0] <= 14.0 <= fit.c2n_ci95[1]
         errors.append(abs(fit.c2n / 14.0 - 1.0))
         z.append((fit.c2n - 14.0) / fit.c2n_se)
@@ -329,8 +339,8 @@ def test_samples_at_one_speed_hold_d_at_the_tape_s_value_and_say_so(tolerance_mm
 
 def test_a_speed_sweep_fits_d_even_with_a_tape_value() -> None:
     fit = fitted(sweep_samples(14.99, 1.11, math.radians(-0.3), (80.0, -80.0)), d_tape_m=1.5)
-    assert fit is not None and not fit.d_fixed
-    assert fit.d_m == pytest.approx(1.11, rel=1e-9) and fit.c2n == pytest.approx(14.99, rel=1e-9)
+    assert fit is not None and not fit.d.held
+    assert fit.d.m == pytest.approx(1.11, rel=1e-9) and fit.c2n == pytest.approx(14.99, rel=1e-9)
 
 
 def _one_speed_summary(estimator: str) -> tuple[Any, dict[str, Any]]:
@@ -396,10 +406,12 @@ def test_a_force_that_follows_the_turn_is_fitted_and_taken_out_of_c2n() -> None:
         for t, u, r, v in sweep_samples(c2n, 1.1, math.radians(0.2), radii)
     ]
     fit = fitted(samples)
-    assert fit is not None and fit.turn_force_pct == pytest.approx(2.5, rel=1e-6)
-    assert fit.turn_step_rad == pytest.approx(step, rel=1e-6)
-    assert fit.c2n == pytest.approx(c2n, rel=1e-8) and fit.d_m == pytest.approx(1.1, rel=1e-8)
-    assert fit.turn_force_ci95_pct is not None and fit.turn_force_ci95_pct[0] > 2.0
+    assert (
+        fit is not None and fit.turn_force is not None and fit.turn_force.pct == pytest.approx(2.5, rel=1e-6)
+    )
+    assert fit.turn_force.step_rad == pytest.approx(step, rel=1e-6)
+    assert fit.c2n == pytest.approx(c2n, rel=1e-8) and fit.d.m == pytest.approx(1.1, rel=1e-8)
+    assert fit.turn_force.ci95_pct[0] > 2.0
 
 
 def test_no_turn_force_is_fitted_where_there_is_none() -> None:
@@ -407,7 +419,7 @@ def test_no_turn_force_is_fitted_where_there_is_none() -> None:
     radii = (60.0, -60.0, 90.0, -90.0, 130.0, -130.0)
     samples = [(t, u, r, v + rng.normal(0, 0.01)) for t, u, r, v in sweep_samples(14.0, 1.1, 0.0, radii)]
     fit = fitted(samples)
-    assert fit is not None and fit.turn_force_pct is None and fit.turn_step_rad is None
+    assert fit is not None and fit.turn_force is None
     assert fit.c2n == pytest.approx(14.0, rel=0.003)
 
 
@@ -418,8 +430,8 @@ def test_one_radius_each_way_cannot_tell_a_turn_force_from_d() -> None:
         for t, u, r, v in sweep_samples(14.0, 1.1, 0.0, (80.0, -80.0))
     ]
     fit = fitted(samples)
-    assert fit is not None and fit.turn_force_pct is None
-    assert fit.d_m == pytest.approx(1.1 + 0.002 * 80.0, rel=1e-6)
+    assert fit is not None and fit.turn_force is None
+    assert fit.d.m == pytest.approx(1.1 + 0.002 * 80.0, rel=1e-6)
 
 
 def tight_samples(
@@ -449,20 +461,20 @@ def test_on_radii_under_twenty_wheelbases_d_is_held_at_the_tape_s_value() -> Non
     centimetre of tape moves it (its interval counts one)."""
     samples = list(tight_samples(14.0, 1.11, math.radians(0.2), SMALL_PAD, split=0.1))
     free = fitted(samples)
-    assert free is not None and not free.d_fixed and abs(free.c2n / 14.0 - 1.0) > 0.01
+    assert free is not None and not free.d.held and abs(free.c2n / 14.0 - 1.0) > 0.01
     held = fitted(samples, d_tape_m=1.11, wheelbase_m=2.7)
-    assert held is not None and held.d_fixed and held.d_held_tight and held.d_m == 1.11
+    assert held is not None and held.d.held and held.d.held_tight and held.d.m == 1.11
     assert held.c2n == pytest.approx(14.0, rel=0.005)
-    assert held.c2n_per_tape_cm_pct is not None and held.c2n_per_tape_cm_pct > 1.0
+    assert held.d.per_tape_cm_pct is not None and held.d.per_tape_cm_pct > 1.0
     assert held.c2n_ci95[0] <= 14.0 <= held.c2n_ci95[1]
     # a wheelbase of 1 m puts the same radii at 25–36 wheelbases: d fitted
-    assert not fitted(samples, d_tape_m=1.11, wheelbase_m=1.0).d_fixed  # type: ignore[union-attr]
+    assert not fitted(samples, d_tape_m=1.11, wheelbase_m=1.0).d.held  # type: ignore[union-attr]
     # and wide circles keep d free where the tape is 2 cm out
     wide = fitted(
         sweep_samples(14.0, 1.11, 0.0, (70.0, -70.0, 140.0, -140.0)), d_tape_m=1.13, wheelbase_m=2.7
     )
-    assert wide is not None and not wide.d_fixed and wide.d_m == pytest.approx(1.11, rel=1e-9)
-    assert wide.tight_terms == ()
+    assert wide is not None and not wide.d.held and wide.d.m == pytest.approx(1.11, rel=1e-9)
+    assert wide.samples.tight_terms == ()
 
 
 def swept_pad_samples(c2n: float, d: float, psi0: float, wheels: float, transfer: float):
@@ -497,20 +509,26 @@ def test_a_small_pad_s_two_wheels_and_its_sweeps_load_transfer_are_fitted() -> N
         return regression.fit()
 
     held = fit(d_tape_m=1.11, wheelbase_m=2.7)
-    assert held is not None and held.d_held_tight and held.tight_terms == ("ay_u_dot", "k2_ay")
+    assert held is not None and held.d.held_tight and held.samples.tight_terms == ("ay_u_dot", "k2_ay")
     assert held.c2n == pytest.approx(14.0, rel=1e-9)
     assert held.c2n_ci95[0] <= 14.0 <= held.c2n_ci95[1]
     quasi = SampleRegression(G, d_tape_m=1.11, wheelbase_m=2.7, transient=True)  # ordinary driving's
     for t, u, r, v, u_dot in samples:  # fit: its ṙ and a_y·u̇ beside the pad's terms, none twice
         quasi.add(t, u, r, v, r_dot=u_dot * r / u, u_dot=u_dot)
     beside = quasi.fit()
-    assert beside is not None and beside.transient_terms and beside.tight_terms == ("ay_u_dot", "k2_ay")
+    assert (
+        beside is not None
+        and beside.samples.transient_terms
+        and beside.samples.tight_terms == ("ay_u_dot", "k2_ay")
+    )
     assert beside.c2n == pytest.approx(14.0, rel=1e-9)
     blind = fit(with_u_dot=False, d_tape_m=1.11, wheelbase_m=2.7)
-    assert blind is not None and blind.tight_terms == ("k2_ay",) and abs(blind.c2n / 14.0 - 1.0) > 0.003
+    assert (
+        blind is not None and blind.samples.tight_terms == ("k2_ay",) and abs(blind.c2n / 14.0 - 1.0) > 0.003
+    )
     free = fit()
-    assert free is not None and not free.d_fixed and free.tight_terms == ()
-    assert abs(free.c2n / 14.0 - 1.0) > 0.005 and abs(free.d_m - 1.11) > 0.002
+    assert free is not None and not free.d.held and free.samples.tight_terms == ()
+    assert abs(free.c2n / 14.0 - 1.0) > 0.005 and abs(free.d.m - 1.11) > 0.002
     # circles at one speed on the same radii: no sweep, so neither term (u̇ would be noise)
     regression = SampleRegression(G, d_tape_m=1.11, wheelbase_m=2.7)
     for i, radius in enumerate(np.repeat(SMALL_PAD, 1000)):
@@ -519,7 +537,7 @@ def test_a_small_pad_s_two_wheels_and_its_sweeps_load_transfer_are_fitted() -> N
         beta = kappa * 1.11 - ay / (G * 14.0) * (1.0 + 3.0 * kappa**2)
         regression.add(i / 50.0, u, u / radius, u * beta, u_dot=0.08 * math.cos(0.02 * i))
     circles = regression.fit()
-    assert circles is not None and circles.d_fixed and circles.tight_terms == ()
+    assert circles is not None and circles.d.held and circles.samples.tight_terms == ()
 
 
 @pytest.mark.parametrize("bad", [math.nan, -1e9])
@@ -530,7 +548,7 @@ def test_a_broken_u_dot_leaves_the_sweeps_term_out_not_the_fit(bad: float) -> No
     for i, (t, u, r, v, u_dot) in enumerate(swept_pad_samples(14.0, 1.11, 0.0, 3.0, -0.07)):
         regression.add(t, u, r, v, u_dot=bad if i % 97 == 0 else u_dot)
     fit = regression.fit()
-    assert fit is not None and "ay_u_dot" not in fit.tight_terms and math.isfinite(fit.c2n)
+    assert fit is not None and "ay_u_dot" not in fit.samples.tight_terms and math.isfinite(fit.c2n)
     assert fit.c2n == pytest.approx(14.0, rel=0.01) and fit.c2n_ci95[0] <= 14.0 <= fit.c2n_ci95[1]
 
 
@@ -538,7 +556,9 @@ def test_a_turn_force_is_found_where_no_sample_is_near_zero_a_y() -> None:
     """On a small pad every steady sample has a_y ≥ 1.6 m/s², so sign(κ) is nearly a_y's double;
     a 2.5 % turn force (CommonRoad's camber step) still shows and comes out exactly."""
     fit = fitted(tight_samples(14.0, 1.11, 0.0, SMALL_PAD, step=0.025 / 14.0), d_tape_m=1.11, wheelbase_m=2.7)
-    assert fit is not None and fit.turn_force_pct == pytest.approx(2.5, rel=1e-6)
+    assert (
+        fit is not None and fit.turn_force is not None and fit.turn_force.pct == pytest.approx(2.5, rel=1e-6)
+    )
     assert fit.c2n == pytest.approx(14.0, rel=1e-8)
 
 

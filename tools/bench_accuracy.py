@@ -183,8 +183,8 @@ def session(job: tuple[str, str, int, float, float | None]) -> dict[str, Any]:
         "headline_covers": covers(head.ci95 if head else None),
         "headline_z": z(head.c2n, head.ci95) if head and head.ci95 else None,
         "method": head.method if head else None,
-        "softening": fit is not None and fit.model == "softening",
-        "psi0_deg": math.degrees(fit.psi0_rad) if fit and fit.psi0_rad is not None else None,
+        "softening": fit is not None and fit.models.chosen == "softening",
+        "psi0_deg": math.degrees(fit.psi0.rad) if fit and fit.psi0 is not None else None,
         "paired": error(paired.c2n if paired else None),
         "paired_covers": covers(paired.ci95 if paired else None),
         "misalignment_deg": math.degrees(paired.misalignment_rad)
@@ -195,7 +195,7 @@ def session(job: tuple[str, str, int, float, float | None]) -> dict[str, Any]:
         "right": error(statistics.mean(rights)) if rights else None,
         "crossings": [error(c.c2n) for c in state.crossings],
         "against_tyre": 100.0 * (head.c2n / drive.truth["c2n"] - 1.0) if head else None,  # its parameter
-        "turn_force_pct": fit.turn_force_pct if fit else None,
+        "turn_force_pct": fit.turn_force.pct if fit and fit.turn_force else None,
         "frames_per_s": len(drive.messages) / elapsed,
     }
 

@@ -111,9 +111,9 @@ def _graded(fit: RegressionFit | None, truth: float, d_tape_m: float) -> dict[st
         "error": float(100.0 * (fit.c2n / truth - 1.0)),  # plain floats and bools: a JSON row
         "covers": bool(low <= truth <= high),
         "half": float(50.0 * (high - low) / truth),
-        "held": fit.held_open_by,
-        "softening": fit.model == "softening",
-        "d_apart": bool(not fit.d_fixed and not fit.d_ci95[0] <= d_tape_m <= fit.d_ci95[1]),
+        "held": fit.held_open.by if fit.held_open else None,
+        "softening": fit.models.chosen == "softening",
+        "d_apart": bool(not fit.d.held and not fit.d.ci95_m[0] <= d_tape_m <= fit.d.ci95_m[1]),
     }
 
 

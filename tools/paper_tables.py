@@ -123,7 +123,9 @@ def describe(state: Snapshot) -> str:
         parts.append(f"crossings {'—':>6} {'':9}")
     if state.regression is not None:
         fit = state.regression
-        parts.append(f"regression {fit.c2n:6.2f} ({100 * (fit.c2n / C2N_TRUTH - 1):+5.1f} %, {fit.model})")
+        parts.append(
+            f"regression {fit.c2n:6.2f} ({100 * (fit.c2n / C2N_TRUTH - 1):+5.1f} %, {fit.models.chosen})"
+        )
     return "  ".join(parts)
 
 

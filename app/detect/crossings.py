@@ -151,7 +151,7 @@ class CrossingDetector:
         self._runs: dict[Direction | None, _Run] = {}
         self._t_last: dict[Direction | None, float] = {}
         self._lasts: tuple[float, float] | None = None  # the runs' earliest and latest t_last
-        # the pad's slope as the regression last found it (its RegressionFit.tilt), taken out of
+        # the pad's slope as the regression last found it (its RegressionFit.slope.tilt), taken out of
         # each crossing's samples before the fit: a crossing happens at one heading
         self.tilt: tuple[float, float, float, float] | None = None
 

@@ -141,11 +141,11 @@ def _effect(
 def _sensor_position(m: Measured, config: Config) -> Effect | None:
     """d as the regression placed it, against the tape's."""
     fit, tape = m.regression, config.vehicle.sensor_ahead_of_rear_axle_m
-    if fit is None or fit.d_fixed or fit.d_held_tight or not tape:
+    if fit is None or fit.d.held or fit.d.held_tight or not tape:
         return None
-    lo, hi = fit.d_ci95
-    est = _Estimate(fit.d_m - tape, (hi - lo) / (2.0 * Z_INTERVAL))
-    crossing = 100.0 * (fit.d_m / tape - 1.0)  # u0²/(g·tape) against u0²/(g·d)
+    lo, hi = fit.d.ci95_m
+    est = _Estimate(fit.d.m - tape, (hi - lo) / (2.0 * Z_INTERVAL))
+    crossing = 100.0 * (fit.d.m / tape - 1.0)  # u0²/(g·tape) against u0²/(g·d)
     headline = 0.0 if m.summary.c2n_method == Method.REGRESSION else crossing
     shift = C2nEffect(round(crossing, 3), round(headline, 3))
     tolerance_m = config.calibration.d_tolerance_mm / 1000.0
@@ -154,7 +154,7 @@ def _sensor_position(m: Measured, config: Config) -> Effect | None:
         f"size {abs(est.value):.4g} m against the tape's tolerance of {tolerance_m:g} m"
     )
     action = (
-        f"the sensor sits {fit.d_m:.3f} m [{lo:.3f}, {hi:.3f}] ahead of the rear axle, not the tape's "
+        f"the sensor sits {fit.d.m:.3f} m [{lo:.3f}, {hi:.3f}] ahead of the rear axle, not the tape's "
         f"{tape:g} m: measure d again (single crossings, which rest on the tape's d, move "
         f"{crossing:+.1f} %; the regression places d itself)"
     )
@@ -225,12 +225,14 @@ def _crossing_ay(m: Measured) -> Sequence[float]:
 def _softening(m: Measured, config: Config) -> Effect | None:
     """The regression's a_y³ term: the tyres' (and the load transfer's) softening with slip."""
     fit = m.regression
-    if fit is None or fit.softening_per_mps2_2 is None or not fit.softening_se_per_mps2_2:
+    softening = fit.softening if fit is not None else None
+    if fit is None or softening is None or not softening.se_per_mps2_2:
         return None
-    s = _Estimate(fit.softening_per_mps2_2, fit.softening_se_per_mps2_2)
+    s = _Estimate(softening.per_mps2_2, softening.se_per_mps2_2)
     ay = np.asarray(_crossing_ay(m))
     crossing = float(np.mean(-100.0 * s.value * ay**2 / (1.0 + s.value * ay**2))) if len(ay) else None
-    headline = 0.0 if fit.model == "softening" and m.summary.c2n_method == Method.REGRESSION else crossing
+    chosen = fit.models.chosen == "softening" and m.summary.c2n_method == Method.REGRESSION
+    headline = 0.0 if chosen else crossing
     shift = C2nEffect(
         None if crossing is None else round(crossing, 3), None if headline is None else round(headline, 3)
     )

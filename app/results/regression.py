@@ -21,7 +21,7 @@ several per cent without the a_y³ term reaching |t| > 2; a linear interval ther
 wrong (Magic-Formula tyres at μ = 0.9, samples at 2.3–4 m/s²: −6 % with the truth outside). When
 the softening that could hide in the data (twice the standard error of the difference between the
 two models) exceeds ``UNRESOLVED_PCT`` of C2n — what real tyres soften by at the 4 m/s² gate, 3–4 %,
-would then pass unseen — the interval spans both models' intervals and ``softening_resolved``
+would then pass unseen — the interval spans both models' intervals and ``ModelChoice.resolved``
 says so (one circle to 3.5 m/s² sampled at 50–100 Hz: 1.4–2.2 %).
 
 A test pad is rarely level: a drainage slope of 1–2 % is common. Its gravity g·s·sin(D − ψ) pulls
@@ -59,7 +59,7 @@ A yaw rate that reads b high puts (r + b)/u and u·(r + b) into κ and a_y, whic
 sideslip by b·(u/(g·C2n) − d/u): the same for left and right corners, so on a circuit that turns
 mostly one way it leans on a_y (two-track track laps, 6 corners left and 2 right, a test day's
 ±0.02–0.08 °/s: C2n off by up to 0.7 %, in step with the bias). Where d is held and the speeds are
-apart, that one term is fitted too (``yaw_bias_degps``), its C2n refitted until it settles: track
+apart, that one term is fitted too (``YawBiasResult``), its C2n refitted until it settles: track
 laps 0.50 % / 1.19 % → 0.11 % / 0.92 % (median / worst of 20), the bias found within 0.04 °/s.
 It comes after the turn force's test, which it would otherwise take for its own on a circuit
 turning mostly one way (CommonRoad's track laps: the turn force lost, C2n 16 % off), and a turn
@@ -89,7 +89,18 @@ from typing import Literal
 import numpy as np
 
 from app.config import Priors
-from app.results.fit_groups import DResult, SlopeResult, SofteningResult, TurnForceResult
+from app.results.fit_groups import (
+    DResult,
+    FitSamples,
+    HeldOpen,
+    ModelChoice,
+    ModelFit,
+    Psi0Result,
+    SlopeResult,
+    SofteningResult,
+    TurnForceResult,
+    YawBiasResult,
+)
 from app.results.marginal import (
     Blocks,
     Posterior,
@@ -124,7 +135,7 @@ _SLOPE_SPREAD = 0.3  # the headings' spread (of sin ψ, cos ψ beside the other 
 # beyond which a slope's two terms are fitted
 D_TAPE_SE_M = 0.01 / 1.96  # the tape's d to ±1 cm at 95 % (the config's default): in C2n's interval
 D_HELD_GAIN = 2.0  # d is held at the tape's value where fitting it would widen C2n's interval this much
-_CM = 0.01  # metres: the tape step of c2n_per_tape_cm_pct, and of the decision below
+_CM = 0.01  # metres: the tape step of DResult.per_tape_cm_pct, and of the decision below
 D_HELD_REF_M = _CM  # ... beside the held interval with this much tape, whatever the config's tolerance
 # (a result's value does not depend on a stated tolerance, only its interval does)
 SLOPE_MIN_PCT = 0.25  # a slope under this moves C2n by less than the method's own error (a 2 %
@@ -150,85 +161,23 @@ _TURN_SPREAD = 0.02  # of sign(κ) beside the other terms beyond which it is tri
 
 @dataclass(frozen=True)
 class RegressionFit:
+    """C2n with its interval, and the rest of the fit in groups (app/results/fit_groups.py): one
+    per effect, None where the fit has no such effect to report."""
+
     c2n: float
     c2n_se: float
     c2n_ci95: tuple[float, float]
-    d_m: float
-    d_ci95: tuple[float, float]
-    psi0_rad: float | None  # None when the data cannot tell ψ0 from d (one direction, one radius)
-    psi0_ci95: tuple[float, float] | None
-    model: Literal["linear", "softening"]
-    softening_t: float  # t statistic of the a_y³ term (|t| > threshold keeps it)
-    softening_per_mps2_2: float | None  # s in α2 = a_y/(g·C2n)·(1 + s·a_y²)
-    c2n_linear_model: float
-    c2n_softening_model: float | None
-    n_samples: int
-    n_blocks: int
-    ay_range: tuple[float, float]
-    curvature_range: tuple[float, float]  # |κ| = |r/u| of the samples [1/m]: 1/κ are the radii driven
-    speed_range: tuple[float, float] = (math.nan, math.nan)  # u of the samples [m/s]
-    seconds: float = 0.0  # of driving the samples cover
-    logs: int = 1  # drives pooled, each with its own ψ0 (psi0_rad: the first one's)
-    transient_terms: bool = False  # the yaw inertia's and the speed's load transfer's terms kept
-    d_fixed: bool = False  # True: the samples could not place d, which is the tape's (d_ci95 a point)
-    d_held_tight: bool = False  # d held because most samples turned tighter than TIGHT_WHEELBASES
-    c2n_per_tape_cm_pct: float | None = None  # where d is held: how far 1 cm of d moves C2n, %
-    tight_terms: tuple[str, ...] = ()  # on a small pad, TIGHT_TERMS fitted: "ay_u_dot", "k2_ay"
-    softening_se_per_mps2_2: float | None = None  # s's standard error, where the term is kept
-    d_free_m: float | None = None  # d held, or under the marginal fit's tape prior: the top of d's
-    # interval as the samples alone place it (marginal: where they place it as well as the tape);
-    # below zero, the sensor is behind the axle: a role is the wrong way round
-    tilt: tuple[float, float, float, float] | None = None  # a slope found: the sideslip it adds is
-    # tilt · (sin ψ, cos ψ, a_y·sin ψ, a_y·cos ψ) [rad]; None where no slope was kept in the fit
-    softening_resolved: bool = True  # False: the data cannot tell linear tyres from softening ones
-    softening_hidden_pct: float = 0.0  # the softening, % of C2n, that could hide in the data (2 se)
-    slope_pct: float | None = None  # the pad's slope, where the headings let it be fitted
-    slope_ci95_pct: tuple[float, float] | None = None
-    slope_downhill_deg: float | None = None  # where it falls, from the start heading, left positive
-    turn_force_pct: float | None = None  # a rear force that follows the turn's direction, not its
-    # size, % of the axle's weight, + towards the turn's inside; None where not found
-    turn_force_ci95_pct: tuple[float, float] | None = None
-    turn_step_rad: float | None = None  # the sideslip step it makes, δ·sign(κ)
-    turn_step_se_rad: float | None = None
-    yaw_bias_degps: float | None = None  # the yaw rate's bias the quasi-steady samples show (it
-    # reads this much high); None where it was not fitted
-    yaw_bias_ci95_degps: tuple[float, float] | None = None
-    # each model's own 95 % interval, whichever was chosen: a campaign decides softening over a
-    # tyre set's sessions together (app/campaign/compare.py) and then needs the other one
-    c2n_linear_ci95: tuple[float, float] | None = None
-    c2n_softening_ci95: tuple[float, float] | None = None
+    samples: FitSamples
+    d: DResult
+    psi0: Psi0Result | None  # None when the data cannot tell ψ0 from d (one direction, one radius)
+    models: ModelChoice
+    softening: SofteningResult | None = None  # where the a_y³ term is kept
+    slope: SlopeResult | None = None  # where the headings let it be fitted
+    turn_force: TurnForceResult | None = None  # where one was found
+    yaw_bias: YawBiasResult | None = None  # where it was fitted
+    held_open: HeldOpen | None = None  # the marginal fit's
     scale_se: float = 0.0  # C2n's relative error from the sensors' scales, in its intervals
     estimator: Literal["cascade", "marginal"] = "cascade"  # terms chosen by tests, or all with priors
-    held_open_by: str | None = None  # marginal: the term contributing most to C2n's variance (a
-    # drive that cannot separate it from a_y), and the share of the variance it holds
-    held_open_share: float | None = None
-    # marginal, with a tape: what the drive tells of d, as its information over the tape's (the
-    # posterior's precision less the prior's, over the prior's); under 1 the tape places d better
-    d_information: float | None = None
-
-    @property
-    def slope(self) -> SlopeResult | None:
-        if self.slope_pct is None or self.slope_ci95_pct is None or self.slope_downhill_deg is None:
-            return None
-        return SlopeResult(self.slope_pct, self.slope_ci95_pct, self.slope_downhill_deg, self.tilt)
-
-    @property
-    def softening(self) -> SofteningResult | None:
-        if self.softening_per_mps2_2 is None:
-            return None
-        return SofteningResult(self.softening_per_mps2_2, self.softening_se_per_mps2_2, self.softening_t)
-
-    @property
-    def turn_force(self) -> TurnForceResult | None:
-        if self.turn_force_pct is None:
-            return None
-        return TurnForceResult(
-            self.turn_force_pct, self.turn_force_ci95_pct, self.turn_step_rad, self.turn_step_se_rad
-        )
-
-    @property
-    def d(self) -> DResult:
-        return DResult(self.d_m, self.d_ci95, self.d_fixed, self.c2n_per_tape_cm_pct)
 
 
 class SampleRegression:
@@ -513,15 +462,16 @@ class SampleRegression:
         assert self.d_tape_m is not None
         alone = data_alone(wide, Term.D, self.d_tape_m, wide_sd)
         if alone is None:
-            return replace(fit, d_information=0.0)
+            return replace(fit, d=replace(fit.d, information=0.0))
         tape_sd = max(self.d_tape_se_m, D_EXACT_SD_M)
         information = tape_sd**2 / alone[1] if alone[1] > 0 else math.inf
         if not apart:
-            return replace(fit, d_information=information)
+            return replace(fit, d=replace(fit.d, information=information))
         from scipy.special import stdtrit
 
-        q = float(stdtrit(max(fit.n_blocks - len(wide.terms), 1), 0.5 + confidence / 2.0))
-        return replace(fit, d_information=information, d_free_m=alone[0] + q * math.sqrt(alone[1]))
+        q = float(stdtrit(max(fit.samples.blocks - len(wide.terms), 1), 0.5 + confidence / 2.0))
+        free_m = alone[0] + q * math.sqrt(alone[1])
+        return replace(fit, d=replace(fit.d, information=information, free_m=free_m))
 
     def _marginal_posterior(
         self, priors: Priors, design: "_Design", b_ay: float, d_sd: float, start: Posterior | None = None
@@ -580,7 +530,7 @@ class SampleRegression:
         covered: frozenset[Term],
     ) -> RegressionFit | None:
         """The result of d's priors' mixture: C2n and d from both posteriors by their weights, the
-        rest (terms reported, ``held_open_by``) from the heavier one; a slope and a turn force
+        rest (terms reported, ``HeldOpen``) from the heavier one; a slope and a turn force
         reported only where the drive's layout covers them (``covered``: headings, turns' directions)."""
         # a_y's coefficient above zero is kept, C2n below zero: a role the wrong way round, which
         # Snapshot.sign_problem explains from d and the signs (the cascade's fits do the same)
@@ -627,40 +577,45 @@ class SampleRegression:
             c2n=c2n,
             c2n_se=c2n_se,
             c2n_ci95=c2n_ci,
-            d_m=d_m,
-            d_ci95=d_ci,
-            psi0_rad=post.value(Term.PSI0),
-            psi0_ci95=ci(Term.PSI0),
-            model="softening" if softens else "linear",
-            softening_t=t3,
-            softening_per_mps2_2=-post.value(Term.AY3) * self.g * c2n if softens else None,
-            softening_se_per_mps2_2=post.se(Term.AY3) * self.g * abs(c2n) if softens else None,
-            c2n_linear_model=c2n,
-            c2n_softening_model=c2n,
-            n_samples=self.n_samples,
-            n_blocks=blocks,
-            ay_range=(self._ay_min, self._ay_max),
-            curvature_range=(self._kappa_min, self._kappa_max),
-            speed_range=(self._u_min, self._u_max),
-            seconds=self._seconds,
-            logs=logs,
-            transient_terms=True,
-            tilt=_tilt(fit) if slope_shown else None,
-            slope_pct=slope[0] if slope and slope_shown else None,
-            slope_ci95_pct=slope[1] if slope and slope_shown else None,
-            slope_downhill_deg=slope[2] if slope and slope_shown else None,
-            turn_force_pct=100.0 * _turn(fit, self.g) if turn else None,
-            turn_force_ci95_pct=_turn_ci(fit, self.g, q) if turn else None,
-            turn_step_rad=post.value(Term.TURN) if turn else None,
-            turn_step_se_rad=post.se(Term.TURN) if turn else None,
-            yaw_bias_degps=bias[0] if bias else None,
-            yaw_bias_ci95_degps=bias[1] if bias else None,
-            c2n_linear_ci95=c2n_ci,
-            c2n_softening_ci95=c2n_ci,
+            samples=FitSamples(
+                count=self.n_samples,
+                blocks=blocks,
+                ay_range_mps2=(self._ay_min, self._ay_max),
+                curvature_range_per_m=(self._kappa_min, self._kappa_max),
+                speed_range_mps=(self._u_min, self._u_max),
+                duration_s=self._seconds,
+                logs=logs,
+                transient_terms=True,
+            ),
+            d=DResult(m=d_m, ci95_m=d_ci),
+            psi0=Psi0Result(post.value(Term.PSI0), ci(Term.PSI0)),
+            models=ModelChoice(
+                chosen="softening" if softens else "linear",
+                softening_t=t3,
+                linear=ModelFit(c2n, c2n_ci),
+                softening=ModelFit(c2n, c2n_ci),
+            ),
+            softening=SofteningResult(
+                per_mps2_2=-post.value(Term.AY3) * self.g * c2n,
+                se_per_mps2_2=post.se(Term.AY3) * self.g * abs(c2n),
+            )
+            if softens
+            else None,
+            slope=SlopeResult(slope[0], slope[1], slope[2], _tilt(fit)) if slope and slope_shown else None,
+            turn_force=TurnForceResult(
+                pct=100.0 * _turn(fit, self.g),
+                ci95_pct=_turn_ci(fit, self.g, q),
+                step_rad=post.value(Term.TURN),
+                step_se_rad=post.se(Term.TURN),
+            )
+            if turn
+            else None,
+            yaw_bias=YawBiasResult(bias[0], bias[1]) if bias else None,
+            held_open=HeldOpen(_NAMES.get(held[0], "psi0" if held[0] >= _K else None), held[1])
+            if held
+            else None,
             scale_se=self.scale_se,
             estimator="marginal",
-            held_open_by=_NAMES.get(held[0], "psi0" if held[0] >= _K else None) if held else None,
-            held_open_share=held[1] if held else None,
         )
 
     def fit(self) -> RegressionFit | None:
@@ -867,45 +822,49 @@ class SampleRegression:
             c2n=c2n,
             c2n_se=c2n_se,
             c2n_ci95=c2n_ci95,
-            d_m=d,
-            d_ci95=ci(d, d_se),
-            psi0_rad=psi0,
-            psi0_ci95=ci(psi0, psi0_se) if psi0 is not None and psi0_se is not None else None,
-            model="softening" if chosen is cubic else "linear",
-            softening_t=t3,
-            softening_per_mps2_2=softening,
-            softening_se_per_mps2_2=softening_se,
-            c2n_linear_model=c2n_linear,
-            c2n_softening_model=c2n_cubic,
-            n_samples=c.n,
-            n_blocks=c.blocks,
-            ay_range=(self._ay_min, self._ay_max),
-            curvature_range=(self._kappa_min, self._kappa_max),
-            speed_range=(self._u_min, self._u_max),
-            seconds=self._seconds,
-            logs=c.logs,
-            transient_terms=c.transient,
-            d_fixed=c.d_fixed,
-            d_held_tight=c.d_fixed and c.tight and not c.narrow,
-            tight_terms=tuple(_TERMS[t] for t in TIGHT_TERMS if t in terms),
-            c2n_per_tape_cm_pct=100.0 * self._tape_shift(chosen, c.xtx, c.xty, c.run, c.n, _CM) / c2n
-            if c.d_fixed
+            samples=FitSamples(
+                count=c.n,
+                blocks=c.blocks,
+                ay_range_mps2=(self._ay_min, self._ay_max),
+                curvature_range_per_m=(self._kappa_min, self._kappa_max),
+                speed_range_mps=(self._u_min, self._u_max),
+                duration_s=self._seconds,
+                logs=c.logs,
+                transient_terms=c.transient,
+                tight_terms=tuple(_TERMS[t] for t in TIGHT_TERMS if t in terms),
+            ),
+            d=DResult(
+                m=d,
+                ci95_m=ci(d, d_se),
+                held=c.d_fixed,
+                held_tight=c.d_fixed and c.tight and not c.narrow,
+                per_tape_cm_pct=100.0 * self._tape_shift(chosen, c.xtx, c.xty, c.run, c.n, _CM) / c2n
+                if c.d_fixed
+                else None,
+                free_m=_plain_d(*c.plain, c.run, c.n, q) if c.d_fixed and c.wide else None,
+            ),
+            psi0=Psi0Result(psi0, ci(psi0, psi0_se)) if psi0 is not None and psi0_se is not None else None,
+            models=ModelChoice(
+                chosen="softening" if chosen is cubic else "linear",
+                softening_t=t3,
+                linear=ModelFit(c2n_linear, model_ci(c.linear)),
+                softening=ModelFit(c2n_cubic, model_ci(cubic)),
+                resolved=resolved,
+                hidden_pct=hidden,
+            ),
+            softening=SofteningResult(softening, softening_se)
+            if softening is not None and softening_se is not None
             else None,
-            d_free_m=_plain_d(*c.plain, c.run, c.n, q) if c.d_fixed and c.wide else None,
-            tilt=_tilt(chosen),
-            turn_force_pct=100.0 * _turn(chosen, self.g) if Term.TURN in terms else None,
-            turn_force_ci95_pct=_turn_ci(chosen, self.g, q) if Term.TURN in terms else None,
-            turn_step_rad=float(chosen.coef[terms.index(Term.TURN)]) if Term.TURN in terms else None,
-            turn_step_se_rad=_se(chosen, Term.TURN) if Term.TURN in terms else None,
-            yaw_bias_degps=bias[0] if bias else None,
-            yaw_bias_ci95_degps=bias[1] if bias else None,
-            softening_resolved=resolved,
-            softening_hidden_pct=hidden,
-            slope_pct=slope[0] if slope else None,
-            slope_ci95_pct=slope[1] if slope else None,
-            slope_downhill_deg=slope[2] if slope else None,
-            c2n_linear_ci95=model_ci(c.linear),
-            c2n_softening_ci95=model_ci(cubic),
+            slope=SlopeResult(slope[0], slope[1], slope[2], _tilt(chosen)) if slope else None,
+            turn_force=TurnForceResult(
+                pct=100.0 * _turn(chosen, self.g),
+                ci95_pct=_turn_ci(chosen, self.g, q),
+                step_rad=float(chosen.coef[terms.index(Term.TURN)]),
+                step_se_rad=_se(chosen, Term.TURN),
+            )
+            if Term.TURN in terms
+            else None,
+            yaw_bias=YawBiasResult(bias[0], bias[1]) if bias else None,
             scale_se=self.scale_se,
         )
 
@@ -935,7 +894,7 @@ class _Cascade:
     d_fixed: bool = False
     narrow: bool = False  # the design cannot place d beside C2n (one speed)
     plain: "tuple[np.ndarray, np.ndarray, list[int]]" = field(init=False)  # d free, no yaw-rate
-    # bias's columns, the terms kept before the bias: d_free_m's fit (``_with_yaw_bias`` takes it)
+    # bias's columns, the terms kept before the bias: DResult.free_m's fit (``_with_yaw_bias`` takes it)
     yaw_bias: "_YawBias | None" = None
 
     def __post_init__(self) -> None:

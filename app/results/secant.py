@@ -4,7 +4,7 @@ A crossing reads C2n = u0²/(g·d) (eq. 7). Where the tyres soften with slip, α
 s·a_y²), the sideslip changes sign where u0²/(g·d) meets the tyres' secant, C2n/(1 + s·a0²) at the
 crossing's own a0 — below the slope at zero that the regression reports (Magic-Formula tyres at
 μ = 1: about 1 % at 2.5 m/s², 3 % at 4). A crossing, at one a_y, cannot see s; the regression, over
-every steady sample, can (``RegressionFit.softening_per_mps2_2``). So where it keeps the softening
+every steady sample, can (``RegressionFit.softening.per_mps2_2``). So where it keeps the softening
 term, the pairing and the combination scale each crossing by 1 + s·a0², its interval widened by
 s's own error. Beyond the regression's a_y (the steady gate's 4 m/s²) the a_y³ term extrapolates
 and under-reads the secant.

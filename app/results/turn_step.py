@@ -4,7 +4,7 @@ A force that follows the turn's direction but not its size (a tyre formula's cam
 in the suspension) adds a step δ·sign(κ) to the sideslip at every speed, so each crossing's zero
 moves: on a circle of radius R its local fit of v/r against u² gains δ·R, and u0² moves by
 δ·R/slope (``Crossing.u0sq_per_step``). A crossing cannot see δ (it is one radius, one speed);
-the regression, over radii and directions, can (``RegressionFit.turn_step_rad``). So once the
+the regression, over radii and directions, can (``RegressionFit.turn_force.step_rad``). So once the
 regression has found a step, every crossing — also those found before it was known — is moved
 back by it, its interval widened by the step's own error. On CommonRoad's car the step is
 2–3 % of the rear axle's weight: 0.05–0.2 m of the sensor's d at the standard session's radii.

@@ -288,16 +288,16 @@ class Dashboard(Display):
         lines: list[RenderableType] = [table, result]
         fit = snapshot.fit
         if fit is not None:
-            psi0 = f"ψ0 {math.degrees(fit.psi0_rad):+.3f}°" if fit.psi0_rad is not None else "ψ0 —"
-            model = "softening tyre model" if fit.model == "softening" else "linear"
-            if not fit.softening_resolved:
+            psi0 = f"ψ0 {math.degrees(fit.psi0.rad):+.3f}°" if fit.psi0 is not None else "ψ0 —"
+            model = "softening tyre model" if fit.models.chosen == "softening" else "linear"
+            if not fit.models.resolved:
                 model += " (softening not ruled out: interval widened)"
             name = Method.QUASI_STEADY if fit is snapshot.quasi else Method.REGRESSION
             lines.append(
                 Text(
-                    f"{name}: d {fit.d_m:.3f} m [{fit.d_ci95[0]:.3f}, {fit.d_ci95[1]:.3f}] "
+                    f"{name}: d {fit.d.m:.3f} m [{fit.d.ci95_m[0]:.3f}, {fit.d.ci95_m[1]:.3f}] "
                     f"(config {snapshot.d_m:g}), {psi0}, {model}, "
-                    f"a_y {fit.ay_range[0]:.1f}–{fit.ay_range[1]:.1f} m/s²"
+                    f"a_y {fit.samples.ay_range_mps2[0]:.1f}–{fit.samples.ay_range_mps2[1]:.1f} m/s²"
                 )
             )
         paired = snapshot.paired

@@ -39,20 +39,21 @@ def result_line(snapshot: Snapshot) -> str:
     how = headline.method.value
     fit = snapshot.fit
     if fit is not None and headline.method is Method.QUASI_STEADY:
+        samples = fit.samples
         how = (
-            f"quasi-steady cornering: {fit.seconds:.0f} s, {fit.n_samples:,} samples at "
-            f"{fit.speed_range[0]:.1f}–{fit.speed_range[1]:.1f} m/s, a_y {fit.ay_range[0]:.1f}–"
-            f"{fit.ay_range[1]:.1f} m/s²"
+            f"quasi-steady cornering: {samples.duration_s:.0f} s, {samples.count:,} samples at "
+            f"{samples.speed_range_mps[0]:.1f}–{samples.speed_range_mps[1]:.1f} m/s, a_y "
+            f"{samples.ay_range_mps2[0]:.1f}–{samples.ay_range_mps2[1]:.1f} m/s²"
         )
-        if fit.logs > 1:
-            how += f", {fit.logs} drives pooled"
-        if not fit.softening_resolved:
+        if samples.logs > 1:
+            how += f", {samples.logs} drives pooled"
+        if not fit.models.resolved:
             how += "; interval widened: the a_y range cannot rule out softening tyres"
     elif fit is not None:
-        how = f"regression over {fit.n_samples:,} steady samples"
-        if fit.model == "softening":
+        how = f"regression over {fit.samples.count:,} steady samples"
+        if fit.models.chosen == "softening":
             how += ", extrapolated to zero a_y"
-        elif not fit.softening_resolved:
+        elif not fit.models.resolved:
             how += "; interval widened: the a_y range cannot rule out softening tyres"
     if fit is not None and fit.scale_se > 0 and headline.method.is_fit:
         how += f"; the sensors' scale counted, σ {100 * fit.scale_se:.2f} %"
@@ -72,11 +73,11 @@ def fit_line(snapshot: Snapshot) -> str | None:
     parts = []
     fit = snapshot.fit
     if fit is not None and snapshot.sign_problem is None:
-        lo, hi = fit.d_ci95
-        parts.append(f"d = {fit.d_m:.3f} m [{lo:.3f}, {hi:.3f}] (config {snapshot.d_m:g})")
-        if fit.psi0_rad is not None and fit.psi0_ci95 is not None:
-            plo, phi = (math.degrees(x) for x in fit.psi0_ci95)
-            parts.append(f"ψ0 = {math.degrees(fit.psi0_rad):+.3f}° [{plo:+.3f}, {phi:+.3f}]")
+        lo, hi = fit.d.ci95_m
+        parts.append(f"d = {fit.d.m:.3f} m [{lo:.3f}, {hi:.3f}] (config {snapshot.d_m:g})")
+        if fit.psi0 is not None:
+            plo, phi = (math.degrees(x) for x in fit.psi0.ci95_rad)
+            parts.append(f"ψ0 = {math.degrees(fit.psi0.rad):+.3f}° [{plo:+.3f}, {phi:+.3f}]")
     paired = snapshot.paired
     if paired is not None and paired.misalignment_rad is not None and paired.misalignment_se is not None:
         half = 1.96 * math.degrees(paired.misalignment_se)

@@ -342,10 +342,10 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         )
     # drives apart: no pooled fit to speak of; a role the wrong way round: no fit's terms to trust
     fit = snapshot.fit if not snapshot.drives_disagree and not snapshot.sign_problem else None
-    if fit is not None and not fit.d_ci95[0] <= config.d_m <= fit.d_ci95[1]:
-        low, high = fit.d_ci95
+    if fit is not None and not fit.d.ci95_m[0] <= config.d_m <= fit.d.ci95_m[1]:
+        low, high = fit.d.ci95_m
         out.append(
-            f"the fitted sensor position d = {fit.d_m:.3f} m [{low:.3f}, {high:.3f}] disagrees with the "
+            f"the fitted sensor position d = {fit.d.m:.3f} m [{low:.3f}, {high:.3f}] disagrees with the "
             f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
             "with d; the regression's does not)"
         )
@@ -360,64 +360,65 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
             "the linear range, transients): the pooled C2n rests on the others"
         )
     tape = f"±{config.calibration.d_tolerance_mm:g} mm"
-    if fit is not None and fit.d_fixed and fit is snapshot.quasi:
+    if fit is not None and fit.d.held and fit is snapshot.quasi:
         out.append(
             f"quasi-steady cornering cannot place the sensor's d beside C2n as a sweep does: d is the "
             f"config's {config.d_m:g} m (its interval counts the tape's {tape}) — measure it with a tape"
         )
-    elif fit is not None and fit.d_held_tight:
+    elif fit is not None and fit.d.held_tight:
         wheelbases = TIGHT_WHEELBASES * (config.vehicle.wheelbase_m or WHEELBASE_M)
         out.append(
             f"most steady samples turned on radii under {wheelbases:.0f} m ({TIGHT_WHEELBASES:g} "
             f"wheelbases), where the sensor's d cannot be fitted beside C2n: d is the config's "
-            f"{config.d_m:g} m, and each cm of d moves C2n by {fit.c2n_per_tape_cm_pct or 0.0:.1f} % here "
+            f"{config.d_m:g} m, and each cm of d moves C2n by {fit.d.per_tape_cm_pct or 0.0:.1f} % here "
             f"(its interval counts the tape's {tape}) — measure d to the millimetre, or sweep on wider "
             "circles"
         )
-    elif fit is not None and fit.d_fixed:
-        low, high = fit.speed_range
+    elif fit is not None and fit.d.held:
+        low, high = fit.samples.speed_range_mps
         out.append(
             f"the steady samples span {low:.1f}–{high:.1f} m/s only: too narrow to fit the sensor's d beside "
             f"C2n, so d is the config's {config.d_m:g} m (its interval counts the tape's {tape}); sweep the "
             "speed through u0 to measure both"
         )
-    elif fit is not None and fit.d_information is not None and fit.d_information < 1.0:
-        low, high = fit.speed_range
+    elif fit is not None and fit.d.information is not None and fit.d.information < 1.0:
+        low, high = fit.samples.speed_range_mps
         where = (
             "quasi-steady cornering"
             if fit is snapshot.quasi
             else f"the steady samples ({low:.1f}–{high:.1f} m/s)"
         )
         out.append(
-            f"{where} place the sensor's d less well than the tape does ({fit.d_information:.2f} of its "
+            f"{where} place the sensor's d less well than the tape does ({fit.d.information:.2f} of its "
             f"information): C2n rests on the config's {config.d_m:g} m more than on the drive (its interval "
             f"counts the tape's {tape}); sweep the speed through u0 on two radii to measure both"
         )
-    if fit is not None and fit.model == "softening":
+    if fit is not None and fit.models.chosen == "softening":
         beside = (  # the marginal fit has the softening in its model whatever the drive: no other line
             "its interval counts the softening's spread"
             if fit.estimator == "marginal"
-            else f"a straight-line fit would give {fit.c2n_linear_model:.3f}"
+            else f"a straight-line fit would give {fit.models.linear.c2n:.3f}"
         )
         out.append(
-            f"the tyres soften with slip (t = {fit.softening_t:.1f}): C2n is extrapolated to zero lateral "
-            f"acceleration ({fit.c2n:.3f}; {beside})"
+            f"the tyres soften with slip (t = {fit.models.softening_t:.1f}): C2n is extrapolated to zero "
+            f"lateral acceleration ({fit.c2n:.3f}; {beside})"
         )
-    if fit is not None and not fit.softening_resolved:
-        low, high = fit.ay_range
+    if fit is not None and not fit.models.resolved:
+        low, high = fit.samples.ay_range_mps2
         out.append(
             f"the steady samples span a_y {low:.1f}–{high:.1f} m/s² only: too narrow to tell linear tyres "
-            f"from softening ones (a softening of {fit.softening_hidden_pct:.0f} % could hide in it), so the "
+            f"from softening ones (a softening of {fit.models.hidden_pct:.0f} % could hide in it), so the "
             "interval covers both; steady laps at lower a_y (slower, or a larger circle) would narrow it"
         )
     slope = _slope_warning(fit)
     if slope is not None:
         out.append(slope)
-    if fit is not None and fit.turn_force_pct is not None and fit.turn_force_ci95_pct is not None:
-        low, high = fit.turn_force_ci95_pct
+    turn = fit.turn_force if fit is not None else None
+    if turn is not None:
+        low, high = turn.ci95_pct
         out.append(
             f"the rear tyres make a force that follows the turn's direction, not its size: "
-            f"{fit.turn_force_pct:+.2f} % [{low:+.2f}, {high:+.2f}] of the axle's weight (towards the "
+            f"{turn.pct:+.2f} % [{low:+.2f}, {high:+.2f}] of the axle's weight (towards the "
             "turn's inside; a tyre's camber step, friction in the suspension): the regression takes it out "
             "of C2n; each crossing carries it (it moves the sign change as a sensor d·κ further ahead would)"
         )
@@ -468,15 +469,14 @@ SLOPE_WARN_PCT = 1.0  # a pad slope this steep, and beyond its noise, is worth a
 def _slope_warning(fit: RegressionFit | None) -> str | None:
     """A slope the regression found: where it falls, that it is taken out of C2n, and that the
     crossings (each at one heading) still carry it."""
-    if fit is None or fit.slope_pct is None or fit.slope_ci95_pct is None or fit.slope_downhill_deg is None:
+    slope = fit.slope if fit is not None else None
+    if slope is None or slope.pct < SLOPE_WARN_PCT or slope.ci95_pct[0] <= 0.0:
         return None
-    if fit.slope_pct < SLOPE_WARN_PCT or fit.slope_ci95_pct[0] <= 0.0:
-        return None
-    towards = fit.slope_downhill_deg
+    towards = slope.downhill_deg
     side = "left" if towards >= 0 else "right"
-    low, high = fit.slope_ci95_pct
+    low, high = slope.ci95_pct
     return (
-        f"the test pad slopes {fit.slope_pct:.1f} % [{low:.1f}, {high:.1f}] "
+        f"the test pad slopes {slope.pct:.1f} % [{low:.1f}, {high:.1f}] "
         f"(falling {abs(towards):.0f}° {side} of the start heading): the regression takes it out of C2n; "
         "each crossing happens at one heading and carries it — pair left and right circles, or find a "
         "level pad"
@@ -498,9 +498,9 @@ def _sideslip_flip_warning(snapshot: Snapshot, fit: RegressionFit | None, config
     nominal = config.tyres.c2n_per_rad
     if fit is None or not nominal or snapshot.d_witnessed or not fit.c2n > 0:
         return None
-    u = 0.5 * (fit.speed_range[0] + fit.speed_range[1])
+    u = 0.5 * (fit.samples.speed_range_mps[0] + fit.samples.speed_range_mps[1])
     g = config.vehicle.gravity_mps2
-    turned = 2.0 * fit.d_m / u**2 - 1.0 / (g * fit.c2n)
+    turned = 2.0 * fit.d.m / u**2 - 1.0 / (g * fit.c2n)
     other = 1.0 / (g * turned) if turned > 0 else math.nan
     off = abs(fit.c2n / nominal - 1.0)
     if not (off > NOMINAL_OFF and abs(other / nominal - 1.0) < off / 3.0):
@@ -518,10 +518,10 @@ def _crossing_beyond_gate(snapshot: Snapshot, config: Config) -> str | None:
     fit, limit = snapshot.regression, config.detector.ay_max_mps2
     if snapshot.crossings or fit is None or snapshot.sign_problem or not fit.c2n > 0:
         return None
-    curvature = fit.curvature_range[0]  # the largest circle driven
-    if not curvature > 0 or fit.d_m <= 0:
+    curvature = fit.samples.curvature_range_per_m[0]  # the largest circle driven
+    if not curvature > 0 or fit.d.m <= 0:
         return None
-    u0_squared = config.vehicle.gravity_mps2 * fit.c2n * fit.d_m
+    u0_squared = config.vehicle.gravity_mps2 * fit.c2n * fit.d.m
     ay_at_u0 = u0_squared * curvature
     if ay_at_u0 <= limit:
         return None
@@ -604,54 +604,58 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
     if fit is None:
         return None
     deg = math.degrees(1.0)
+    samples, d, psi0, models = fit.samples, fit.d, fit.psi0, fit.models
+    slope, turn, bias, held = fit.slope, fit.turn_force, fit.yaw_bias, fit.held_open
+    softening = models.softening
     return RegressionRow(
         c2n=_round(fit.c2n),
         c2n_ci95=_pair(fit.c2n_ci95),
-        d_m=_round(fit.d_m),
-        d_ci95=_pair(fit.d_ci95),
-        psi0_deg=_maybe(fit.psi0_rad, scale=deg),
-        psi0_ci95_deg=_pair(fit.psi0_ci95, deg) if fit.psi0_ci95 is not None else None,
-        model=fit.model,
-        softening_t=_round(fit.softening_t, 2),
-        softening_per_mps2_2=_maybe(fit.softening_per_mps2_2, 6),
-        c2n_linear_model=_round(fit.c2n_linear_model),
-        c2n_softening_model=_maybe(fit.c2n_softening_model),
-        c2n_linear_ci95=_pair(fit.c2n_linear_ci95) if fit.c2n_linear_ci95 else None,
-        c2n_softening_ci95=_pair(fit.c2n_softening_ci95) if fit.c2n_softening_ci95 else None,
-        n_samples=fit.n_samples,
-        ay_range_mps2=_pair(fit.ay_range, digits=3),
-        softening_resolved=fit.softening_resolved,
-        softening_hidden_pct=_round(fit.softening_hidden_pct, 2),
-        slope_pct=_maybe(fit.slope_pct, 2),
-        slope_ci95_pct=_pair(fit.slope_ci95_pct, digits=2) if fit.slope_ci95_pct is not None else None,
-        slope_downhill_deg=_maybe(fit.slope_downhill_deg, 0),
-        d_fixed=fit.d_fixed,
-        d_held_tight=fit.d_held_tight,
-        c2n_per_tape_cm_pct=_maybe(fit.c2n_per_tape_cm_pct, 3),
-        tight_terms=list(fit.tight_terms),
-        speed_range_mps=_pair(fit.speed_range, digits=3),
-        turn_force_pct=_maybe(fit.turn_force_pct, 2),
-        turn_force_ci95_pct=_pair(fit.turn_force_ci95_pct, digits=2) if fit.turn_force_ci95_pct else None,
-        seconds=round(fit.seconds, 1),
-        logs=fit.logs,
-        transient_terms=fit.transient_terms,
-        yaw_bias_degps=_maybe(fit.yaw_bias_degps, 4),
-        yaw_bias_ci95_degps=_pair(fit.yaw_bias_ci95_degps, digits=4) if fit.yaw_bias_ci95_degps else None,
+        d_m=_round(d.m),
+        d_ci95=_pair(d.ci95_m),
+        psi0_deg=_maybe(psi0.rad if psi0 else None, scale=deg),
+        psi0_ci95_deg=_pair(psi0.ci95_rad, deg) if psi0 else None,
+        model=models.chosen,
+        softening_t=_round(models.softening_t, 2),
+        softening_per_mps2_2=_maybe(fit.softening.per_mps2_2 if fit.softening else None, 6),
+        c2n_linear_model=_round(models.linear.c2n),
+        c2n_softening_model=_maybe(softening.c2n if softening else None),
+        c2n_linear_ci95=_pair(models.linear.ci95) if models.linear.ci95 else None,
+        c2n_softening_ci95=_pair(softening.ci95) if softening and softening.ci95 else None,
+        n_samples=samples.count,
+        ay_range_mps2=_pair(samples.ay_range_mps2, digits=3),
+        softening_resolved=models.resolved,
+        softening_hidden_pct=_round(models.hidden_pct, 2),
+        slope_pct=_maybe(slope.pct if slope else None, 2),
+        slope_ci95_pct=_pair(slope.ci95_pct, digits=2) if slope else None,
+        slope_downhill_deg=_maybe(slope.downhill_deg if slope else None, 0),
+        d_fixed=d.held,
+        d_held_tight=d.held_tight,
+        c2n_per_tape_cm_pct=_maybe(d.per_tape_cm_pct, 3),
+        tight_terms=list(samples.tight_terms),
+        speed_range_mps=_pair(samples.speed_range_mps, digits=3),
+        turn_force_pct=_maybe(turn.pct if turn else None, 2),
+        turn_force_ci95_pct=_pair(turn.ci95_pct, digits=2) if turn else None,
+        seconds=round(samples.duration_s, 1),
+        logs=samples.logs,
+        transient_terms=samples.transient_terms,
+        yaw_bias_degps=_maybe(bias.degps if bias else None, 4),
+        yaw_bias_ci95_degps=_pair(bias.ci95_degps, digits=4) if bias else None,
         estimator=fit.estimator,
-        held_open_by=fit.held_open_by,
-        held_open_share=_maybe(fit.held_open_share, 3),
-        d_information=_maybe(fit.d_information, 3),
+        held_open_by=held.by if held else None,
+        held_open_share=_maybe(held.share if held else None, 3),
+        d_information=_maybe(d.information, 3),
     )
 
 
 def _yaw_bias_warning(fit: RegressionFit | None) -> str | None:
     """Where the quasi-steady fit found the yaw rate biased (its interval clear of zero)."""
-    if fit is None or fit.yaw_bias_degps is None or fit.yaw_bias_ci95_degps is None:
+    found = fit.yaw_bias if fit is not None else None
+    if found is None:
         return None
-    low, high = fit.yaw_bias_ci95_degps
+    low, high = found.ci95_degps
     if low <= 0.0 <= high:
         return None
-    bias = round(fit.yaw_bias_degps, 4)  # as the result file has it: one rounding, not two
+    bias = round(found.degps, 4)  # as the result file has it: one rounding, not two
     return (
         f"the yaw rate reads {bias:+.3f} °/s [{low:+.3f}, {high:+.3f}] high: the quasi-steady "
         "fit takes it out of C2n (on corners turning mostly one way it would lean on it); zero the gyro "

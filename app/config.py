@@ -15,7 +15,7 @@ from typing import Any, Literal
 
 from app.dbc import ChannelSpec, Dbc, load_dbc
 from app.errors import ConfigError
-from app.units import ROLE_UNITS, known_units, si_factor
+from app.units import ROLE_UNITS, Z95, known_units, si_factor
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "mondeo.toml"
 COMMONROAD_CONFIG = DEFAULT_CONFIG.with_name("commonroad_vehicle2.toml")  # c2n simulate --model commonroad
@@ -76,7 +76,7 @@ class Calibration:
     @property
     def d_se_m(self) -> float:
         """The tape's standard error on d, metres."""
-        return self.d_tolerance_mm / (1000.0 * 1.96)
+        return self.d_tolerance_mm / (1000.0 * Z95)
 
     def crossing_se(self, d_m: float) -> float:
         """The relative standard error the speed's scale and the tape's d add to a crossing's
@@ -87,8 +87,8 @@ class Calibration:
 @dataclass(frozen=True)
 class GapSettings:
     """What ``c2n gap`` counts as mattering: an effect found in a drive is a finding when it moves
-    C2n or its own channel by more than these, else "within tolerance" (README, "The sim-to-real
-    gap", says where each default comes from), and whether CommonRoad's camber-step nuisance is
+    C2n or its own channel by more than these, else "within tolerance" (docs/gap.md says where each
+    default comes from), and whether CommonRoad's camber-step nuisance is
     calibrated."""
 
     c2n_pct: float = 0.5  # a tyre rig's repeatability on C2n, ± %
@@ -100,7 +100,7 @@ class GapSettings:
 
 @dataclass(frozen=True)
 class DetectorSettings:
-    """Steady-state gate and crossing detection; see README for what each limit protects."""
+    """Steady-state gate and crossing detection; docs/method.md says what each limit protects."""
 
     ay_max_mps2: float = 4.0  # tyres must stay linear
     sweep_max_mps2: float = 0.6  # |du/dt| above this is not steady

@@ -18,6 +18,8 @@ ROLE_UNITS: dict[str, str] = {
     "roll_rate": "rad/s",
 }
 
+Z95 = 1.959963984540054  # the normal's 97.5 % quantile: a 95 % interval is ±Z95 standard errors
+
 _DEG = math.pi / 180.0
 _G = 9.80665
 

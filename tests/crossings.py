@@ -4,6 +4,7 @@ import math
 from typing import Any
 
 from app.records import Crossing, Direction, Sweep
+from app.units import Z95
 
 G, D = 9.81, 1.11
 
@@ -28,7 +29,7 @@ def read_crossing(
         u0_ci95=(u0 - 0.05, u0 + 0.05),
         c2n=c2n,
         c2n_se=se,
-        ci95=(c2n - 1.96 * se, c2n + 1.96 * se),
+        ci95=(c2n - Z95 * se, c2n + Z95 * se),
         ay_mps2=x0 / abs(radius),
         radius_m=radius,
         sweep_rate_mps2=rate,

@@ -9,6 +9,7 @@ import pytest
 
 from app.config import DEFAULT_CONFIG, Calibration, load_config
 from app.errors import ConfigError, DbcError
+from app.units import Z95
 
 GOOD = """
 [vehicle]
@@ -172,7 +173,7 @@ def test_the_sensors_scale_tolerances_are_read_as_uniform(write_config: Callable
     )
     calibration = load_config(write_config(text)).calibration
     assert calibration.fit_se == pytest.approx(math.hypot(0.005, 0.002) / math.sqrt(3))
-    tape = 0.010 / 1.96 / 1.5  # the tape's ±10 mm at 95 % (the default) on a d of 1.5 m
+    tape = 0.010 / Z95 / 1.5  # the tape's ±10 mm at 95 % (the default) on a d of 1.5 m
     assert calibration.crossing_se(1.5) == pytest.approx(math.hypot(2 * 0.002 / math.sqrt(3), tape))
 
 
@@ -182,7 +183,7 @@ def test_the_tape_s_tolerance_on_d_holds_95_percent_and_zero_means_exact(
     """±x mm of tape (95 % of a person's errors) is a standard error of x/1.96 mm on d: a crossing's
     C2n = u0²/(g·d) scales with 1/d, so its share is that over d. Not given: ±10 mm; 0: d exact;
     negative or NaN: one error line."""
-    assert load_config(write_config(GOOD)).calibration.d_se_m == pytest.approx(0.010 / 1.96)
+    assert load_config(write_config(GOOD)).calibration.d_se_m == pytest.approx(0.010 / Z95)
 
     def calibration(line: str) -> Calibration:
         return load_config(
@@ -190,8 +191,8 @@ def test_the_tape_s_tolerance_on_d_holds_95_percent_and_zero_means_exact(
         ).calibration
 
     careful = calibration("d_tolerance_mm = 2")
-    assert careful.d_se_m == pytest.approx(0.002 / 1.96)
-    assert careful.crossing_se(2.0) == pytest.approx(0.002 / 1.96 / 2.0)
+    assert careful.d_se_m == pytest.approx(0.002 / Z95)
+    assert careful.crossing_se(2.0) == pytest.approx(0.002 / Z95 / 2.0)
     assert calibration("d_tolerance_mm = 0").crossing_se(1.11) == 0.0
     for bad in ("-1", "nan"):
         with pytest.raises(ConfigError, match="d_tolerance_mm"):

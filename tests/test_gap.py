@@ -129,15 +129,16 @@ def test_a_slope_s_gravity_along_the_heading_moves_load_as_braking_does() -> Non
 def test_a_force_that_follows_the_turn_follows_the_body_s_lean_across_a_slope() -> None:
     """Driving straight (no yaw rate) across a pad whose gravity pulls g_y sideways: the body
     leans with the specific force a_y − g_y = −g_y, so the force that follows the turn pushes
-    G·f·tanh(−g_y/TURN_AY) — the same drive as a slope that much steeper and no such force."""
-    from app.gap.model import TURN_AY_MPS2, G
+    g·f·tanh(−g_y/TURN_AY) — the same drive as a slope that much steeper and no such force; g
+    the car's own (the config's gravity_mps2, here a pole's), not a constant of the model's."""
+    from app.gap.model import TURN_AY_MPS2
 
     config = load_config()
-    p = BicycleParams.from_config(config)
+    p = dataclasses.replace(BicycleParams.from_config(config), g=9.83)
     drive = prepare(p, steady_drive(12.0, 0.0, seconds=20.0))
     pull, force = 0.3, 0.025
     leaning = run(drive, config.d_m, Mods(slope_cos_mps2=pull, turn_force_g=force))
-    extra = G * force * math.tanh(-pull / TURN_AY_MPS2)
+    extra = p.g * force * math.tanh(-pull / TURN_AY_MPS2)
     steeper = run(drive, config.d_m, Mods(slope_cos_mps2=pull + extra))
     assert np.allclose(leaning.beta, steeper.beta, rtol=0, atol=1e-15)
     assert abs(leaning.beta[-1] - run(drive, config.d_m, Mods(slope_cos_mps2=pull)).beta[-1]) > 1e-4

@@ -11,6 +11,7 @@ import pytest
 from app.config import Calibration, Config, load_config
 from app.pipeline import Pipeline
 from app.sim.session import SimulatedDrive
+from app.units import Z95
 from tests.simulated import REPO, cached_drive, run_pipeline
 
 
@@ -179,7 +180,7 @@ def test_the_tape_s_d_widens_the_crossings_not_a_fit_that_places_d(config: Confi
     assert not stated.regression.d.held and stated.regression.c2n_se == exact.regression.c2n_se
     paired, widened = exact.paired, stated.paired
     assert paired is not None and widened is not None and widened.c2n == pytest.approx(paired.c2n)
-    tape = 0.010 / 1.96 / config.d_m
+    tape = 0.010 / Z95 / config.d_m
     assert widened.se == pytest.approx(math.hypot(paired.se, tape * paired.c2n), rel=1e-9)
     assert widened.se > 1.5 * paired.se  # the tape is most of a paired crossing's error here
 

@@ -31,6 +31,7 @@ from app.sim.sessions import TrackPlan
 from app.sim.standard import StandardOptions, simulate_standard
 from app.sinks import summary
 from app.sinks.event_printer import result_line
+from app.units import Z95
 
 G = 9.81
 C2N, D = 14.0, 1.1
@@ -493,7 +494,7 @@ def test_pooled_drives_are_judged_together_at_the_stated_level(config: Config) -
     empty = Pipeline(config).snapshot()
 
     def pooled(*drives: tuple[float, float]) -> str | None:
-        alone = tuple(replace(fit, c2n=c, c2n_ci95=(c - 1.96 * se, c + 1.96 * se)) for c, se in drives)
+        alone = tuple(replace(fit, c2n=c, c2n_ci95=(c - Z95 * se, c + Z95 * se)) for c, se in drives)
         return replace(empty, regression=None, quasi=fit, quasi_drives=alone, crossings=()).drives_disagree
 
     assert pooled((14.0, 0.01), (14.45, 0.2), (14.2, 0.2)) is None

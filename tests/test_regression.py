@@ -9,6 +9,7 @@ import pytest
 
 from app import paper
 from app.results.regression import SampleRegression
+from app.units import Z95
 
 G = 9.81
 
@@ -319,11 +320,11 @@ def test_samples_at_one_speed_hold_d_at_the_tape_s_value_and_say_so(tolerance_mm
     free = fitted(one_speed_samples(14.0, 1.2, math.radians(0.2), 11.0, rng))
     assert free is not None and not free.d.held  # no tape value: d fitted, and C2n barely placed
     assert free.c2n_ci95[1] - free.c2n_ci95[0] > 0.1 * 14.0
-    tape_se = {} if tolerance_mm == 10.0 else {"d_tape_se_m": tolerance_mm / 1000.0 / 1.96}
+    tape_se = {} if tolerance_mm == 10.0 else {"d_tape_se_m": tolerance_mm / 1000.0 / Z95}
     covered, errors, z = 0, [], []
     for seed in range(40):
         rng = np.random.default_rng(100 + seed)
-        tape = 1.2 + rng.normal(0.0, tolerance_mm / 1000.0 / 1.96)  # 95 % within the tolerance
+        tape = 1.2 + rng.normal(0.0, tolerance_mm / 1000.0 / Z95)  # 95 % within the tolerance
         samples = one_speed_samples(14.0, 1.2, math.radians(0.2), 11.0, rng)
         fit = fitted(samples, d_tape_m=tape, **tape_se)
         assert fit is not None and fit.d.held and fit.d.m == tape and fit.d.ci95_m == (tape, tape)

@@ -7,6 +7,7 @@ import pytest
 from app import paper
 from app.records import Crossing
 from app.results.secant import at_zero_ay
+from app.units import Z95
 from tests.crossings import D, G, read_crossing
 
 
@@ -31,7 +32,7 @@ def test_a_crossing_on_softening_tyres_reads_the_secant_and_is_scaled_to_zero_a_
     assert out.u0_mps == pytest.approx(paper.crossing_speed(c2n, D, G), rel=1e-12)
     factor = 1.0 + s * a0 * a0
     assert out.c2n_se == pytest.approx(math.hypot(0.02 * factor, read.c2n * a0 * a0 * 0.0004), rel=1e-12)
-    assert out.ci95[1] - out.c2n == pytest.approx(1.96 * out.c2n_se, rel=1e-9)
+    assert out.ci95[1] - out.c2n == pytest.approx(Z95 * out.c2n_se, rel=1e-9)
 
 
 def test_without_softening_a_crossing_is_left_as_read() -> None:

@@ -32,7 +32,7 @@ from typing import Literal
 import numpy as np
 from scipy.special import stdtrit  # the t quantile: scipy.stats would add a second to the start
 
-Z95 = 1.959963984540054  # what a session's 95 % interval is in standard errors
+from app.units import Z95
 
 
 @dataclass(frozen=True)

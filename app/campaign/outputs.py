@@ -30,6 +30,7 @@ from app.output.files import json_ready, write_atomically, write_json
 from app.output.paths import HTML_REPORT, json_with
 from app.results.headline import Method
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
+from app.units import Z95
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")
 # what the comparison took of each session (``Compared``), after the first columns
@@ -478,7 +479,7 @@ def _trend_plot(comparison: Comparison, tag: str) -> bytes:
         for k, (group, values) in enumerate(sorted(comparison.tag_values[tag].items())):
             x = [v[0] for v in values]
             y = [v[1] for v in values]
-            err = [1.96 * v[2] for v in values]
+            err = [Z95 * v[2] for v in values]
             ax.errorbar(x, y, yerr=err, fmt="o", ms=4, color=f"C{k}", alpha=0.8, label=group)
             fitted = comparison.trends.get(tag, {}).get(group)
             if fitted is not None:

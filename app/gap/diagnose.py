@@ -74,6 +74,7 @@ from app.gap.result import (
     Secondary,
 )
 from app.sim.vehicle_model import BicycleParams
+from app.units import Z95
 
 GAP_BLOCK_S = 1.0  # the sideslip gap is measured on 1-s means
 ROBUST_SCALE = 3.0  # residuals beyond this many channel scales count less (soft L1)
@@ -461,7 +462,7 @@ def _intervals(pb: Problem, result: Fit) -> tuple[tuple[float, float], ...]:
     free = np.array([p.free for p in result.params])
     scales = np.array([p.scale for p in result.params])
     half = np.zeros(len(free))  # a parameter held at its value has no interval of its own
-    half[free] = 1.96 * np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scales[free]
+    half[free] = Z95 * np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scales[free]
     return tuple((v - w, v + w) for v, w in zip(result.values, half.tolist(), strict=True))
 
 
@@ -932,7 +933,7 @@ def _together(
             joint[j.effect] = added
         else:
             if order[j.effect] < order[lead.effect]:  # the drive cannot tell them apart: the
-                findings[findings.index(lead)] = j  # vocabulary's order names one (as in DESIGN)
+                findings[findings.index(lead)] = j  # vocabulary's order names one (Effect's order)
                 j.confounded.extend([lead.effect, *lead.confounded])
                 lead.confounded.clear()
                 lead, j = j, lead

@@ -34,7 +34,6 @@ from app.gap.measured import Measured
 from app.sim.vehicle_model import BicycleParams
 
 U_MIN_MPS = 3.0  # below this the model is not driven (and not compared)
-G = 9.81
 TURN_AY_MPS2 = 0.2  # a force that follows the turn switches sides over this much lateral acceleration
 
 
@@ -170,6 +169,7 @@ def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
                 w.transfer_kg_s2,
                 d_m + mods.d_error_m - p.b_m,
                 *(getattr(mods, name) for name in _MOD_FIELDS),
+                p.g,
             ]
         ),
     )
@@ -231,7 +231,7 @@ def run_reference(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
     if mods.turn_force_g:
         # a force that follows the body's lean (camber thrust as it rolls): on a slope the body
         # leans with the lateral specific force, so also on a straight across the slope
-        lateral = lateral + G * mods.turn_force_g * np.tanh(specific / TURN_AY_MPS2)
+        lateral = lateral + p.g * mods.turn_force_g * np.tanh(specific / TURN_AY_MPS2)
     v_cg, yaw = step_lateral(
         w.u,
         np.ascontiguousarray(c1, dtype=np.float64),
@@ -365,13 +365,13 @@ def _run_steps(
     k: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``run_reference`` step by step: the car's numbers and the mods in ``k`` (c1n, c2n, a, b,
-    mass, I_z, the rearward transfer, the sensor's x, then Mods' fields in their order). Returns
+    mass, I_z, the rearward transfer, the sensor's x, then Mods' fields in their order, then g). Returns
     the sideslip at the sensor, the yaw rate, the measured yaw rate, a_y and the speed reading."""
     c1n, c2n, a, b, mass, iz, transfer, x_sensor = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7]
     yaw_bias, yaw_scale, steer_offset, ratio_error = k[8], k[9], k[10], k[11]
     c1n_factor, c2n_factor, turn_force, misalignment = k[12], k[13], k[14], k[15]
     speed_scale, late, slope_sin, slope_cos = k[17], k[18], k[19], k[20]  # k[16]: d's, in x_sensor
-    softening1, softening2, roll_steer, ply = k[21], k[22], k[23], k[24]
+    softening1, softening2, roll_steer, ply, g = k[21], k[22], k[23], k[24], k[25]
     n = len(u)
     beta = np.empty(n)
     r_out = np.empty(n)
@@ -419,7 +419,7 @@ def _run_steps(
             c2 = c2 * min(max(1.0 - softening2 * ay2, 0.2), 2.0)
         delta2 = roll_steer * ay + ply if roll_steer != 0.0 else ply
         if turn_force != 0.0:
-            lateral = lateral + G * turn_force * math.tanh(specific / TURN_AY_MPS2)
+            lateral = lateral + g * turn_force * math.tanh(specific / TURN_AY_MPS2)
         uk = u[i]
         m00 = -(c1 + c2) / (mass * uk)
         m01 = -(a * c1 - b * c2) / (mass * uk) - uk

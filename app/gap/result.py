@@ -1,5 +1,5 @@
 """The gap diagnosis in typed form: what ``c2n gap --json`` writes, its fields the file's keys
-(README, "The sim-to-real gap"), its numbers rounded as the file holds them. The report and the
+(docs/gap.md), its numbers rounded as the file holds them. The report and the
 command line read it; ``to_json`` gives the file's content."""
 
 from collections.abc import Mapping

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 from scipy.special import ndtr
 
-Z95 = 1.959963984540054
+from app.units import Z95
+
 FAMILY_ALPHA = 0.05  # the 95 % the intervals state, held over every pair together
 
 

@@ -5,6 +5,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from app.records import Crossing
+from app.units import Z95
 
 
 @dataclass(frozen=True)
@@ -16,7 +17,7 @@ class Combined:
 
     @property
     def ci95(self) -> tuple[float, float]:
-        return (self.c2n - 1.96 * self.se, self.c2n + 1.96 * self.se)
+        return (self.c2n - Z95 * self.se, self.c2n + Z95 * self.se)
 
 
 def combine(crossings: Sequence[Crossing]) -> Combined | None:

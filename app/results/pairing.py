@@ -28,6 +28,7 @@ import numpy as np
 
 from app.records import Crossing
 from app.results.marginal import Posterior, data_alone
+from app.units import Z95
 
 
 @dataclass(frozen=True)
@@ -54,7 +55,7 @@ class Paired:
 
     @property
     def ci95(self) -> tuple[float, float]:
-        return (self.c2n - 1.96 * self.se, self.c2n + 1.96 * self.se)
+        return (self.c2n - Z95 * self.se, self.c2n + Z95 * self.se)
 
 
 _PASSES = 5  # the priors follow C2n: settled in two or three

@@ -111,6 +111,7 @@ from app.results.marginal import (
     well_conditioned_inverse,
     wide_share,
 )
+from app.units import Z95
 
 _TERMS = (  # the columns each block keeps; a fit takes a subset
     "psi0",  # 1: the head's yaw on the car
@@ -133,7 +134,7 @@ _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrel
 UNRESOLVED_PCT = 3.0  # softening that could hide in the data, % of C2n, beyond which both models count
 _SLOPE_SPREAD = 0.3  # the headings' spread (of sin ψ, cos ψ beside the other terms; full circles 0.5)
 # beyond which a slope's two terms are fitted
-D_TAPE_SE_M = 0.01 / 1.96  # the tape's d to ±1 cm at 95 % (the config's default): in C2n's interval
+D_TAPE_SE_M = 0.01 / Z95  # the tape's d to ±1 cm at 95 % (the config's default): in C2n's interval
 D_HELD_GAIN = 2.0  # d is held at the tape's value where fitting it would widen C2n's interval this much
 _CM = 0.01  # metres: the tape step of DResult.per_tape_cm_pct, and of the decision below
 D_HELD_REF_M = _CM  # ... beside the held interval with this much tape, whatever the config's tolerance

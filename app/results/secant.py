@@ -14,6 +14,7 @@ import math
 from dataclasses import replace
 
 from app.records import Crossing
+from app.units import Z95
 
 
 def at_zero_ay(crossing: Crossing, s: float, s_se: float) -> Crossing:
@@ -26,7 +27,7 @@ def at_zero_ay(crossing: Crossing, s: float, s_se: float) -> Crossing:
     se = math.hypot(crossing.c2n_se * factor, crossing.c2n * a2 * s_se)
     half = crossing.ci95[1] - crossing.c2n
     # the crossing's own interval multiplier (its t quantile), applied to the wider error
-    k = half / crossing.c2n_se if crossing.c2n_se > 1e-9 * abs(crossing.c2n) and half > 0 else 1.96
+    k = half / crossing.c2n_se if crossing.c2n_se > 1e-9 * abs(crossing.c2n) and half > 0 else Z95
     root = math.sqrt(factor)
     low, high = crossing.u0_ci95
     return replace(

@@ -11,8 +11,8 @@ limit (a drive on ice: a_y never above 1 m/s², crossings 7.3 and 12.1 sweeping 
 crossings; the reason is.
 """
 
-from app.results.agreement import Z95
 from app.results.pairing import Paired
+from app.units import Z95
 
 
 def unsteady_crossings(paired: Paired | None, settle_s: float) -> str | None:

@@ -14,6 +14,7 @@ import math
 from dataclasses import replace
 
 from app.records import Crossing
+from app.units import Z95
 
 
 def without_step(crossing: Crossing, step_rad: float, step_se_rad: float, d_m: float, g: float) -> Crossing:
@@ -30,7 +31,7 @@ def without_step(crossing: Crossing, step_rad: float, step_se_rad: float, d_m: f
     se = math.hypot(crossing.c2n_se, step_se_rad * per_step * scale)
     # the crossing's own interval multiplier (its t quantile), applied to the wider error
     half = crossing.ci95[1] - crossing.c2n
-    k = half / crossing.c2n_se if crossing.c2n_se > 1e-9 * abs(crossing.c2n) and half > 0 else 1.96
+    k = half / crossing.c2n_se if crossing.c2n_se > 1e-9 * abs(crossing.c2n) and half > 0 else Z95
     u0 = math.sqrt(x0)
     du = k * se / scale / (2.0 * u0)  # u0's interval from u0²'s, to first order
     return replace(

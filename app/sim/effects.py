@@ -1,4 +1,4 @@
-"""The unmodelled effects of DESIGN §6 as parameters of the higher-fidelity simulator.
+"""The unmodelled effects c2n gap names (its vocabulary) as parameters of the higher-fidelity simulator.
 
 Each effect has one size in one unit, a range that packs draw from (uniformly in magnitude, with a
 random sign where both signs are physical), and is applied either to the sensors (SensorSetup) or

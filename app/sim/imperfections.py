@@ -2,8 +2,8 @@
 
 The sensors' own errors (a gyro's bias and scale, the steering wheel's centre offset, the
 steering ratio the car really has), tyres a few per cent off the values the simulator was
-given, and sensor rates as they come. ``c2n gap`` calibrates these (README, "The sim-to-real
-gap"); they are not effects. The ranges are those of a well-kept car on a quiet test day.
+given, and sensor rates as they come. ``c2n gap`` calibrates these (docs/gap.md); they are not
+effects. The ranges are those of a well-kept car on a quiet test day.
 
 | imperfection                      | drawn from               |
 |-----------------------------------|--------------------------|

@@ -77,7 +77,7 @@ def constant_radius(plan: SweepPlan, radius_m: float | None = None) -> Scenario:
 
 def radii(plan: SweepPlan, factors: tuple[float, ...] = (1.0, 2.0)) -> Scenario:
     """Constant-radius sweeps at several radii (multiples of the radius whose top speed gives
-    ay_max): lateral acceleration spans a wider range, so tyre softening shows (DESIGN §1)."""
+    ay_max): lateral acceleration spans a wider range, so tyre softening shows."""
     base = plan.speed_hi_mps**2 / plan.ay_max_mps2
     segments: list[Segment] = []
     for factor in factors:

@@ -1,7 +1,7 @@
 """A higher-fidelity vehicle model: planar two-track with roll, load transfer and tyre lag.
 
 The simulator's reference for the sim-to-real gap: it has what the bicycle model leaves out, and
-each unmodelled effect of DESIGN §6 that lives in the vehicle or the road is a parameter here
+each unmodelled effect (app/sim/effects.py) that lives in the vehicle or the road is a parameter here
 (zero by default). ISO 8855 throughout: x forward, y left, z up; roll φ > 0 when the body leans
 to the right (the outside of a left turn); slip angles positive when they push the tyre left.
 

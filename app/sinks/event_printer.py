@@ -11,6 +11,7 @@ from app.records import Crossing, CrossingRejected, Event
 from app.results.headline import Method
 from app.sinks.sink import Sink
 from app.snapshot import Snapshot
+from app.units import Z95
 
 
 def crossing_line(c: Crossing, t0: float) -> str:
@@ -80,10 +81,10 @@ def fit_line(snapshot: Snapshot) -> str | None:
             parts.append(f"ψ0 = {math.degrees(fit.psi0.rad):+.3f}° [{plo:+.3f}, {phi:+.3f}]")
     paired = snapshot.paired
     if paired is not None and paired.misalignment_rad is not None and paired.misalignment_se is not None:
-        half = 1.96 * math.degrees(paired.misalignment_se)
+        half = Z95 * math.degrees(paired.misalignment_se)
         parts.append(f"pairing: misalignment {math.degrees(paired.misalignment_rad):+.3f}° ± {half:.3f}")
     if paired is not None and paired.lag_s is not None and paired.lag_se is not None:
-        parts.append(f"lag {paired.lag_s:+.3f} s ± {1.96 * paired.lag_se:.3f}")
+        parts.append(f"lag {paired.lag_s:+.3f} s ± {Z95 * paired.lag_se:.3f}")
     return "  " + "; ".join(parts) + " (95 %)" if parts else None
 
 

@@ -1,7 +1,7 @@
 """The session summary: what ``c2n analyze --json``, ``c2n export`` and a live session write.
 
-``Summary`` is the result file in typed form, its fields the file's keys (stable: the README's
-"Result file"), its numbers rounded as the file holds them, so the report shows what the file
+``Summary`` is the result file in typed form, its fields the file's keys (stable:
+docs/result-file.md), its numbers rounded as the file holds them, so the report shows what the file
 says. ``build`` makes it from a Snapshot; ``to_json`` gives the file's content.
 """
 
@@ -23,6 +23,7 @@ from app.results.pairing import Paired
 from app.results.regression import TIGHT_WHEELBASES, RegressionFit
 from app.snapshot import Snapshot
 from app.sources.logs import LogReport
+from app.units import Z95
 
 REQUIRED_ROLES = (("vx",), ("vy", "beta"))
 
@@ -435,7 +436,7 @@ def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         out.append(beyond)
     paired = snapshot.paired
     yaw, yaw_se = (paired.misalignment_rad, paired.misalignment_se) if paired is not None else (None, None)
-    if yaw is not None and yaw_se is not None and abs(yaw) > max(1.96 * yaw_se, math.radians(0.1)):
+    if yaw is not None and yaw_se is not None and abs(yaw) > max(Z95 * yaw_se, math.radians(0.1)):
         out.append(
             f"the sensor head looks yawed by {math.degrees(yaw):+.2f}° (left and right turns disagree); "
             "pairing and the regression remove it, but align the head"
@@ -671,7 +672,7 @@ def _paired(paired: Paired | None) -> PairedRow | None:
     def ci(value: float | None, se: float | None, scale: float = 1.0) -> Interval | None:
         if value is None or se is None:
             return None
-        return (_round((value - 1.96 * se) * scale), _round((value + 1.96 * se) * scale))
+        return (_round((value - Z95 * se) * scale), _round((value + Z95 * se) * scale))
 
     return PairedRow(
         c2n=_round(paired.c2n),

@@ -20,7 +20,7 @@ from app.gap.diagnose import diagnose, problem, roll_lever_m
 from app.gap.forked import Later
 from app.gap.measured import Measured, Method, measure
 from app.gap.method_effects import BY_RIG
-from app.gap.model import Mods, prepare, run, run_reference, simulate
+from app.gap.model import Mods, prepare, run_model, run_model_reference, simulate
 from app.gap.result import BeforeAfter, C2nEffect, Effect, GapC2n, GapNoise, GapResult
 from app.sim.session import DriveOptions, simulate_drive, write_drive
 from app.sim.vehicle_model import BicycleParams
@@ -94,7 +94,7 @@ def test_longitudinal_load_transfer_moves_the_steady_state_as_the_shifted_loads_
     assert shifted.c2_nominal[mid] == pytest.approx(c2, rel=1e-6)
     n = len(base.t)
     steady = dataclasses.replace(prepare(p, base), c1_nominal=np.full(n, c1), c2_nominal=np.full(n, c2))
-    sim = run(steady, config.d_m)
+    sim = run_model(steady, config.d_m)
     understeer = p.mass_kg / p.wheelbase_m * (p.b_m / c1 - p.a_m / c2)
     radius = u / sim.r[-1]
     assert radius == pytest.approx((p.wheelbase_m + understeer * u * u) / delta, rel=1e-6)
@@ -114,7 +114,7 @@ def test_a_slope_s_gravity_along_the_heading_moves_load_as_braking_does() -> Non
     p = BicycleParams.from_config(config)
     u, delta, downhill, height = 12.0, math.radians(1.5), 0.4, 0.55  # g_x = 0.4 m/s² ahead
     drive = prepare(p, steady_drive(u, delta, seconds=40.0), cg_height_m=height)
-    sim = run(drive, config.d_m, Mods(slope_sin_mps2=-downhill))
+    sim = run_model(drive, config.d_m, Mods(slope_sin_mps2=-downhill))
     forward = p.mass_kg * height * downhill / p.wheelbase_m
     c1, c2 = p.c1n * (p.w1_n + forward), p.c2n * (p.w2_n - forward)
     understeer = p.mass_kg / p.wheelbase_m * (p.b_m / c1 - p.a_m / c2)
@@ -122,7 +122,7 @@ def test_a_slope_s_gravity_along_the_heading_moves_load_as_braking_does() -> Non
     assert radius == pytest.approx((p.wheelbase_m + understeer * u * u) / delta, rel=1e-6)
     expected = paper.sideslip_at_sensor(u, radius, config.d_m, c2 / p.w2_n, p.g)
     assert sim.beta[-1] == pytest.approx(math.atan(expected), abs=1e-6)
-    level = run(drive, config.d_m)
+    level = run_model(drive, config.d_m)
     assert abs(sim.beta[-1] - level.beta[-1]) > 1e-4  # the shift is not lost in the tolerance
 
 
@@ -137,13 +137,13 @@ def test_a_force_that_follows_the_turn_follows_the_body_s_lean_across_a_slope() 
     p = dataclasses.replace(BicycleParams.from_config(config), g=9.83)
     drive = prepare(p, steady_drive(12.0, 0.0, seconds=20.0))
     pull, force = 0.3, 0.025
-    leaning = run(drive, config.d_m, Mods(slope_cos_mps2=pull, turn_force_g=force))
+    leaning = run_model(drive, config.d_m, Mods(slope_cos_mps2=pull, turn_force_g=force))
     extra = p.g * force * math.tanh(-pull / TURN_AY_MPS2)
-    steeper = run(drive, config.d_m, Mods(slope_cos_mps2=pull + extra))
+    steeper = run_model(drive, config.d_m, Mods(slope_cos_mps2=pull + extra))
     assert np.allclose(leaning.beta, steeper.beta, rtol=0, atol=1e-15)
-    assert abs(leaning.beta[-1] - run(drive, config.d_m, Mods(slope_cos_mps2=pull)).beta[-1]) > 1e-4
-    level = run(drive, config.d_m, Mods(turn_force_g=force))  # nothing to lean with
-    assert np.allclose(level.beta, run(drive, config.d_m).beta, rtol=0, atol=1e-15)
+    assert abs(leaning.beta[-1] - run_model(drive, config.d_m, Mods(slope_cos_mps2=pull)).beta[-1]) > 1e-4
+    level = run_model(drive, config.d_m, Mods(turn_force_g=force))  # nothing to lean with
+    assert np.allclose(level.beta, run_model(drive, config.d_m).beta, rtol=0, atol=1e-15)
 
 
 def test_the_roll_rate_moves_the_sensor_by_its_height_above_the_roll_axis() -> None:
@@ -626,7 +626,7 @@ def test_gap_check_counts_the_tyres_softening_as_held_and_other_findings_on_a_cl
 
 
 def test_the_compiled_model_is_the_numpy_reference_step_for_step() -> None:
-    """``run`` (one compiled loop) against ``run_reference`` (numpy around ``step_lateral``) on a
+    """``run_model`` (one compiled loop) against ``run_model_reference`` (numpy around ``step_lateral``) on a
     turning, speeding-up drive with gaps in its yaw rate, with no modification, with every one
     at once and with the vehicle bus early or late: every output within 1e-12 of its range."""
     config = load_config()
@@ -661,7 +661,10 @@ def test_the_compiled_model_is_the_numpy_reference_step_for_step() -> None:
         ply_rad=0.0005,
     )
     for mods in (Mods(), every, Mods(latency_s=-0.033), Mods(latency_s=0.013, softening2_per_mps4=0.5)):
-        compiled, reference = run(prepared, config.d_m, mods), run_reference(prepared, config.d_m, mods)
+        compiled, reference = (
+            run_model(prepared, config.d_m, mods),
+            run_model_reference(prepared, config.d_m, mods),
+        )
         for name in ("beta", "r", "r_measured", "ay", "speed_reading"):
             a, b = getattr(compiled, name), getattr(reference, name)
             assert np.array_equal(np.isnan(a), np.isnan(b)), name

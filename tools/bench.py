@@ -539,7 +539,7 @@ def campaign_figures(sessions: int) -> dict[str, float]:
         for n in (1, 2):
             out = Path(tmp) / f"out{n}"
             started = time.perf_counter()
-            rows = work.run(manifest, None, out, lambda n=n: work.local_workers(n))  # type: ignore[misc]
+            rows = work.run_campaign(manifest, None, out, lambda n=n: work.local_workers(n))  # type: ignore[misc]
             elapsed = time.perf_counter() - started
             figures[f"{n} worker(s), sessions/s"] = sessions / elapsed
             figures[f"{n} worker(s), frames/s per worker"] = frames / elapsed / n
@@ -549,7 +549,7 @@ def campaign_figures(sessions: int) -> dict[str, float]:
                 figures["worker peak RSS after half, MiB"] = max(peaks[: len(peaks) // 2])
                 figures["worker peak RSS after all, MiB"] = max(peaks)
         started = time.perf_counter()
-        work.run(manifest, None, Path(tmp) / "out2", lambda: work.local_workers(2))
+        work.run_campaign(manifest, None, Path(tmp) / "out2", lambda: work.local_workers(2))
         figures["re-run with nothing changed, s"] = time.perf_counter() - started
     return figures
 

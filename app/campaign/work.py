@@ -139,7 +139,7 @@ def dask_workers(address: str) -> Iterator[cf.Executor]:
             yield executor
 
 
-def run(
+def run_campaign(
     manifest: Manifest,
     config: Path | None,
     out: Path,

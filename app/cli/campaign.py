@@ -161,7 +161,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             return work.local_workers(args.workers or os.cpu_count() or 1)
 
         with interrupted_by(signal.SIGINT, signal.SIGTERM):  # either stops it, keeping what is done
-            rows = work.run(manifest, config, out, workers, arrived)
+            rows = work.run_campaign(manifest, config, out, workers, arrived)
     elapsed = time.perf_counter() - started
     rows, repeats = counted_once(manifest, rows)
     columns, table = outputs.table_rows(manifest, rows)

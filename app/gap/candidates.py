@@ -49,7 +49,8 @@ class Candidate:
     action: Callable[[tuple[float, ...]], str]  # what the fitted size means, and what to do
 
 
-def combine(fields: dict[str, float], *more: dict[str, float]) -> Mods:
+def mods_of(fields: dict[str, float], *more: dict[str, float]) -> Mods:
+    """The model's modifications from fits' fields, the later ones overriding the earlier."""
     merged = dict(fields)
     for extra in more:
         merged.update(extra)

@@ -39,7 +39,7 @@ from app.gap.candidates import (
     RIVAL_NUISANCE,
     Candidate,
     Param,
-    combine,
+    mods_of,
     nuisances,
     separating_manoeuvre,
 )
@@ -59,8 +59,7 @@ from app.gap.effects import (
 from app.gap.forked import map_forked
 from app.gap.measured import Measured
 from app.gap.method_effects import DIRECT, HELDOUT_FIT, method_effects, with_method_effects
-from app.gap.model import Mods, Prepared, Simulated, prepare, simulate
-from app.gap.model import run as run_model
+from app.gap.model import Mods, Prepared, Simulated, prepare, run_model, simulate
 from app.gap.result import (
     BeforeAfter,
     C2nEffect,
@@ -389,7 +388,9 @@ def roll_lever_m(config: Config) -> float:
 
 
 @dataclass(frozen=True)
-class Calibration:
+class NuisanceFit:
+    """The drive's nuisances (a gyro's bias and scale, the steering's offset …) calibrated on it."""
+
     params: tuple[Param, ...]  # as calibrated: an optional nuisance the drive does not show, held
     fit: Fit
     ci95: tuple[tuple[float, float], ...]
@@ -400,7 +401,7 @@ class Calibration:
         return self.fit.values
 
     def mods(self, *effect: dict[str, float]) -> Mods:
-        return combine(self.fit.fields(), *effect)
+        return mods_of(self.fit.fields(), *effect)
 
     def params_for(self, effect: str, rival_free: bool = False) -> tuple[Param, ...]:
         """The nuisances fitted beside ``effect``; its rival (a nuisance that imitates it) held at
@@ -417,12 +418,12 @@ class Calibration:
         )
 
 
-def calibrate(pb: Problem, params: tuple[Param, ...]) -> tuple[Problem, Calibration]:
+def calibrate(pb: Problem, params: tuple[Param, ...]) -> tuple[Problem, NuisanceFit]:
     """The nuisances fitted on every usable sample, twice: the channels' scales are set from the
     first fit's residuals, then the fit is repeated with them."""
     declared = params
     first = fit(pb, params, pb.rows)
-    pb = _scaled(pb, pb.simulate(combine(first.fields())))
+    pb = _scaled(pb, pb.simulate(mods_of(first.fields())))
     final = fit(pb, params, pb.rows, start=first.values)
     ci95 = _intervals(pb, final)
     unseen = [
@@ -435,7 +436,7 @@ def calibrate(pb: Problem, params: tuple[Param, ...]) -> tuple[Problem, Calibrat
         final = fit(pb, params, pb.rows, start=final.values)
         held = dict(zip(unseen, (ci95[k] for k in unseen), strict=True))
         ci95 = tuple(held.get(k, ci) for k, ci in enumerate(_intervals(pb, final)))
-    return pb, Calibration(params, final, ci95, declared)
+    return pb, NuisanceFit(params, final, ci95, declared)
 
 
 def _intervals(pb: Problem, result: Fit) -> tuple[tuple[float, float], ...]:
@@ -498,7 +499,7 @@ class Scored:
     def without_effect(self) -> Mods:
         """The fit's nuisances alone: the model beside the effect, with the effect taken out."""
         n = len(self.fit.params) - len(self.candidate.params)
-        return combine(Fit(self.fit.params[:n], self.fit.values[:n], 0.0).fields())
+        return mods_of(Fit(self.fit.params[:n], self.fit.values[:n], 0.0).fields())
 
     @property
     def speed_shrink(self) -> float:
@@ -523,7 +524,7 @@ def heldout(pb: Problem, fold: np.ndarray, baseline: tuple[Fit, ...]) -> Heldout
     """The calibrated model's held-out gaps, from its fits on each training fold (``baseline``,
     made by ``_baselines``)."""
     held = tuple(pb.rows & (fold == k) for k in (0, 1))
-    sims = [pb.simulate(combine(f.fields())) for f in baseline]
+    sims = [pb.simulate(mods_of(f.fields())) for f in baseline]
     parts = list(zip(sims, held, strict=True))
     noise = math.sqrt(sum(pb.gap_noise_deg(rows) ** 2 for rows in held) / 2)
     return Heldout(
@@ -538,7 +539,7 @@ def heldout(pb: Problem, fold: np.ndarray, baseline: tuple[Fit, ...]) -> Heldout
     )
 
 
-def _baseline_jobs(pb: Problem, calibration: Calibration, fold: np.ndarray, effect: str) -> list[_Job]:
+def _baseline_jobs(pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effect: str) -> list[_Job]:
     """The calibrated model's fits on each training fold (with the nuisances ``effect`` is
     fitted beside)."""
     params, start = calibration.params_for(effect), calibration.start_for(effect)
@@ -546,7 +547,7 @@ def _baseline_jobs(pb: Problem, calibration: Calibration, fold: np.ndarray, effe
 
 
 def _baselines(
-    pb: Problem, calibration: Calibration, fold: np.ndarray, effects: Sequence[str], workers: int
+    pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effects: Sequence[str], workers: int
 ) -> list[Heldout]:
     """``heldout`` for each of ``effects``, their fits made together in ``workers`` processes."""
     jobs = [job for effect in effects for job in _baseline_jobs(pb, calibration, fold, effect)]
@@ -572,7 +573,7 @@ class _Variant:
 
 
 def _variants(
-    calibration: Calibration, ho: Heldout, candidate: Candidate, rival: Heldout | None
+    calibration: NuisanceFit, ho: Heldout, candidate: Candidate, rival: Heldout | None
 ) -> list[_Variant]:
     """The candidate with the nuisances; one a nuisance imitates also with that nuisance held."""
     if rival is None:
@@ -606,7 +607,7 @@ def _everything(pb: Problem, variant: _Variant) -> Fit:
 def _scored(pb: Problem, variant: _Variant, everything: Fit, folds: tuple[Fit, ...]) -> Scored:
     """A variant's held-out gaps: each fold's samples from its fit on the other."""
     ho = variant.ho
-    sims = [pb.simulate(combine(f.fields())) for f in folds]
+    sims = [pb.simulate(mods_of(f.fields())) for f in folds]
     parts = list(zip(sims, ho.held, strict=True))
     return Scored(
         variant.candidate,
@@ -761,7 +762,7 @@ class Diagnosis:
 
 
 def _scores(
-    pb: Problem, calibration: Calibration, ho: Heldout, rivals: dict[str, Heldout], workers: int
+    pb: Problem, calibration: NuisanceFit, ho: Heldout, rivals: dict[str, Heldout], workers: int
 ) -> list[tuple[Scored, tuple[tuple[float, float], ...]]]:
     """Every candidate scored, with its effect's 95 % intervals: fitted with the nuisances on every
     sample, then on each training fold starting from there, and its held-out gaps.
@@ -814,7 +815,7 @@ _CHANNELS = ("sideslip", "yaw", "speed")
 def _heldout_residuals(pb: Problem, fold: np.ndarray, fits: Sequence[Fit]) -> dict[str, np.ndarray]:
     """Each channel's residual where it is held out: fold k's samples from the fit on the other."""
     m = pb.measured
-    sims = [pb.simulate(combine(f.fields())) for f in fits]
+    sims = [pb.simulate(mods_of(f.fields())) for f in fits]
     channels = {
         "sideslip": [m.beta - s.beta for s in sims],
         "yaw": [s.r_measured - s.r for s in sims],
@@ -863,7 +864,7 @@ def _units(pb: Problem, ids: np.ndarray, res: dict[str, np.ndarray], name: str |
 def _judge(
     pb: Problem,
     config: Config,
-    calibration: Calibration,
+    calibration: NuisanceFit,
     ids: np.ndarray,
     bases: dict[str, dict[str, np.ndarray]],
     scored: Scored,
@@ -895,7 +896,7 @@ def _judge(
     elif worse:
         reason = "it makes the held-out gap of the channels together worse"
     c2n = calibration.values[[p.name for p in calibration.params].index("c2n_per_rad")]
-    delta = pb.simulate(combine(scored.fit.fields())).beta - pb.simulate(scored.without_effect()).beta
+    delta = pb.simulate(mods_of(scored.fit.fields())).beta - pb.simulate(scored.without_effect()).beta
     shift = c2n_shift(m, rows, delta, pb.d_m, c2n, pb.params.g)
     size = own_size(effect, _params(scored.candidate.params, scored.effect_values), config)
     return _Judged(
@@ -906,7 +907,7 @@ def _judge(
 def _together(
     pb: Problem,
     config: Config,
-    calibration: Calibration,
+    calibration: NuisanceFit,
     ho: Heldout,
     ids: np.ndarray,
     bases: dict[str, dict[str, np.ndarray]],
@@ -952,7 +953,7 @@ def _together(
 def _beside(
     pb: Problem,
     config: Config,
-    calibration: Calibration,
+    calibration: NuisanceFit,
     ho: Heldout,
     ids: np.ndarray,
     bases: dict[str, dict[str, np.ndarray]],
@@ -971,7 +972,7 @@ def _beside(
             continue
         lead = next((f for f in findings if channel(f.effect) == channel(j.effect)), findings[0])
         added = add_to(pb, ho, lead.scored, j.scored.candidate, workers)
-        sims = [pb.simulate(combine(f.fields())) for f in added.folds]
+        sims = [pb.simulate(mods_of(f.fields())) for f in added.folds]
         parts = list(zip(sims, ho.held, strict=True))
         s = lead.scored
         scored = Scored(
@@ -1074,7 +1075,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
         diagnosis = lead.effect
         confounded = list(lead.confounded)
         last = joint.get(findings[-1].effect)
-        after_sim = pb.simulate(combine((last.fit if last else best.fit).fields()))
+        after_sim = pb.simulate(mods_of((last.fit if last else best.fit).fields()))
         joint_fit = last.fit if last else best.fit
         beside = fit(pb, joint_fit.params, pb.rows, start=joint_fit.values)
     else:
@@ -1101,7 +1102,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     measured = {e.effect for e in effects if e.measured_by != HELDOUT_FIT}
     confounded = [c for c in confounded if c not in measured]
     without = pb.simulate(best.without_effect()) if best is not None else calibrated
-    effect_delta = pb.simulate(combine(best.fit.fields())).beta - without.beta if best is not None else 0.0
+    effect_delta = pb.simulate(mods_of(best.fit.fields())).beta - without.beta if best is not None else 0.0
     residuals = Residuals(
         t=m.t,
         ay=np.nan_to_num(m.u_optical * m.r),
@@ -1170,7 +1171,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     return Diagnosis(result, residuals)
 
 
-def _refuse_without_crossings(pb: Problem, calibration: Calibration) -> None:
+def _refuse_without_crossings(pb: Problem, calibration: NuisanceFit) -> None:
     """The report says what each effect does to C2n read from zero crossings: a drive without
     steady turning near the crossing's speed, either way, cannot say it — refused, naming the
     manoeuvre."""
@@ -1191,12 +1192,12 @@ def _refuse_without_crossings(pb: Problem, calibration: Calibration) -> None:
 
 def _shrink_with(pb: Problem, ho: Heldout, added: Added) -> float:
     """The held-out sideslip gap's shrink with the findings fitted together."""
-    sims = [pb.simulate(combine(f.fields())) for f in added.folds]
+    sims = [pb.simulate(mods_of(f.fields())) for f in added.folds]
     gap = _pooled(pb.rms_beta_deg, list(zip(sims, ho.held, strict=True)))
     return 1.0 - gap / ho.gap if ho.gap > 0 else 0.0
 
 
-def _calibrated(pb: Problem, calibration: Calibration, beside: Fit) -> dict[str, Calibrated]:
+def _calibrated(pb: Problem, calibration: NuisanceFit, beside: Fit) -> dict[str, Calibrated]:
     """Each nuisance as fitted beside the effects named, with its 95 % interval there; one the
     drive did not show keeps the calibration's interval (which covers its nominal value), one held
     beside the effect it imitates has none."""
@@ -1238,7 +1239,7 @@ def _candidate_score(j: _Judged, findings: list[_Judged]) -> CandidateScore:
     )
 
 
-def hidden_by_rivals(calibration: Calibration) -> list[str]:
+def hidden_by_rivals(calibration: NuisanceFit) -> list[str]:
     """The effects whose rival nuisance the drive showed (calibrated free, not held at nominal):
     such an effect could be inside it."""
     free = {p.name for p in calibration.params if p.free}

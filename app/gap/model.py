@@ -137,12 +137,12 @@ def simulate(
     cg_height_m: float | None = None,
     roll_lever_m: float = 0.0,
 ) -> Simulated:
-    """The model on the drive ``m`` (``run`` on a ``prepare``d drive, for one run)."""
-    return run(prepare(p, m, cg_height_m, roll_lever_m), d_m, mods)
+    """The model on the drive ``m`` (``run_model`` on a ``prepare``d drive, for one run)."""
+    return run_model(prepare(p, m, cg_height_m, roll_lever_m), d_m, mods)
 
 
-def run(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
-    """The model on a ``prepare``d drive with ``mods``: every step of ``run_reference`` in one
+def run_model(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
+    """The model on a ``prepare``d drive with ``mods``: every step of ``run_model_reference`` in one
     compiled loop (a fit runs it a thousand times; the numpy version spends most of its time
     between the arrays)."""
     p = w.params
@@ -197,8 +197,8 @@ _MOD_FIELDS = (  # what ``_run_steps`` reads from k[8:]: Mods' fields in this or
 )
 
 
-def run_reference(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
-    """``run`` in numpy around ``step_lateral``: the reference ``run``'s one compiled loop is
+def run_model_reference(w: Prepared, d_m: float, mods: Mods = NOMINAL) -> Simulated:
+    """``run_model`` in numpy around ``step_lateral``: the reference ``run_model``'s one compiled loop is
     held to (tests/test_gap.py)."""
     p, t = w.params, w.t
     late = mods.latency_s
@@ -257,7 +257,7 @@ def _compiled(function: Any) -> Any:
 
 def _compiled_fast(function: Any) -> Any:
     """``_compiled`` allowed to reorder and fuse arithmetic (not to assume away NaN or to
-    approximate sin, tanh or atan2): a run agrees with ``run_reference`` to about 1e-15."""
+    approximate sin, tanh or atan2): a run agrees with ``run_model_reference`` to about 1e-15."""
     return njit(cache=True, fastmath={"nsz", "arcp", "contract", "reassoc"})(function)
 
 
@@ -364,7 +364,7 @@ def _run_steps(
     h: float,
     k: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``run_reference`` step by step: the car's numbers and the mods in ``k`` (c1n, c2n, a, b,
+    """``run_model_reference`` step by step: the car's numbers and the mods in ``k`` (c1n, c2n, a, b,
     mass, I_z, the rearward transfer, the sensor's x, then Mods' fields in their order, then g). Returns
     the sideslip at the sensor, the yaw rate, the measured yaw rate, a_y and the speed reading."""
     c1n, c2n, a, b, mass, iz, transfer, x_sensor = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7]
@@ -437,7 +437,7 @@ def _run_steps(
         r_meas_out[i] = r_meas
         ay_out[i] = ay
         # as step_lateral: A = M·h, exp(A) and h·(I + A/2 + A²/6 + A³/24) by their series (written
-        # out again on purpose: step_lateral is run_reference's, and a reference that shared this
+        # out again on purpose: step_lateral is run_model_reference's, and a reference that shared this
         # code could not catch a fault in it)
         a00, a01, a10, a11 = m00 * h, m01 * h, m10 * h, m11 * h
         b00, b01 = a00 * a00 + a01 * a10, a00 * a01 + a01 * a11  # A²

@@ -5,25 +5,31 @@ summary read it. It is frozen and holds copies, so a sink can neither change the
 change under its feet.
 """
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from app.decode.counts import FrameCounts
 from app.detect.quasi_steady import NO_CORNERING, Cornering
-from app.detect.signs import SignVotes, odd_sign, which_of_the_two, yaw_rate_problem
+from app.detect.signs import SignVotes, odd_sign
 from app.estimate.model import FilterCounts
+from app.paper import crossing_speed
 from app.records import Crossing, CrossingRejected, Direction, Record
-from app.results.agreement import DriveResult, disagreement
 from app.results.combine import Combined
-from app.results.headline import Headline, headline, positive
+from app.results.headline import Headline
 from app.results.pairing import Paired
+from app.results.refusal import (
+    d_witnessed,
+    drives_disagree,
+    refusal,
+    replay_hint,
+    resting_fit,
+    sign_problem,
+    standing_headline,
+    witness,
+)
 from app.results.regression import RegressionFit
 from app.results.sideslip_profile import ProfileView
 from app.results.support import unsteady_crossings
-
-_SENSOR_MAX_HZ = 400.0  # an optical sensor sends at 50–250 Hz; far beyond that is not its own pace
-_HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,51 +85,28 @@ class Snapshot:
 
     @property
     def headline(self) -> Headline | None:
-        """The C2n to report (``headline.py``: by what the drive held), unless a refusal stands: a
-        role's sign the wrong way round (``sign_problem``), pooled drives that disagree, or — with
-        no fit to rest on — crossings whose sweeps disagree."""
-        if self.sign_problem:
-            return None
-        fit = self.fit
-        quasi = fit if fit is not None and fit is self.quasi else None  # no sweep crossed zero
-        if (quasi is not None and self.drives_disagree) or (fit is None and self.unsteady_crossings):
-            return None
-        return headline(None if quasi else self.regression, quasi, self.paired, self.combined)
+        """The C2n to report, unless a refusal stands (``refusal.standing_headline``)."""
+        return standing_headline(
+            self.sign_problem,
+            self.drives_disagree,
+            self.unsteady_crossings,
+            self.fit,
+            self.regression,
+            self.quasi,
+            self.paired,
+            self.combined,
+        )
 
     @property
     def fit(self) -> RegressionFit | None:
-        """The regression the result rests on: the steady samples', or where no sweep crossed
-        zero, the quasi-steady samples'. Without a sweep the car's speed and yaw rate were never
-        held for the method's own measurement, and samples that passed the steady gate still carry
-        slow transients (corners taken braking gently: C2n 0.5–1.1 % low on four simulated track
-        days, the truth outside each interval; −0.06 to −0.41 % and inside with the quasi-steady
-        model's terms)."""
-        if self.quasi is None or self.crossings:
-            return self.regression
-        return self.quasi
+        """The regression the result rests on (``refusal.resting_fit``)."""
+        return resting_fit(self.regression, self.quasi, bool(self.crossings))
 
     @property
     def refusal(self) -> str:
-        """Why there is no C2n: a wrong sign, or the manoeuvre the drive lacked."""
-        if self.sign_problem:
-            return self.sign_problem
-        if self.drives_disagree:
-            return self.drives_disagree
-        if self.unsteady_crossings and (self.regression is None or not positive(self.regression.c2n)):
-            return self.unsteady_crossings
-        c = self.cornering
-        if c.turning_s < 1.0:
-            return (
-                "no cornering in the drive: drive steady circles at 2–4 m/s² with the speed swept "
-                "slowly through the sign change"
-            )
-        tight = f"{c.tight_s:.0f} s on radii under eight wheelbases, " if c.tight_s >= 0.5 else ""
-        return (
-            f"no sideslip sign change and too little quasi-steady cornering: of {c.turning_s:.0f} s "
-            f"cornering, {c.ay_high_s:.0f} s beyond the tyres' linear range of a_y, {c.transient_s:.0f} s "
-            f"speed or steering changing too fast, {tight}{c.usable_s:.0f} s quasi-steady — drive steady "
-            "circles at 2–4 m/s² with the speed swept slowly through the sign change, or corners held "
-            "at 1–4 m/s² at several speeds"
+        """Why there is no C2n: a wrong sign, or the manoeuvre the drive lacked (``refusal.refusal``)."""
+        return refusal(
+            self.sign_problem, self.drives_disagree, self.unsteady_crossings, self.regression, self.cornering
         )
 
     @property
@@ -133,95 +116,39 @@ class Snapshot:
 
     @property
     def drives_disagree(self) -> str | None:
-        """Why drives pooled give no one C2n: drives each alone whose C2n differ beyond their errors
-        (each pair's z, Holm's step-down at 95 % over all pairs: ``agreement.py``, as analyze checks
-        drives before pooling them) — not one car on one set of tyres, whose C2n a pooled fit would
-        bend its terms to split."""
-        if self.fit is None or self.fit is not self.quasi:
-            return None
-        alone = [(k, f) for k, f in enumerate(self.quasi_drives, 1) if f is not None and positive(f.c2n)]
-        if disagreement([DriveResult(f"drive {k}", f.c2n, f.c2n_ci95) for k, f in alone]) is None:
-            return None
-        each = "; ".join(
-            f"drive {k} {f.c2n:.3f} [{f.c2n_ci95[0]:.3f}, {f.c2n_ci95[1]:.3f}]" for k, f in alone
-        )
-        return (
-            f"the drives pooled disagree, each alone: {each} — not one car on one set of tyres "
-            "(a tyre change, pressures, temperatures?): analyse them apart"
-        )
+        """Why drives pooled give no one C2n (``refusal.drives_disagree``)."""
+        return drives_disagree(self.fit, self.quasi, self.quasi_drives)
 
     @property
     def sign_problem(self) -> str | None:
-        """Why the regression's C2n is not a result, when it is not positive. A role the wrong way
-        round (the yaw rate, or the sideslip) turns both of β = ψ0 + d·κ − a_y/(g·C2n)'s terms
-        over: the fit then puts the sensor behind the rear axle and C2n below zero; the car's a_y
-        and steering (``signs``) say which of the two it is. Where d is held (circles at one
-        speed), nothing in the fit shows a flipped yaw rate: the votes alone do."""
-        fit = self.fit
-        if fit is None:
-            return None
-        d, where = fit.d.m, f"{-fit.d.m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
-        witness = self._witness
-        assert witness is not None  # there is a fit
-        if witness.estimator == "marginal" and not self.d_witnessed:  # d is the tape's prior's: the
-            problem = yaw_rate_problem(self.signs)  # votes alone show the signs, as where d is held
-            if problem is not None or positive(fit.c2n):
-                return problem
-            d = 0.0
-        elif witness.d.free_m is not None and witness.d.free_m < 0:
-            d, where = witness.d.free_m, f"at least {-witness.d.free_m:.2f} m behind the rear axle"
-        elif not witness.d.held and witness.d.m < 0:
-            d, where = witness.d.m, f"{-witness.d.m:.2f} m behind the rear axle"
-        if positive(fit.c2n) and d >= 0:  # no d of the samples' own (one speed): the votes show the signs
-            return None if self.d_witnessed else yaw_rate_problem(self.signs)
-        if d < 0:
-            return (
-                f"the sideslip and the yaw rate disagree in sign (the regression puts the sensor "
-                f"{where}): {which_of_the_two(self.signs)}"
-            )
-        return (
-            f"the regression's C2n is {fit.c2n:.2f}, not positive: the steady samples do not show the "
-            "sideslip falling with speed on a circle — not a result"
-        )
+        """Why the regression's C2n is not a result (``refusal.sign_problem``)."""
+        return sign_problem(self.fit, self._witness, self.signs)
 
     @property
     def _witness(self) -> RegressionFit | None:
-        """The fit whose own d shows the roles' signs (d held at the tape's hides them): the steady
-        samples' where there are any (the quasi-steady ones' transitions can place d anywhere:
-        circles at one speed, 4 m behind), else the result's."""
-        fit = self.fit
-        return self.regression if fit is self.quasi and self.regression is not None else fit
+        """The fit whose own d shows the roles' signs (``refusal.witness``)."""
+        return witness(self.fit, self.regression, self.quasi)
 
     @property
     def d_witnessed(self) -> bool:
-        """Do the samples place d themselves (speeds apart: ``DResult.free_m`` where d is held)?"""
-        witness = self._witness
-        if witness is None:
-            return False
-        if witness.estimator == "marginal":  # d under the tape's prior: the samples' own, if any
-            return witness.d.free_m is not None
-        return not witness.d.held or witness.d.free_m is not None
+        """Do the samples place d themselves (``refusal.d_witnessed``)?"""
+        return d_witnessed(self._witness)
 
     @property
     def odd_sign(self) -> str | None:
-        """A role the wrong way round that leaves C2n as it is: a_y or the steering against the
-        other two; or the yaw rate against both where the sideslip turns with it (the fit's d
-        ahead of the axle: the two flips cancel in C2n)."""
+        """A role the wrong way round that leaves C2n as it is (``signs.odd_sign``), where no sign
+        problem stands."""
         return None if self.sign_problem else odd_sign(self.signs, self.d_witnessed)
 
     @property
     def replay_hint(self) -> str | None:
-        """Optical frames far faster than a sensor sends them: a drive replayed faster than it was
-        driven and taken at arrival time, so every sweep looks that much too fast to use."""
-        elapsed = self.elapsed_s
-        frames = max((self.frames.role_frames[role] for role in ("vx", "vy", "beta")), default=0)
-        if elapsed < _HINT_AFTER_S or frames / elapsed <= _SENSOR_MAX_HZ:
-            return None
-        return (
-            f"optical frames arrive at {frames / elapsed:.0f} Hz, faster than a sensor sends them "
-            f"(≤ {_SENSOR_MAX_HZ:g} Hz): a replay faster than it was driven? Its sweeps look that much "
-            "too fast to use: give c2n live the replay's rate (--rate)"
-        )
+        """Optical frames far faster than a sensor sends them (``refusal.replay_hint``)."""
+        return replay_hint(self.elapsed_s, self.optical_frames)
+
+    @property
+    def optical_frames(self) -> int:
+        """The most frames any optical role (vx, vy, beta) had."""
+        return max((self.frames.role_frames[role] for role in ("vx", "vy", "beta")), default=0)
 
     @property
     def u0_mps(self) -> float | None:
@@ -229,4 +156,4 @@ class Snapshot:
         headline = self.headline
         if headline is None or headline.c2n * self.g_mps2 * self.d_m < 0:
             return None
-        return math.sqrt(headline.c2n * self.g_mps2 * self.d_m)
+        return crossing_speed(headline.c2n, self.d_m, self.g_mps2)

@@ -57,6 +57,22 @@ class Paired:
     def ci95(self) -> tuple[float, float]:
         return (self.c2n - Z95 * self.se, self.c2n + Z95 * self.se)
 
+    @property
+    def misalignment_ci95_rad(self) -> tuple[float, float] | None:
+        """The head's yaw's 95 % interval, where the crossings place it."""
+        return _interval(self.misalignment_rad, self.misalignment_se)
+
+    @property
+    def lag_ci95_s(self) -> tuple[float, float] | None:
+        """The sideslip's lag's 95 % interval, where the crossings place it."""
+        return _interval(self.lag_s, self.lag_se)
+
+
+def _interval(value: float | None, se: float | None) -> tuple[float, float] | None:
+    if value is None or se is None:
+        return None
+    return (value - Z95 * se, value + Z95 * se)
+
 
 _PASSES = 5  # the priors follow C2n: settled in two or three
 _SETTLED = 1e-9  # C2n settled: far inside any crossing's error

@@ -14,18 +14,15 @@ from typing import Any, Literal
 from app import __version__
 from app.config import Config
 from app.detect.signs import SignVotes
-from app.detect.steady_state import WHEELBASE_M
 from app.output.files import json_ready, write_json
 from app.records import Crossing, CrossingRejected, Direction, Sweep
+from app.results import advice
 from app.results.combine import Combined
 from app.results.headline import Method
 from app.results.pairing import Paired
-from app.results.regression import TIGHT_WHEELBASES, RegressionFit
+from app.results.regression import RegressionFit
 from app.snapshot import Snapshot
 from app.sources.logs import LogReport
-from app.units import Z95
-
-REQUIRED_ROLES = (("vx",), ("vy", "beta"))
 
 Interval = tuple[float | None, float | None]
 
@@ -268,270 +265,49 @@ def write(path: Path, summary: Summary) -> None:
     write_json(path, summary.to_json(), "the summary")
 
 
-def _frame_ids(config: Config, role: str) -> str:
-    spec = config.roles[role]
-    for dbc in config.dbcs:
-        for message in dbc.database.messages:
-            if message.name == spec.message:
-                where = f" on channel {spec.channel}" if spec.channel is not None else ""
-                return f"{spec.name}, id 0x{message.frame_id:X}{where}"
-    return spec.name
-
-
 def roles_without_frames(snapshot: Snapshot, config: Config) -> list[str]:
-    counts = snapshot.frames.role_frames
-    return [role for role in config.roles if counts[role] == 0]
+    return advice.roles_without_frames(snapshot.frames, config)
 
 
 def missing_required(snapshot: Snapshot, config: Config) -> str | None:
     """A message naming the required role that had no frames, or None."""
-    silent = set(roles_without_frames(snapshot, config))
-    for group in REQUIRED_ROLES:
-        configured = [r for r in group if r in config.roles]
-        if configured and all(r in silent for r in configured):
-            role = configured[0]
-            return (
-                f"no frames for role '{role}' ({_frame_ids(config, role)}) — "
-                "is the optical sensor on this bus/log and channel?"
-            )
-    return None
+    return advice.missing_required(snapshot.frames, config)
+
+
+def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = ()) -> advice.Findings:
+    """What the advice reads of the run (``results/advice.py``)."""
+    return advice.Findings(
+        config=config,
+        reports=tuple(reports),
+        frames=snapshot.frames,
+        filter_counts=snapshot.filter.counts,
+        result_fit=snapshot.fit,
+        regression=snapshot.regression,
+        quasi=snapshot.quasi,
+        quasi_drives=snapshot.quasi_drives,
+        paired=snapshot.paired,
+        headline=snapshot.headline,
+        crossings=len(snapshot.crossings),
+        rejections=len(snapshot.rejections),
+        started=snapshot.t_first is not None,
+        sign_problem=snapshot.sign_problem,
+        unsteady_crossings=snapshot.unsteady_crossings,
+        odd_sign=snapshot.odd_sign,
+        drives_disagree=snapshot.drives_disagree,
+        replay_hint=snapshot.replay_hint,
+        d_witnessed=snapshot.d_witnessed,
+    )
 
 
 def warnings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = ()) -> list[str]:
-    """What the user should know about the run, one line each."""
-    counts = snapshot.frames
-    out: list[str] = []
-    if snapshot.sign_problem:
-        out.append(snapshot.sign_problem)
-    if snapshot.unsteady_crossings:
-        out.append(snapshot.unsteady_crossings)
-    if snapshot.odd_sign:
-        out.append(snapshot.odd_sign)
-    for report in reports:
-        if report.stopped:
-            out.append(f"{report.path}: {report.stopped}")
-    for role in roles_without_frames(snapshot, config):
-        out.append(f"no frames for role '{role}' ({_frame_ids(config, role)})")
-    if "yaw_rate" not in config.roles and "ay" not in config.roles:
-        out.append(
-            "no yaw rate or lateral acceleration: the steady-state gate cannot check a_y "
-            "or tell straight driving"
-        )
-    for dbc in config.dbcs:
-        if dbc.relaxed:
-            out.append(f"{dbc.path.name} loaded with strict=False (overlapping or oversized signals)")
-    if counts.other_channel:
-        out.append(
-            f"{counts.other_channel} frames of known ids arrived on a channel their DBC "
-            "is not decoded on ([channels])"
-        )
-    if counts.bad_length:
-        cut = sum(n for (_, kind), n in counts.bad_by_id.items() if kind == "cut")
-        how = f" ({cut} with a data field cut short in a text log's line)" if cut else ""
-        out.append(f"{counts.bad_length} frames not decoded: their length is not their DBC message's{how}")
-    if counts.bad_time:
-        out.append(f"{counts.bad_time} frames without a usable timestamp (NaN or infinite): not used")
-    for reason, n in counts.rejected.most_common():
-        out.append(f"{n} frames' values dropped: {reason}")
-    f = snapshot.filter.counts
-    if f.time_jumps:
-        out.append(f"timestamps went backwards {f.time_jumps} times: the filter restarted")
-    if f.resets - f.time_jumps:
-        out.append(
-            f"the optical data stopped {f.resets - f.time_jumps} times for over "
-            f"{config.filter.gap_reset_s:g} s: the filter restarted"
-        )
-    # drives apart: no pooled fit to speak of; a role the wrong way round: no fit's terms to trust
-    fit = snapshot.fit if not snapshot.drives_disagree and not snapshot.sign_problem else None
-    if fit is not None and not fit.d.ci95_m[0] <= config.d_m <= fit.d.ci95_m[1]:
-        low, high = fit.d.ci95_m
-        out.append(
-            f"the fitted sensor position d = {fit.d.m:.3f} m [{low:.3f}, {high:.3f}] disagrees with the "
-            f"config's {config.d_m:g} m: check sensor_ahead_of_rear_axle_m (the crossings' C2n scales "
-            "with d; the regression's does not)"
-        )
-    apart = _crossings_apart(snapshot)
-    if apart is not None:
-        out.append(apart)
-    idle = [str(k) for k, alone in enumerate(snapshot.quasi_drives, 1) if alone is None]
-    if fit is not None and fit is snapshot.quasi and idle:
-        out.append(
-            f"drive {', '.join(idle)} of the {len(snapshot.quasi_drives)} pooled has too little "
-            "quasi-steady cornering to be fitted alone (`cornering` counts why: tight turns, a_y beyond "
-            "the linear range, transients): the pooled C2n rests on the others"
-        )
-    tape = f"±{config.calibration.d_tolerance_mm:g} mm"
-    if fit is not None and fit.d.held and fit is snapshot.quasi:
-        out.append(
-            f"quasi-steady cornering cannot place the sensor's d beside C2n as a sweep does: d is the "
-            f"config's {config.d_m:g} m (its interval counts the tape's {tape}) — measure it with a tape"
-        )
-    elif fit is not None and fit.d.held_tight:
-        wheelbases = TIGHT_WHEELBASES * (config.vehicle.wheelbase_m or WHEELBASE_M)
-        out.append(
-            f"most steady samples turned on radii under {wheelbases:.0f} m ({TIGHT_WHEELBASES:g} "
-            f"wheelbases), where the sensor's d cannot be fitted beside C2n: d is the config's "
-            f"{config.d_m:g} m, and each cm of d moves C2n by {fit.d.per_tape_cm_pct or 0.0:.1f} % here "
-            f"(its interval counts the tape's {tape}) — measure d to the millimetre, or sweep on wider "
-            "circles"
-        )
-    elif fit is not None and fit.d.held:
-        low, high = fit.samples.speed_range_mps
-        out.append(
-            f"the steady samples span {low:.1f}–{high:.1f} m/s only: too narrow to fit the sensor's d beside "
-            f"C2n, so d is the config's {config.d_m:g} m (its interval counts the tape's {tape}); sweep the "
-            "speed through u0 to measure both"
-        )
-    elif fit is not None and fit.d.information is not None and fit.d.information < 1.0:
-        low, high = fit.samples.speed_range_mps
-        where = (
-            "quasi-steady cornering"
-            if fit is snapshot.quasi
-            else f"the steady samples ({low:.1f}–{high:.1f} m/s)"
-        )
-        out.append(
-            f"{where} place the sensor's d less well than the tape does ({fit.d.information:.2f} of its "
-            f"information): C2n rests on the config's {config.d_m:g} m more than on the drive (its interval "
-            f"counts the tape's {tape}); sweep the speed through u0 on two radii to measure both"
-        )
-    if fit is not None and fit.models.chosen == "softening":
-        beside = (  # the marginal fit has the softening in its model whatever the drive: no other line
-            "its interval counts the softening's spread"
-            if fit.estimator == "marginal"
-            else f"a straight-line fit would give {fit.models.linear.c2n:.3f}"
-        )
-        out.append(
-            f"the tyres soften with slip (t = {fit.models.softening_t:.1f}): C2n is extrapolated to zero "
-            f"lateral acceleration ({fit.c2n:.3f}; {beside})"
-        )
-    if fit is not None and not fit.models.resolved:
-        low, high = fit.samples.ay_range_mps2
-        out.append(
-            f"the steady samples span a_y {low:.1f}–{high:.1f} m/s² only: too narrow to tell linear tyres "
-            f"from softening ones (a softening of {fit.models.hidden_pct:.0f} % could hide in it), so the "
-            "interval covers both; steady laps at lower a_y (slower, or a larger circle) would narrow it"
-        )
-    slope = _slope_warning(fit)
-    if slope is not None:
-        out.append(slope)
-    turn = fit.turn_force if fit is not None else None
-    if turn is not None:
-        low, high = turn.ci95_pct
-        out.append(
-            f"the rear tyres make a force that follows the turn's direction, not its size: "
-            f"{turn.pct:+.2f} % [{low:+.2f}, {high:+.2f}] of the axle's weight (towards the "
-            "turn's inside; a tyre's camber step, friction in the suspension): the regression takes it out "
-            "of C2n; each crossing carries it (it moves the sign change as a sensor d·κ further ahead would)"
-        )
-    bias = _yaw_bias_warning(fit)
-    if bias is not None:
-        out.append(bias)
-    flipped = _sideslip_flip_warning(snapshot, fit, config)
-    if flipped is not None:
-        out.append(flipped)
-    if snapshot.replay_hint:
-        out.append(snapshot.replay_hint)
-    beyond = _crossing_beyond_gate(snapshot, config) if flipped is None else None  # its u0 is the reading's
-    if beyond is not None:
-        out.append(beyond)
-    paired = snapshot.paired
-    yaw, yaw_se = (paired.misalignment_rad, paired.misalignment_se) if paired is not None else (None, None)
-    if yaw is not None and yaw_se is not None and abs(yaw) > max(Z95 * yaw_se, math.radians(0.1)):
-        out.append(
-            f"the sensor head looks yawed by {math.degrees(yaw):+.2f}° (left and right turns disagree); "
-            "pairing and the regression remove it, but align the head"
-        )
-    rejected = snapshot.rejections
-    if rejected:
-        out.append(f"{len(rejected)} sign changes not used (see 'rejected_crossings')")
-    quasi = snapshot.headline is not None and snapshot.headline.method is Method.QUASI_STEADY
-    if quasi:
-        out.append(
-            "no sweep crossed the sideslip's sign change: C2n is the quasi-steady estimate from cornering "
-            "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force); its "
-            "interval counts the samples' noise, not the model's reach (simulated track laps: within 0.9 % "
-            "on one car model, 1.3 % on another)"
-            + (
-                " — sweep the speed through u0 on a circle to measure it the method's own way"
-                if not beyond
-                else ""
-            )
-        )
-    elif snapshot.t_first is not None and not snapshot.crossings and beyond is None:
-        out.append(
-            "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
-        )
-    return out
-
-
-SLOPE_WARN_PCT = 1.0  # a pad slope this steep, and beyond its noise, is worth a word
-
-
-def _slope_warning(fit: RegressionFit | None) -> str | None:
-    """A slope the regression found: where it falls, that it is taken out of C2n, and that the
-    crossings (each at one heading) still carry it."""
-    slope = fit.slope if fit is not None else None
-    if slope is None or slope.pct < SLOPE_WARN_PCT or slope.ci95_pct[0] <= 0.0:
-        return None
-    towards = slope.downhill_deg
-    side = "left" if towards >= 0 else "right"
-    low, high = slope.ci95_pct
-    return (
-        f"the test pad slopes {slope.pct:.1f} % [{low:.1f}, {high:.1f}] "
-        f"(falling {abs(towards):.0f}° {side} of the start heading): the regression takes it out of C2n; "
-        "each crossing happens at one heading and carries it — pair left and right circles, or find a "
-        "level pad"
-    )
+    """What the user should know about the run, one line each: what ``results/advice.py``'s
+    registry says, in its order."""
+    return advice.advise(findings(snapshot, config, reports))
 
 
 def _sign_votes(votes: SignVotes) -> SignVotesRow | None:
     row = SignVotesRow(votes.ay_with, votes.ay_against, votes.steer_with, votes.steer_against)
     return row if any(astuple(row)) else None  # no cornering, or no a_y or steering to vote
-
-
-NOMINAL_OFF = 0.3  # C2n this far from the config's nominal: not the tyres of a test day
-
-
-def _sideslip_flip_warning(snapshot: Snapshot, fit: RegressionFit | None, config: Config) -> str | None:
-    """Circles at one speed cannot show a sideslip the wrong way round: nothing in them places d,
-    and with β turned over they read 1/(g·(2d/u² − 1/(g·C2n))) for C2n. Where the config's nominal
-    C2n is far from the reading and near what the other sign gives, say so."""
-    nominal = config.tyres.c2n_per_rad
-    if fit is None or not nominal or snapshot.d_witnessed or not fit.c2n > 0:
-        return None
-    u = 0.5 * (fit.samples.speed_range_mps[0] + fit.samples.speed_range_mps[1])
-    g = config.vehicle.gravity_mps2
-    turned = 2.0 * fit.d.m / u**2 - 1.0 / (g * fit.c2n)
-    other = 1.0 / (g * turned) if turned > 0 else math.nan
-    off = abs(fit.c2n / nominal - 1.0)
-    if not (off > NOMINAL_OFF and abs(other / nominal - 1.0) < off / 3.0):
-        return None
-    return (
-        f"C2n {fit.c2n:.2f} is {100 * off:.0f} % off the config's nominal {nominal:g}; with the sideslip "
-        f"the other way round these samples at one speed would read {other:.2f}: check `scale` of the "
-        "roles vy and beta (+ to the left) — one speed cannot tell, a sweep through u0 can"
-    )
-
-
-def _crossing_beyond_gate(snapshot: Snapshot, config: Config) -> str | None:
-    """Where no crossing was found on circles whose u0 lies beyond the a_y gate: the words saying
-    so (the sideslip changed sign where the tyres are no longer linear, so nothing was counted)."""
-    fit, limit = snapshot.regression, config.detector.ay_max_mps2
-    if snapshot.crossings or fit is None or snapshot.sign_problem or not fit.c2n > 0:
-        return None
-    curvature = fit.samples.curvature_range_per_m[0]  # the largest circle driven
-    if not curvature > 0 or fit.d.m <= 0:
-        return None
-    u0_squared = config.vehicle.gravity_mps2 * fit.c2n * fit.d.m
-    ay_at_u0 = u0_squared * curvature
-    if ay_at_u0 <= limit:
-        return None
-    return (
-        f"on the largest circle driven (radius {1 / curvature:.0f} m) the sideslip changes sign at a_y ≈ "
-        f"{ay_at_u0:.1f} m/s², beyond the tyres' linear range ({limit:g} m/s², [detector] ay_max_mps2), "
-        f"so no crossing was counted: drive a circle of radius ≥ {1.2 * u0_squared / limit:.0f} m to meet "
-        f"u0 ≈ {math.sqrt(u0_squared):.1f} m/s within it"
-    )
 
 
 def format_id(frame_id: int, extended: bool) -> str:
@@ -541,24 +317,6 @@ def format_id(frame_id: int, extended: bool) -> str:
 
 def _round(value: float, digits: int = 4) -> float | None:
     return round(float(value), digits) if math.isfinite(value) else None
-
-
-def _crossings_apart(snapshot: Snapshot) -> str | None:
-    """Where the paired crossings' interval and the regression's headline's do not meet: which to
-    believe, and why they differ."""
-    head, paired = snapshot.headline, snapshot.paired
-    if head is None or head.method is not Method.REGRESSION or paired is None:
-        return None
-    (low, high), (h_low, h_high) = paired.ci95, head.ci95
-    if low <= h_high and h_low <= high:
-        return None
-    return (
-        f"the paired crossings read {paired.c2n:.3f} [{low:.3f}, {high:.3f}], apart from the "
-        f"regression's {head.c2n:.3f}: each crossing rests on one speed and the config's d (eq. 7) "
-        "and carries what the regression fits beside C2n (a head's yaw where only one direction "
-        "crossed, the tyres' secant beyond its a_y, a tight turn's two wheels) — the regression's C2n "
-        "is the result"
-    )
 
 
 def _maybe(value: float | None, digits: int = 4, scale: float = 1.0) -> float | None:
@@ -648,41 +406,20 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
     )
 
 
-def _yaw_bias_warning(fit: RegressionFit | None) -> str | None:
-    """Where the quasi-steady fit found the yaw rate biased (its interval clear of zero)."""
-    found = fit.yaw_bias if fit is not None else None
-    if found is None:
-        return None
-    low, high = found.ci95_degps
-    if low <= 0.0 <= high:
-        return None
-    bias = round(found.degps, 4)  # as the result file has it: one rounding, not two
-    return (
-        f"the yaw rate reads {bias:+.3f} °/s [{low:+.3f}, {high:+.3f}] high: the quasi-steady "
-        "fit takes it out of C2n (on corners turning mostly one way it would lean on it); zero the gyro "
-        "at standstill before the drive"
-    )
-
-
 def _paired(paired: Paired | None) -> PairedRow | None:
     if paired is None:
         return None
     deg = math.degrees(1.0)
-
-    def ci(value: float | None, se: float | None, scale: float = 1.0) -> Interval | None:
-        if value is None or se is None:
-            return None
-        return (_round((value - Z95 * se) * scale), _round((value + Z95 * se) * scale))
-
+    misalignment, lag = paired.misalignment_ci95_rad, paired.lag_ci95_s
     return PairedRow(
         c2n=_round(paired.c2n),
         c2n_ci95=_pair(paired.ci95),
         misalignment_deg=_round(paired.misalignment_rad * deg)
         if paired.misalignment_rad is not None
         else None,
-        misalignment_ci95_deg=ci(paired.misalignment_rad, paired.misalignment_se, deg),
+        misalignment_ci95_deg=_pair(misalignment, deg) if misalignment is not None else None,
         lag_s=_maybe(paired.lag_s),
-        lag_ci95_s=ci(paired.lag_s, paired.lag_se),
+        lag_ci95_s=_pair(lag) if lag is not None else None,
         cancels=tuple(paired.cancels),
         cells={key: _round(value) for key, value in paired.cells.items()},
         n=paired.n,

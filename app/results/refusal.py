@@ -1,0 +1,175 @@
+"""Why a run gives no C2n, and the checks a result must pass first: pure functions of what the
+run found. ``snapshot.py`` asks them and keeps their outcomes; the sinks read those.
+
+- ``resting_fit``: which regression the result rests on (the steady samples', or the quasi-steady's).
+- ``sign_problem``: a role the wrong way round, or a C2n that is not positive.
+- ``drives_disagree``: drives pooled that do not measure one C2n.
+- ``standing_headline``: the headline, unless one of these refuses it.
+- ``refusal``: why there is no C2n at all.
+- ``replay_hint``: optical frames far faster than a sensor sends them.
+"""
+
+from collections.abc import Sequence
+
+from app.detect.quasi_steady import Cornering
+from app.detect.signs import SignVotes, which_of_the_two, yaw_rate_problem
+from app.results.agreement import DriveResult, disagreement
+from app.results.combine import Combined
+from app.results.headline import Headline, headline, positive
+from app.results.pairing import Paired
+from app.results.regression import RegressionFit
+
+SENSOR_MAX_HZ = 400.0  # an optical sensor sends at 50–250 Hz; far beyond that is not its own pace
+HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
+
+
+def resting_fit(
+    regression: RegressionFit | None, quasi: RegressionFit | None, crossed: bool
+) -> RegressionFit | None:
+    """The regression the result rests on: the steady samples', or where no sweep crossed
+    zero, the quasi-steady samples'. Without a sweep the car's speed and yaw rate were never
+    held for the method's own measurement, and samples that passed the steady gate still carry
+    slow transients (corners taken braking gently: C2n 0.5–1.1 % low on four simulated track
+    days, the truth outside each interval; −0.06 to −0.41 % and inside with the quasi-steady
+    model's terms)."""
+    if quasi is None or crossed:
+        return regression
+    return quasi
+
+
+def witness(
+    fit: RegressionFit | None, regression: RegressionFit | None, quasi: RegressionFit | None
+) -> RegressionFit | None:
+    """The fit whose own d shows the roles' signs (d held at the tape's hides them): the steady
+    samples' where there are any (the quasi-steady ones' transitions can place d anywhere:
+    circles at one speed, 4 m behind), else the result's (``fit``)."""
+    return regression if fit is quasi and regression is not None else fit
+
+
+def d_witnessed(witnessed: RegressionFit | None) -> bool:
+    """Do the samples place d themselves (speeds apart: ``DResult.free_m`` where d is held)?
+    ``witnessed`` is ``witness``'s fit."""
+    if witnessed is None:
+        return False
+    if witnessed.estimator == "marginal":  # d under the tape's prior: the samples' own, if any
+        return witnessed.d.free_m is not None
+    return not witnessed.d.held or witnessed.d.free_m is not None
+
+
+def sign_problem(fit: RegressionFit | None, witnessed: RegressionFit | None, signs: SignVotes) -> str | None:
+    """Why the regression's C2n is not a result, when it is not positive. A role the wrong way
+    round (the yaw rate, or the sideslip) turns both of β = ψ0 + d·κ − a_y/(g·C2n)'s terms
+    over: the fit then puts the sensor behind the rear axle and C2n below zero; the car's a_y
+    and steering (``signs``) say which of the two it is. Where d is held (circles at one
+    speed), nothing in the fit shows a flipped yaw rate: the votes alone do. ``fit`` is the
+    result's (``resting_fit``), ``witnessed`` its ``witness``."""
+    if fit is None:
+        return None
+    d, where = fit.d.m, f"{-fit.d.m:.2f} m behind the rear axle and C2n at {fit.c2n:.2f}"
+    assert witnessed is not None  # there is a fit
+    seen = d_witnessed(witnessed)
+    if witnessed.estimator == "marginal" and not seen:  # d is the tape's prior's: the
+        problem = yaw_rate_problem(signs)  # votes alone show the signs, as where d is held
+        if problem is not None or positive(fit.c2n):
+            return problem
+        d = 0.0
+    elif witnessed.d.free_m is not None and witnessed.d.free_m < 0:
+        d, where = witnessed.d.free_m, f"at least {-witnessed.d.free_m:.2f} m behind the rear axle"
+    elif not witnessed.d.held and witnessed.d.m < 0:
+        d, where = witnessed.d.m, f"{-witnessed.d.m:.2f} m behind the rear axle"
+    if positive(fit.c2n) and d >= 0:  # no d of the samples' own (one speed): the votes show the signs
+        return None if seen else yaw_rate_problem(signs)
+    if d < 0:
+        return (
+            f"the sideslip and the yaw rate disagree in sign (the regression puts the sensor "
+            f"{where}): {which_of_the_two(signs)}"
+        )
+    return (
+        f"the regression's C2n is {fit.c2n:.2f}, not positive: the steady samples do not show the "
+        "sideslip falling with speed on a circle — not a result"
+    )
+
+
+def drives_disagree(
+    fit: RegressionFit | None, quasi: RegressionFit | None, quasi_drives: Sequence[RegressionFit | None]
+) -> str | None:
+    """Why drives pooled give no one C2n: drives each alone whose C2n differ beyond their errors
+    (each pair's z, Holm's step-down at 95 % over all pairs: ``agreement.py``, as analyze checks
+    drives before pooling them) — not one car on one set of tyres, whose C2n a pooled fit would
+    bend its terms to split. ``fit`` is the result's, ``quasi_drives`` each drive's alone."""
+    if fit is None or fit is not quasi:
+        return None
+    alone = [(k, f) for k, f in enumerate(quasi_drives, 1) if f is not None and positive(f.c2n)]
+    if disagreement([DriveResult(f"drive {k}", f.c2n, f.c2n_ci95) for k, f in alone]) is None:
+        return None
+    each = "; ".join(f"drive {k} {f.c2n:.3f} [{f.c2n_ci95[0]:.3f}, {f.c2n_ci95[1]:.3f}]" for k, f in alone)
+    return (
+        f"the drives pooled disagree, each alone: {each} — not one car on one set of tyres "
+        "(a tyre change, pressures, temperatures?): analyse them apart"
+    )
+
+
+def refusal(
+    sign: str | None,
+    disagree: str | None,
+    unsteady: str | None,
+    regression: RegressionFit | None,
+    cornering: Cornering,
+) -> str:
+    """Why there is no C2n: a wrong sign (``sign_problem``), drives apart (``drives_disagree``),
+    crossings whose sweeps disagree (``support.unsteady_crossings``), or the manoeuvre the drive
+    lacked."""
+    if sign:
+        return sign
+    if disagree:
+        return disagree
+    if unsteady and (regression is None or not positive(regression.c2n)):
+        return unsteady
+    c = cornering
+    if c.turning_s < 1.0:
+        return (
+            "no cornering in the drive: drive steady circles at 2–4 m/s² with the speed swept "
+            "slowly through the sign change"
+        )
+    tight = f"{c.tight_s:.0f} s on radii under eight wheelbases, " if c.tight_s >= 0.5 else ""
+    return (
+        f"no sideslip sign change and too little quasi-steady cornering: of {c.turning_s:.0f} s "
+        f"cornering, {c.ay_high_s:.0f} s beyond the tyres' linear range of a_y, {c.transient_s:.0f} s "
+        f"speed or steering changing too fast, {tight}{c.usable_s:.0f} s quasi-steady — drive steady "
+        "circles at 2–4 m/s² with the speed swept slowly through the sign change, or corners held "
+        "at 1–4 m/s² at several speeds"
+    )
+
+
+def replay_hint(elapsed_s: float, optical_frames: int) -> str | None:
+    """Optical frames far faster than a sensor sends them: a drive replayed faster than it was
+    driven and taken at arrival time, so every sweep looks that much too fast to use.
+    ``optical_frames``: the most frames any optical role (vx, vy, beta) had."""
+    if elapsed_s < HINT_AFTER_S or optical_frames / elapsed_s <= SENSOR_MAX_HZ:
+        return None
+    return (
+        f"optical frames arrive at {optical_frames / elapsed_s:.0f} Hz, faster than a sensor sends them "
+        f"(≤ {SENSOR_MAX_HZ:g} Hz): a replay faster than it was driven? Its sweeps look that much "
+        "too fast to use: give c2n live the replay's rate (--rate)"
+    )
+
+
+def standing_headline(
+    sign: str | None,
+    disagree: str | None,
+    unsteady: str | None,
+    fit: RegressionFit | None,
+    regression: RegressionFit | None,
+    quasi: RegressionFit | None,
+    paired: Paired | None,
+    combined: Combined | None,
+) -> Headline | None:
+    """The C2n to report (``headline.py``: by what the drive held), unless a refusal stands: a
+    role's sign the wrong way round (``sign``), pooled drives that disagree (``disagree``), or —
+    with no fit to rest on — crossings whose sweeps disagree (``unsteady``)."""
+    if sign:
+        return None
+    held = fit if fit is not None and fit is quasi else None  # no sweep crossed zero
+    if (held is not None and disagree) or (fit is None and unsteady):
+        return None
+    return headline(None if held else regression, held, paired, combined)

@@ -1,0 +1,216 @@
+"""The advice functions and the refusal's checks, each alone: an input that raises it, one that does not."""
+
+import math
+from collections import Counter
+from dataclasses import replace
+from typing import Any
+
+from app.config import Config
+from app.decode.counts import FrameCounts
+from app.detect.quasi_steady import Cornering
+from app.detect.signs import SignVotes
+from app.results import advice, refusal
+from app.results.advice import Findings
+from app.results.fit_groups import (
+    DResult,
+    FitSamples,
+    ModelChoice,
+    ModelFit,
+    Psi0Result,
+    SlopeResult,
+    YawBiasResult,
+)
+from app.results.headline import Headline, Method
+from app.results.pairing import Paired
+from app.results.regression import RegressionFit
+
+FIT = RegressionFit(
+    c2n=14.0,
+    c2n_se=0.1,
+    c2n_ci95=(13.8, 14.2),
+    samples=FitSamples(
+        count=5000,
+        blocks=200,
+        ay_range_mps2=(1.0, 4.0),
+        curvature_range_per_m=(0.01, 0.02),
+        speed_range_mps=(8.0, 17.0),
+    ),
+    d=DResult(m=1.2, ci95_m=(1.1, 1.3)),
+    psi0=Psi0Result(rad=0.0, ci95_rad=(-0.001, 0.001)),
+    models=ModelChoice(
+        chosen="linear", softening_t=0.3, linear=ModelFit(14.0, None), softening=ModelFit(14.0, None)
+    ),
+)
+HEADLINE = Headline(14.0, (13.8, 14.2), Method.REGRESSION)
+FLIPPED = SignVotes(ay_with=0, ay_against=200, steer_with=0, steer_against=200)  # a_y and steering against
+AGREED = SignVotes(ay_with=200, ay_against=0, steer_with=200, steer_against=0)
+
+
+def _findings(config: Config, fit: RegressionFit | None = FIT, **kwargs: Any) -> Findings:
+    return Findings(config=config, result_fit=fit, regression=fit, **kwargs)
+
+
+def test_slope_says_where_the_pad_falls(config: Config) -> None:
+    sloped = replace(FIT, slope=SlopeResult(pct=2.0, ci95_pct=(1.5, 2.5), downhill_deg=-30.0, tilt=None))
+    said = advice.slope(_findings(config, sloped))
+    assert said is not None
+    assert said.startswith("the test pad slopes 2.0 % [1.5, 2.5] (falling 30° right of the start heading)")
+    assert "pair left and right circles, or find a level pad" in said
+
+
+def test_slope_within_its_noise_or_gentle_says_nothing(config: Config) -> None:
+    noisy = replace(FIT, slope=SlopeResult(pct=2.0, ci95_pct=(-0.1, 4.1), downhill_deg=10.0, tilt=None))
+    gentle = replace(FIT, slope=SlopeResult(pct=0.5, ci95_pct=(0.3, 0.7), downhill_deg=10.0, tilt=None))
+    assert advice.slope(_findings(config, noisy)) is None
+    assert advice.slope(_findings(config, gentle)) is None
+    assert advice.slope(_findings(config, FIT)) is None
+
+
+def test_no_fit_to_speak_of_where_a_sign_is_wrong(config: Config) -> None:
+    sloped = replace(FIT, slope=SlopeResult(pct=2.0, ci95_pct=(1.5, 2.5), downhill_deg=30.0, tilt=None))
+    assert advice.slope(_findings(config, sloped)) is not None
+    assert advice.slope(_findings(config, sloped, sign_problem="a role the wrong way round")) is None
+
+
+def test_yaw_bias_clear_of_zero(config: Config) -> None:
+    biased = replace(FIT, yaw_bias=YawBiasResult(degps=0.30004, ci95_degps=(0.1, 0.5)))
+    assert advice.yaw_bias(_findings(config, biased)) == (
+        "the yaw rate reads +0.300 °/s [+0.100, +0.500] high: the quasi-steady fit takes it out of "
+        "C2n (on corners turning mostly one way it would lean on it); zero the gyro at standstill "
+        "before the drive"
+    )
+
+
+def test_yaw_bias_within_its_noise_says_nothing(config: Config) -> None:
+    unsure = replace(FIT, yaw_bias=YawBiasResult(degps=0.2, ci95_degps=(-0.1, 0.5)))
+    assert advice.yaw_bias(_findings(config, unsure)) is None
+    assert advice.yaw_bias(_findings(config, FIT)) is None
+
+
+def test_crossings_apart_from_the_regression(config: Config) -> None:
+    paired = Paired(15.0, 0.2, None, None, None, None, {}, 4, 1.0)  # 14.61–15.39: clear of 13.8–14.2
+    said = advice.crossings_apart(_findings(config, paired=paired, headline=HEADLINE))
+    assert said is not None
+    assert said.startswith(
+        "the paired crossings read 15.000 [14.608, 15.392], apart from the regression's 14.000"
+    )
+    assert said.endswith("the regression's C2n is the result")
+
+
+def test_crossings_that_meet_the_regression_say_nothing(config: Config) -> None:
+    near = Paired(14.3, 0.2, None, None, None, None, {}, 4, 1.0)
+    far = Paired(15.0, 0.2, None, None, None, None, {}, 4, 1.0)
+    assert advice.crossings_apart(_findings(config, paired=near, headline=HEADLINE)) is None
+    quasi = Headline(14.0, (13.8, 14.2), Method.QUASI_STEADY)  # not the regression's headline
+    assert advice.crossings_apart(_findings(config, paired=far, headline=quasi)) is None
+
+
+def test_head_yawed(config: Config) -> None:
+    yawed = Paired(14.0, 0.2, math.radians(0.5), math.radians(0.1), None, None, {}, 4, 1.0)
+    said = advice.head_yawed(_findings(config, paired=yawed))
+    assert said is not None and said.startswith("the sensor head looks yawed by +0.50°")
+    straight = Paired(14.0, 0.2, math.radians(0.05), math.radians(0.01), None, None, {}, 4, 1.0)
+    assert advice.head_yawed(_findings(config, paired=straight)) is None
+
+
+def test_d_disagrees_with_the_config(config: Config) -> None:
+    far = replace(FIT, d=DResult(m=config.d_m + 0.5, ci95_m=(config.d_m + 0.4, config.d_m + 0.6)))
+    said = advice.d_disagrees(_findings(config, far))
+    assert said is not None and "check sensor_ahead_of_rear_axle_m" in said
+    near = replace(FIT, d=DResult(m=config.d_m, ci95_m=(config.d_m - 0.1, config.d_m + 0.1)))
+    assert advice.d_disagrees(_findings(config, near)) is None
+
+
+def test_no_sign_change_found(config: Config) -> None:
+    said = advice.no_crossing(_findings(config, None, started=True))
+    assert said == (
+        "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
+    )
+    assert advice.no_crossing(_findings(config, None, started=True, crossings=3)) is None
+    assert advice.no_crossing(_findings(config, None)) is None  # no frame at all
+
+
+def test_multi_line_advice_and_the_registry_order(config: Config) -> None:
+    both = replace(
+        FIT,
+        slope=SlopeResult(pct=2.0, ci95_pct=(1.5, 2.5), downhill_deg=30.0, tilt=None),
+        yaw_bias=YawBiasResult(degps=0.3, ci95_degps=(0.1, 0.5)),
+    )
+    heard = FrameCounts(role_frames=Counter(dict.fromkeys(config.roles, 1)))  # every role had frames
+    said = advice.advise(_findings(config, both, frames=heard, crossings=2, rejections=1))
+    assert [line.split(" ")[1] for line in said] == ["test", "yaw", "sign"]  # slope, yaw bias, rejected
+    assert said[-1] == "1 sign changes not used (see 'rejected_crossings')"
+    assert advice.ADVICE.index(advice.slope) < advice.ADVICE.index(advice.yaw_bias)
+    assert advice.advise(_findings(config, both), (advice.values_dropped,)) == []
+
+
+# the refusal's checks: snapshot.py delegates to these
+
+
+def test_sign_problem_where_the_fit_puts_the_sensor_behind_the_axle() -> None:
+    behind = replace(FIT, c2n=-14.0, c2n_ci95=(-14.2, -13.8), d=DResult(m=-1.2, ci95_m=(-1.3, -1.1)))
+    said = refusal.sign_problem(behind, behind, FLIPPED)
+    assert said is not None
+    assert said.startswith(
+        "the sideslip and the yaw rate disagree in sign (the regression puts the sensor 1.20 m behind the "
+        "rear axle): the yaw rate is the one"
+    )
+
+
+def test_no_sign_problem_where_the_fit_and_votes_agree() -> None:
+    assert refusal.sign_problem(FIT, FIT, AGREED) is None
+    assert refusal.sign_problem(None, None, FLIPPED) is None
+
+
+def test_sign_problem_where_c2n_is_not_positive() -> None:
+    negative = replace(FIT, c2n=-3.0, c2n_ci95=(-3.5, -2.5))
+    said = refusal.sign_problem(negative, negative, AGREED)
+    assert said is not None and said.startswith("the regression's C2n is -3.00, not positive")
+
+
+def test_held_d_leaves_the_votes_to_show_a_flipped_yaw_rate() -> None:
+    held = replace(FIT, d=DResult(m=1.2, ci95_m=(1.2, 1.2), held=True))
+    assert not refusal.d_witnessed(held)
+    said = refusal.sign_problem(held, held, FLIPPED)
+    assert said is not None and said.startswith("the yaw rate turns against")
+    assert refusal.sign_problem(held, held, AGREED) is None
+
+
+def test_pooled_drives_that_disagree() -> None:
+    one = replace(FIT, c2n=14.0, c2n_ci95=(13.8, 14.2))
+    other = replace(FIT, c2n=16.0, c2n_ci95=(15.8, 16.2))
+    said = refusal.drives_disagree(FIT, FIT, (one, other))
+    assert said == (
+        "the drives pooled disagree, each alone: drive 1 14.000 [13.800, 14.200]; drive 2 16.000 "
+        "[15.800, 16.200] — not one car on one set of tyres (a tyre change, pressures, temperatures?): "
+        "analyse them apart"
+    )
+    assert refusal.drives_disagree(FIT, None, (one, other)) is None  # not the quasi-steady fit: no pool
+    assert refusal.drives_disagree(FIT, FIT, (one, replace(one, c2n=14.05))) is None
+
+
+def test_refusal_names_the_manoeuvre_lacked() -> None:
+    nothing = refusal.refusal(None, None, None, None, Cornering())
+    assert nothing.startswith("no cornering in the drive")
+    some = refusal.refusal(
+        None, None, None, None, Cornering(turning_s=60.0, ay_high_s=20.0, transient_s=30.0, usable_s=10.0)
+    )
+    assert some.startswith("no sideslip sign change and too little quasi-steady cornering: of 60 s cornering")
+    assert refusal.refusal("sign", "apart", None, None, Cornering()) == "sign"  # the sign first
+
+
+def test_replay_hint() -> None:
+    said = refusal.replay_hint(10.0, 10_000)
+    assert said is not None and said.startswith("optical frames arrive at 1000 Hz")
+    assert refusal.replay_hint(10.0, 1_000) is None  # 100 Hz: a sensor's own
+    assert refusal.replay_hint(1.0, 10_000) is None  # too soon to tell a rate
+
+
+def test_resting_fit_and_standing_headline() -> None:
+    quasi = replace(FIT, c2n=13.0, c2n_ci95=(12.7, 13.3))
+    assert refusal.resting_fit(FIT, quasi, crossed=True) is FIT
+    assert refusal.resting_fit(FIT, quasi, crossed=False) is quasi
+    assert refusal.standing_headline("sign", None, None, FIT, FIT, None, None, None) is None
+    assert refusal.standing_headline(None, "apart", None, quasi, FIT, quasi, None, None) is None
+    head = refusal.standing_headline(None, None, None, FIT, FIT, None, None, None)
+    assert head == Headline(14.0, (13.8, 14.2), Method.REGRESSION)

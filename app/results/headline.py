@@ -19,10 +19,12 @@ A C2n that is not positive is no stiffness, and none is reported.
 import math
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
-from app.results.combine import Combined
-from app.results.pairing import Paired
-from app.results.regression import RegressionFit
+if TYPE_CHECKING:  # the fits' modules load numpy: `c2n --help` reads Method without them
+    from app.results.combine import Combined
+    from app.results.pairing import Paired
+    from app.results.regression import RegressionFit
 
 
 class Method(StrEnum):
@@ -51,10 +53,10 @@ def positive(c2n: float) -> bool:
 
 
 def headline(
-    regression: RegressionFit | None,
-    quasi: RegressionFit | None,
-    paired: Paired | None,
-    combined: Combined | None,
+    regression: "RegressionFit | None",
+    quasi: "RegressionFit | None",
+    paired: "Paired | None",
+    combined: "Combined | None",
 ) -> Headline | None:
     """The drive's C2n by what it held (the module's list); ``quasi`` is given only where no sweep
     crossed zero. Refusals (a sign the wrong way round, drives that disagree, crossings whose sweeps

@@ -11,7 +11,6 @@ from app.records import Crossing, CrossingRejected, Event
 from app.results.headline import Method
 from app.sinks.sink import Sink
 from app.snapshot import Snapshot
-from app.units import Z95
 
 
 def crossing_line(c: Crossing, t0: float) -> str:
@@ -80,11 +79,12 @@ def fit_line(snapshot: Snapshot) -> str | None:
             plo, phi = (math.degrees(x) for x in fit.psi0.ci95_rad)
             parts.append(f"ψ0 = {math.degrees(fit.psi0.rad):+.3f}° [{plo:+.3f}, {phi:+.3f}]")
     paired = snapshot.paired
-    if paired is not None and paired.misalignment_rad is not None and paired.misalignment_se is not None:
-        half = Z95 * math.degrees(paired.misalignment_se)
+    yawed, lag = (paired.misalignment_ci95_rad, paired.lag_ci95_s) if paired is not None else (None, None)
+    if paired is not None and paired.misalignment_rad is not None and yawed is not None:
+        half = math.degrees(yawed[1] - yawed[0]) / 2
         parts.append(f"pairing: misalignment {math.degrees(paired.misalignment_rad):+.3f}° ± {half:.3f}")
-    if paired is not None and paired.lag_s is not None and paired.lag_se is not None:
-        parts.append(f"lag {paired.lag_s:+.3f} s ± {Z95 * paired.lag_se:.3f}")
+    if paired is not None and paired.lag_s is not None and lag is not None:
+        parts.append(f"lag {paired.lag_s:+.3f} s ± {(lag[1] - lag[0]) / 2:.3f}")
     return "  " + "; ".join(parts) + " (95 %)" if parts else None
 
 

@@ -83,6 +83,11 @@ class Calibration:
         C2n = u0²/(g·d)."""
         return math.hypot(2.0 * self.speed_scale_pct / (100.0 * math.sqrt(3.0)), self.d_se_m / d_m)
 
+    def c2n_se(self, fit: bool, d_m: float) -> float:
+        """What the scales add to a headline C2n's relative error: a fit's (``fit_se``) or a
+        crossing's (``crossing_se``)."""
+        return self.fit_se if fit else self.crossing_se(d_m)
+
 
 @dataclass(frozen=True)
 class GapSettings:

@@ -480,7 +480,9 @@ _Result = TypeVar("_Result", Combined, Paired)
 
 def _with_scale(result: _Result | None, share: float) -> _Result | None:
     """The crossings' result with a relative error common to all of them (a scale) counted."""
-    return None if result is None else replace(result, se=math.hypot(result.se, share * result.c2n))
+    if result is None:
+        return None
+    return replace(result, se=math.hypot(result.se, share * result.c2n), data_se=result.se)
 
 
 def _pairing_terms(

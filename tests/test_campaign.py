@@ -12,10 +12,12 @@ import pyarrow.parquet as pq
 import pytest
 from rich.console import Console
 
-from app.campaign.compare import Z95, difference, pool, softening, trend
+from app.campaign.compare import Z95, Estimate, Fits, difference, pool, softening, trend
 from app.campaign.manifest import Entry, Manifest
-from app.campaign.outputs import compare, with_compared
+from app.campaign.outputs import compare, table_rows, with_compared
+from app.campaign.row import SessionResult, SessionRow
 from app.cli import main
+from app.results.headline import Method
 from app.sim.campaign import write_campaign
 from tests.simulated import FAST_SENSORS
 
@@ -96,26 +98,31 @@ def test_a_group_s_tyres_soften_on_its_sessions_evidence_together() -> None:
     assert softening([-0.04]).shown == "linear (z +0.0)"  # type: ignore[union-attr]
 
 
-def _row(log: str, model: str, t: float, linear: float, cubic: float, resolved: bool = True) -> dict:
-    """A campaign row as a worker returns it (flattened analyze keys), its headline the regression."""
+def _row(
+    log: str,
+    model: str,
+    t: float,
+    linear: float,
+    cubic: float,
+    resolved: bool = True,
+    method: Method = Method.REGRESSION,
+    estimator: str = "cascade",
+) -> SessionRow:
+    """A campaign row as a worker returns it, its headline the regression's (``method``)."""
     own = cubic if model == "softening" else linear
-    return {
-        "log": log,
-        "error": None,
-        "c2n": own,
-        "c2n_ci95.low": own - 0.2,
-        "c2n_ci95.high": own + 0.2,
-        "c2n_method": "regression",
-        "regression.model": model,
-        "regression.softening_t": t,
-        "regression.softening_resolved": resolved,
-        "regression.c2n_linear_model": linear,
-        "regression.c2n_linear_ci95.low": linear - 0.2,
-        "regression.c2n_linear_ci95.high": linear + 0.2,
-        "regression.c2n_softening_model": cubic,
-        "regression.c2n_softening_ci95.low": cubic - 0.4,
-        "regression.c2n_softening_ci95.high": cubic + 0.4,
-    }
+    interval = (own - 0.2, own + 0.2)
+    linear_fit = Estimate(linear, (linear - 0.2, linear + 0.2), 0.2 / Z95)
+    cubic_fit = Estimate(cubic, (cubic - 0.4, cubic + 0.4), 0.4 / Z95)
+    fitted = method.is_fit and resolved
+    fits = Fits(t, linear_fit, cubic_fit, "softening" if model == "softening" else "linear")
+    result = SessionResult(
+        own=Estimate(own, interval, 0.2 / Z95),
+        method=method,
+        scale=0.0,
+        softening_t=t if fitted else None,
+        fits=fits if fitted and estimator == "cascade" else None,
+    )
+    return SessionRow(summary={"c2n": own, "c2n_method": method.value}, result=result, key=log)
 
 
 def test_each_session_is_compared_on_its_group_s_tyre_model(tmp_path: Path) -> None:
@@ -130,10 +137,11 @@ def test_each_session_is_compared_on_its_group_s_tyre_model(tmp_path: Path) -> N
         _row("b1.blf", "linear", -1.6, 14.0, 14.5),
         _row("b2.blf", "linear", -1.9, 14.1, 14.6),
         _row("b3.blf", "softening", -2.5, 14.0, 14.4),
-        _row("b4.blf", "softening", -1.1, 14.2, 14.5) | {"c2n_method": "paired crossings"},
+        _row("b4.blf", "softening", -1.1, 14.2, 14.5, method=Method.PAIRED),
     ]
     entries = tuple(
-        Entry(k + 2, tmp_path / row["log"], {"tyre_set": row["log"][0].upper()}) for k, row in enumerate(rows)
+        Entry(k + 2, tmp_path / str(row.key), {"tyre_set": str(row.key)[0].upper()})
+        for k, row in enumerate(rows)
     )
     manifest = Manifest(tmp_path / "manifest.csv", ("tyre_set",), entries)
     found = compare(manifest, rows, "tyre_set")
@@ -149,7 +157,8 @@ def test_each_session_is_compared_on_its_group_s_tyre_model(tmp_path: Path) -> N
     # the groups pool what was compared
     assert found.groups["A"].c2n == pytest.approx(pool([15.0, 15.1, 14.9, 15.0], [0.2 / Z95] * 4).c2n)
     assert [c for c, _ in found.sessions["B"]] == [14.5, 14.6, 14.4, 14.5]
-    columns, table = with_compared(["log", "tyre_set", "c2n", "u0_mps", "x"], rows, found)
+    _, table = table_rows(manifest, rows)
+    columns, table = with_compared(["log", "tyre_set", "c2n", "u0_mps", "x"], table, found)
     assert columns == [
         "log",
         "tyre_set",
@@ -173,8 +182,12 @@ def test_a_marginal_fit_is_compared_as_it_is_its_softening_only_evidence(tmp_pat
         _row("b2.blf", "linear", -1.9, 14.1, 14.6),
         _row("b3.blf", "softening", -2.5, 14.0, 14.4),
     ]
-    rows = [row | {"regression.estimator": "marginal"} for row in rows]
-    entries = tuple(Entry(k + 2, tmp_path / row["log"], {"tyre_set": "B"}) for k, row in enumerate(rows))
+    rows = [
+        _row("b1.blf", "linear", -1.6, 14.0, 14.5, estimator="marginal"),
+        _row("b2.blf", "linear", -1.9, 14.1, 14.6, estimator="marginal"),
+        _row("b3.blf", "softening", -2.5, 14.0, 14.4, estimator="marginal"),
+    ]
+    entries = tuple(Entry(k + 2, tmp_path / str(row.key), {"tyre_set": "B"}) for k, row in enumerate(rows))
     found = compare(Manifest(tmp_path / "manifest.csv", ("tyre_set",), entries), rows, "tyre_set")
     tyres = found.softening["B"]
     assert tyres.model == "softening" and tyres.z == pytest.approx(-6 / math.sqrt(3))
@@ -190,18 +203,17 @@ def test_the_sensors_scale_counts_once_in_a_group_and_not_in_its_differences(tmp
     and the groups' difference is the one their data alone give."""
     data_se = 0.05
 
-    def row(log: str, c2n: float, scale_pct: float) -> dict:
+    def row(log: str, c2n: float, scale_pct: float) -> SessionRow:
         se = math.hypot(data_se, scale_pct / 100 * c2n)
-        return {"log": log, "error": None, "c2n": c2n, "c2n_method": "paired crossings"} | {
-            "c2n_ci95.low": c2n - Z95 * se,
-            "c2n_ci95.high": c2n + Z95 * se,
-            "c2n_scale_se_pct": scale_pct,
-        }
+        own = Estimate(c2n, (c2n - Z95 * se, c2n + Z95 * se), data_se)
+        return SessionRow(result=SessionResult(own, Method.PAIRED, scale_pct / 100, None, None), key=log)
 
     values = {"A": [15.0, 15.1, 14.95], "B": [16.0, 16.1, 16.05]}
     for scale_pct in (0.0, 0.3):
         rows = [row(f"{g}{k}.blf", c, scale_pct) for g, cs in values.items() for k, c in enumerate(cs)]
-        entries = tuple(Entry(k + 2, tmp_path / r["log"], {"set": r["log"][0]}) for k, r in enumerate(rows))
+        entries = tuple(
+            Entry(k + 2, tmp_path / str(r.key), {"set": str(r.key)[0]}) for k, r in enumerate(rows)
+        )
         found = compare(Manifest(tmp_path / "m.csv", ("set",), entries), rows, "set")
         for name, cs in values.items():
             alone = pool(cs, [data_se] * 3)

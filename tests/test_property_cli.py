@@ -14,7 +14,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rich.console import Console
 
+from app.campaign.compare import Z95, Estimate
+from app.campaign.row import SessionResult, SessionRow
 from app.cli import main
+from app.results.headline import Method
 from tests.simulated import REPO, cached_drive
 
 NUMBERS = ["0", "-1", "-5", "nan", "inf", "-inf", "1e308", "abc", "", "0.5", "3", "20000"]
@@ -251,12 +254,13 @@ TAGS = st.one_of(
 )
 
 
-def _row(log: str, c2n: float) -> dict[str, object]:
-    return {"log": log, "error": None, "c2n": c2n, "c2n_ci95.low": c2n - 0.2, "c2n_ci95.high": c2n + 0.2}
+def _row(log: str, c2n: float) -> SessionRow:
+    own = Estimate(c2n, (c2n - 0.2, c2n + 0.2), 0.2 / Z95)
+    return SessionRow(summary={"c2n": c2n}, result=SessionResult(own, Method.PAIRED, 0.0, None, None))
 
 
 @st.composite
-def a_manifest(draw: st.DrawFn, root: Path) -> tuple[Path, list[dict[str, object]], str]:
+def a_manifest(draw: st.DrawFn, root: Path) -> tuple[Path, list[SessionRow], str]:
     """A manifest of 1–6 drives (some listed twice under other names), two tag columns, written
     with ',' or ';', and the rows the workers would return."""
     n = draw(st.integers(1, 6))
@@ -282,15 +286,14 @@ def test_any_tags_in_a_manifest_are_compared_printed_literally_and_written_as_va
     tmp_path_factory: pytest.TempPathFactory, data: st.DataObject
 ) -> None:
     from app.campaign.manifest import read_manifest
-    from app.campaign.outputs import compare, table_rows
+    from app.campaign.outputs import compare
     from app.cli.campaign import print_comparison
     from app.errors import printable
 
     path, rows, by = data.draw(a_manifest(tmp_path_factory.getbasetemp()))
     manifest = read_manifest(path)
     assert manifest.tag_names == ("tyre_set", "pressure")
-    _, table = table_rows(manifest, rows)
-    comparison = compare(manifest, table, by)
+    comparison = compare(manifest, rows, by)
     console = Console(record=True, width=300)
     print_comparison(console, comparison, by)  # no MarkupError
     printed = console.export_text()

@@ -3,7 +3,6 @@ attack through the command line as a user makes it: the exit code, the one line,
 
 import http.server
 import io
-import json
 import math
 import socket
 import threading
@@ -12,6 +11,7 @@ import uuid
 import warnings
 from collections.abc import Iterator
 from contextlib import redirect_stderr, redirect_stdout
+from dataclasses import replace
 from pathlib import Path
 
 import can
@@ -24,7 +24,8 @@ from app.campaign.compare import trend
 from app.campaign.manifest import read_manifest
 from app.campaign.outputs import finite
 from app.campaign.repeats import counted_once
-from app.campaign.session import content_hash, file_warnings
+from app.campaign.row import SessionRow
+from app.campaign.session import content_hash
 from app.campaign.work import probe_scheduler
 from app.cli import main
 from app.cli.replay import Router, log_channel
@@ -291,8 +292,10 @@ def test_a_bad_campaign_config_is_one_line_before_any_work(config: str, tmp_path
 
 
 def test_a_truncated_logs_warning_reaches_the_terminal() -> None:
-    row = {"warnings": json.dumps(["/x/d.log: stopped after frame 12: a damaged frame", "no yaw rate"])}
-    assert file_warnings(Path("/x/d.log"), row) == ["/x/d.log: stopped after frame 12: a damaged frame"]
+    row = SessionRow(
+        summary={"warnings": ["/x/d.log: stopped after frame 12: a damaged frame", "no yaw rate"]}
+    )
+    assert row.warnings_about(Path("/x/d.log")) == ["/x/d.log: stopped after frame 12: a damaged frame"]
 
 
 # --- 7: one drive counted once -------------------------------------------------------------------
@@ -327,12 +330,12 @@ def test_a_campaigns_repeated_drive_counts_once_and_is_named(tmp_path: Path) -> 
     manifest_path = tmp_path / "m.csv"
     manifest_path.write_text("log,tyre_set\na.log,A\nb.blf,B\nc.asc,B\n")
     manifest = read_manifest(manifest_path)
-    rows = [{"c2n": 15.0, "error": None, "drive": drive_identity(p).text} for p in (a, b, c)]
-    rows[2]["error"] = "c.asc: no C2n"  # a row without a result is no first copy
+    rows = [SessionRow(summary={"c2n": 15.0}, drive=drive_identity(p).text) for p in (a, b, c)]
+    rows[2] = replace(rows[2], error="c.asc: no C2n")  # a row without a result is no first copy
     out, said = counted_once(manifest, rows)
-    assert out[0]["error"] is None and out[2]["error"] == "c.asc: no C2n"
+    assert out[0].error is None and out[2].error == "c.asc: no C2n"
     assert said == [f"{b}: the same drive as {a} (line 2): counted once"]
-    assert out[1]["error"] == said[0]
+    assert out[1].error == said[0]
 
 
 # --- 6: drives pooled or merged must be one C2n ---------------------------------------------------

@@ -534,7 +534,7 @@ def campaign_figures(sessions: int) -> dict[str, float]:
         manifest_path = write_campaign(Path(tmp) / "programme", sessions, 5, workers=2)
         manifest = read_manifest(manifest_path)
         started = time.perf_counter()
-        frames = sum(int(analyse(Job(e.log, None))["frames"]) for e in manifest.entries)
+        frames = sum(analyse(Job(e.log, None)).frames for e in manifest.entries)
         figures["lone analyze, frames/s"] = frames / (time.perf_counter() - started)
         for n in (1, 2):
             out = Path(tmp) / f"out{n}"
@@ -545,7 +545,7 @@ def campaign_figures(sessions: int) -> dict[str, float]:
             figures[f"{n} worker(s), frames/s per worker"] = frames / elapsed / n
             figures[f"{n} worker(s), first run s"] = elapsed
             if n == 1:  # one worker analysed them all, in order: its peak after half and after all
-                peaks = [float(row["worker_peak_mib"]) for row in rows]
+                peaks = [row.worker_peak_mib or 0.0 for row in rows]
                 figures["worker peak RSS after half, MiB"] = max(peaks[: len(peaks) // 2])
                 figures["worker peak RSS after all, MiB"] = max(peaks)
         started = time.perf_counter()

@@ -20,14 +20,15 @@ carries the softening under its prior, so it is pooled as it is, and z only says
 sessions together show of the tyres.
 
 A session's interval may hold the sensors' scale tolerance (``c2n_scale_se_pct``): one sensor
-drove them all, so it is taken out before the sessions are pooled and counted once in each
+drove them all, so the sessions are pooled on their data's error alone (``Estimate.se``, which
+each fit holds apart from the scales') and the scale is counted once in each
 group's C2n (``with_scale``); the differences and trends are free of it.
 """
 
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 from scipy.special import stdtrit  # the t quantile: scipy.stats would add a second to the start
@@ -69,16 +70,29 @@ SOFTENING_T = 2.0  # the bar a session's a_y³ term passes (app/results/regressi
 Model = Literal["linear", "softening"]
 
 
+class Estimate(NamedTuple):
+    """A session's C2n as a campaign compares it."""
+
+    c2n: float
+    ci95: tuple[float, float]  # the data's error and the sensors' scales'
+    se: float  # the data's alone: sessions are pooled on it, the one sensor's scale counted once
+
+    @classmethod
+    def of(cls, c2n: float, ci95: tuple[float, float], data_ci95: tuple[float, float]) -> "Estimate":
+        """From the 95 % intervals with and without the sensors' scales."""
+        return cls(c2n, ci95, session_se(data_ci95))
+
+
 @dataclass(frozen=True)
 class Fits:
     """One session's two fits of the same samples: without and with the softening term."""
 
     softening_t: float  # the a_y³ term's t; negative where the tyres soften
-    linear: tuple[float, tuple[float, float]]  # C2n and its 95 % interval
-    softening: tuple[float, tuple[float, float]] | None  # None: the term made no stiffness
+    linear: Estimate
+    softening: Estimate | None  # None: the term made no stiffness
     chosen: Model  # the session's own choice (|t| > 2 and softening: the softening model)
 
-    def of(self, model: Model) -> tuple[float, tuple[float, float]] | None:
+    def of(self, model: Model) -> Estimate | None:
         return self.linear if model == "linear" else self.softening
 
 
@@ -105,6 +119,8 @@ def softening(t: Sequence[float]) -> Softening | None:
 
 
 def session_se(ci95: tuple[float, float]) -> float:
+    """The standard error of a normal interval as wide as a session's (a fit's t interval on its
+    blocks' degrees of freedom is wider than 1.96 se: the width keeps what few blocks cannot tell)."""
     return (ci95[1] - ci95[0]) / (2 * Z95)
 
 

@@ -12,23 +12,21 @@ from typing import Any, NamedTuple
 
 from app.campaign.compare import (
     Difference,
-    Fits,
     Model,
     Pooled,
     Softening,
     Trend,
     difference,
     pool,
-    session_se,
     softening,
     trend,
     with_scale,
 )
-from app.campaign.manifest import Manifest
+from app.campaign.manifest import Entry, Manifest
+from app.campaign.row import SessionResult, SessionRow
 from app.errors import OutputError
 from app.output.files import json_ready, write_atomically, write_json
 from app.output.paths import HTML_REPORT, json_with
-from app.results.headline import Method
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
 from app.units import Z95
 
@@ -69,16 +67,21 @@ def clashing_tags(manifest: Manifest) -> list[str]:
     return [tag for tag in manifest.tag_names if tag in written or tag.split(".", 1)[0] in written]
 
 
-def table_rows(manifest: Manifest, rows: Sequence[dict[str, Any]]) -> tuple[list[str], list[dict[str, Any]]]:
+def log_name(manifest: Manifest, entry: Entry) -> str:
+    """The log as the manifest names it (relative to the manifest's folder)."""
+    return Path(os.path.relpath(entry.log, manifest.path.parent.resolve())).as_posix()
+
+
+def table_rows(manifest: Manifest, rows: Sequence[SessionRow]) -> tuple[list[str], list[dict[str, Any]]]:
     """The columns and the rows of ``results``: the log as the manifest names it, its tags, then
     every key of the analysis, the bookkeeping last."""
-    out = []
-    for entry, row in zip(manifest.entries, rows, strict=True):
-        log = Path(os.path.relpath(entry.log, manifest.path.parent.resolve())).as_posix()
-        out.append({"log": log, **entry.tags, **{k: v for k, v in row.items() if k != "log"}})
+    out = [
+        {"log": log_name(manifest, entry), **entry.tags, **row.columns()}
+        for entry, row in zip(manifest.entries, rows, strict=True)
+    ]
     names: dict[str, None] = dict.fromkeys([*_FIRST[:1], *manifest.tag_names, *_FIRST[1:]])
-    for row in out:
-        names.update(dict.fromkeys(k for k in row if k not in _LAST))
+    for columns in out:
+        names.update(dict.fromkeys(k for k in columns if k not in _LAST))
     names.update(dict.fromkeys(_LAST))
     return list(names), out
 
@@ -177,53 +180,45 @@ def finite(value: Any, where: str, nulled: list[str]) -> Any:
 
 
 class _Session(NamedTuple):
-    """A session with a C2n, as the comparison reads its row."""
+    """A session with a C2n, as the comparison reads it."""
 
     tags: dict[str, str]
     log: str
     group: str
-    c2n: float  # the headline's
-    ci95: tuple[float, float]
-    fits: Fits | None  # its two fits, where the headline chose between them by a test (the cascade)
-    scale: float  # C2n's relative error from the sensors' scales, in its interval
-    softening_t: float | None  # its fit's a_y³ t: the group's evidence that its tyres soften
+    result: SessionResult
 
-    def compared(self, decided: dict[str, Softening]) -> Compared:
-        """Its fit of its group's tyre model, where it has both fits; else its own headline."""
+    def compared(self, decided: dict[str, Softening]) -> tuple[Compared, float]:
+        """Its fit of its group's tyre model, where it has both fits, else its own headline; and
+        the data's standard error of what is compared."""
+        own, fits = self.result.own, self.result.fits
         tyres = decided.get(self.group)
-        picked = self.fits.of(tyres.model) if self.fits is not None and tyres is not None else None
-        if self.fits is None or tyres is None or picked is None:
-            return Compared(self.c2n, self.ci95, None, None, None)
-        return Compared(*picked, tyres.model, self.fits.chosen, self.fits.softening_t)
+        picked = fits.of(tyres.model) if fits is not None and tyres is not None else None
+        if fits is None or tyres is None or picked is None:
+            return Compared(own.c2n, own.ci95, None, None, None), own.se
+        return Compared(picked.c2n, picked.ci95, tyres.model, fits.chosen, fits.softening_t), picked.se
 
 
-def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) -> Comparison:
-    """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed.
-    ``rows`` are ``table_rows``' (``log`` as the manifest names it)."""
+def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> Comparison:
+    """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed."""
     failed, done = [], []
     for entry, row in zip(manifest.entries, rows, strict=True):
-        values = row.get("c2n"), row.get("c2n_ci95.low"), row.get("c2n_ci95.high")
-        if row.get("error") or not _finite(*values):
-            failed.append((entry.log.name, str(row.get("error") or "no C2n")))
+        if row.error or row.result is None:
+            failed.append((entry.log.name, row.error or "no C2n"))
             continue
-        c2n, low, high = (float(v) for v in values if v is not None)
-        scale = row.get("c2n_scale_se_pct")
-        share = float(scale) / 100.0 if scale is not None and _finite(scale) else 0.0
         group = entry.tags[by] if by else "all"
-        t = _softening_t(row)
-        done.append(_Session(entry.tags, str(row["log"]), group, c2n, (low, high), _fits(row), share, t))
+        done.append(_Session(entry.tags, log_name(manifest, entry), group, row.result))
     evidence: dict[str, list[float]] = {}
     for session in done:
-        if session.softening_t is not None:
-            evidence.setdefault(session.group, []).append(session.softening_t)
+        if session.result.softening_t is not None:
+            evidence.setdefault(session.group, []).append(session.result.softening_t)
     decided = {group: tyres for group, t in sorted(evidence.items()) if (tyres := softening(t)) is not None}
     sessions: dict[str, list[tuple[float, float]]] = {}
     tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
     numeric = [tag for tag in manifest.numeric_tags() if tag != by]
     compared: dict[str, Compared] = {}
     for session in done:
-        c = compared[session.log] = session.compared(decided)
-        se = _data_se(session_se(c.ci95), c.c2n, session.scale)
+        c, se = session.compared(decided)
+        compared[session.log] = c
         sessions.setdefault(session.group, []).append((c.c2n, se))
         for tag in numeric:
             tagged.setdefault(tag, {}).setdefault(session.group, []).append(
@@ -234,7 +229,7 @@ def compare(manifest: Manifest, rows: Sequence[dict[str, Any]], by: str | None) 
     differences = [  # one sensor: its scale cancels
         difference(b, pooled[b], a, pooled[a]) for i, a in enumerate(names) for b in names[i + 1 :]
     ]
-    common = {name: max(s.scale for s in done if s.group == name) for name in names}
+    common = {name: max(s.result.scale for s in done if s.group == name) for name in names}
     groups = {name: with_scale(p, common[name]) for name, p in pooled.items()}
     trends: dict[str, dict[str, Trend]] = {}
     for tag, per_group in tagged.items():
@@ -259,55 +254,6 @@ def with_compared(
     at = columns.index(_FIRST[-1]) + 1 if _FIRST[-1] in columns else len(columns)
     named = [c for c in columns if c not in _COMPARED]
     return [*named[:at], *_COMPARED, *named[at:]], out
-
-
-def _data_se(se: float, c2n: float, scale: float) -> float:
-    """A session's standard error without the sensors' scale share (``c2n_scale_se_pct``)."""
-    if scale == 0:
-        return se
-    return math.sqrt(max(se * se - (scale * c2n) ** 2, (0.01 * se) ** 2))
-
-
-def _softening_t(row: dict[str, Any]) -> float | None:
-    """The a_y³ term's t of the session's headline fit, where it is a regression's whose a_y range
-    could tell linear tyres from softening ones (else its own interval spans both)."""
-    prefix = _prefix(row)
-    if prefix is None or row.get(f"{prefix}softening_resolved") is not True:
-        return None
-    t = row.get(f"{prefix}softening_t")
-    return float(t) if t is not None and _finite(t) else None
-
-
-def _fits(row: dict[str, Any]) -> Fits | None:
-    """The session's two fits, where its headline is a regression's that chose between them by a
-    test (the cascade) and could take either. A marginal fit has one C2n, the softening's prior in
-    its interval: there is nothing to choose, and it is pooled as it is."""
-    prefix, t = _prefix(row), _softening_t(row)
-    if prefix is None or t is None or row.get(f"{prefix}estimator") == "marginal":
-        return None
-    linear = _model(row, f"{prefix}c2n_linear")
-    if linear is None:
-        return None
-    chosen: Model = "softening" if row.get(f"{prefix}model") == "softening" else "linear"
-    return Fits(t, linear, _model(row, f"{prefix}c2n_softening"), chosen)
-
-
-def _prefix(row: dict[str, Any]) -> str | None:
-    """The columns' prefix of the fit the session's headline is, where it is a regression's."""
-    prefixes: dict[str, str] = {Method.REGRESSION: "regression.", Method.QUASI_STEADY: "quasi_steady."}
-    return prefixes.get(str(row.get("c2n_method")))
-
-
-def _model(row: dict[str, Any], name: str) -> tuple[float, tuple[float, float]] | None:
-    values = row.get(f"{name}_model"), row.get(f"{name}_ci95.low"), row.get(f"{name}_ci95.high")
-    if not _finite(*values):
-        return None
-    c2n, low, high = (float(v) for v in values if v is not None)
-    return c2n, (low, high)
-
-
-def _finite(*values: Any) -> bool:
-    return all(isinstance(v, int | float) and math.isfinite(v) for v in values)
 
 
 def write_comparison(folder: Path, comparison: Comparison) -> None:

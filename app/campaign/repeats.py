@@ -5,35 +5,31 @@ later row of the same drive becomes a row with its error, so it takes no part in
 difference or trend, and the terminal names it beside the one that counts."""
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 from app.campaign.manifest import Manifest
+from app.campaign.row import SessionRow
 from app.sources.identity import DriveIdentity
 
-DRIVE = "drive"  # the row's key of its identity
 
-
-Row = dict[str, Any]
-
-
-def counted_once(manifest: Manifest, rows: Sequence[Row]) -> tuple[list[Row], list[str]]:
+def counted_once(manifest: Manifest, rows: Sequence[SessionRow]) -> tuple[list[SessionRow], list[str]]:
     """The rows with each repeat made an error row, and one line per repeat."""
-    out: list[Row] = []
+    out: list[SessionRow] = []
     said: list[str] = []
     seen: list[tuple[DriveIdentity, Path]] = []
     for entry, row in zip(manifest.entries, rows, strict=True):
-        identity = DriveIdentity.parse(row.get(DRIVE))
+        identity = DriveIdentity.parse(row.drive)
         first = None
-        if identity is not None and not row.get("error"):
+        if identity is not None and not row.error:
             first = next((log for known, log in seen if known.same_drive(identity)), None)
             if first is None:
                 seen.append((identity, entry.log))
         if first is None:
-            out.append(dict(row))
+            out.append(row)
             continue
         line = f"{entry.log}: the same drive as {first} (line {_line(manifest, first)}): counted once"
-        out.append(dict(row) | {"error": line})
+        out.append(replace(row, error=line))
         said.append(line)
     return out, said
 

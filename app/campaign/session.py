@@ -7,21 +7,28 @@ error, never an exception: one damaged file must not end a campaign of hundreds.
 """
 
 import hashlib
-import json
 import logging
 import os
 import resource
 import stat
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from app import __version__
+from app.campaign.compare import Estimate, Fits
+from app.campaign.row import SessionResult, SessionRow, finite_numbers
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import C2nError, printable
+from app.results.headline import Method
 from app.sinks.recorder import read_session
+
+if TYPE_CHECKING:  # the analysis's own modules load where a drive is analysed
+    from app.results.regression import RegressionFit
+    from app.sinks.summary import RegressionRow, Summary
+    from app.snapshot import Snapshot
 
 log = logging.getLogger(__name__)
 
@@ -72,28 +79,25 @@ def config_hash(config_path: Path, dbc_dir: Path | None, file_hash: Callable[[Pa
     return hashlib.blake2b("/".join(parts).encode(), digest_size=16).hexdigest()
 
 
-def analyse(job: Job) -> dict[str, Any]:
-    """The row of one drive: every key of the analyze summary, flattened, with ``error`` (None
-    when there is a result), ``frames``, the ``seconds`` it took and ``worker_peak_mib``."""
+def analyse(job: Job) -> SessionRow:
+    """The row of one drive: its result or its error (never an exception), the ``frames`` read,
+    the ``seconds`` it took and the worker's peak memory."""
     started = time.perf_counter()
-    frames = 0
     try:
         raw, config_path, dbc_dir = where(job)
         config = load_config(config_path, dbc_dir=dbc_dir)
-        row, frames = _analysed(raw, config)
+        row = _analysed(raw, config)
     except C2nError as error:
-        row = {"error": printable(str(error))}
+        row = SessionRow(error=printable(str(error)))
     except Exception as error:  # a worker's boundary: the row carries it, the campaign goes on
         log.exception("%s: analysis failed", job.log)
-        row = {"error": printable(f"{job.log}: the analysis failed ({type(error).__name__}: {error})")}
-    row["frames"] = frames
-    row["seconds"] = round(time.perf_counter() - started, 3)
+        row = SessionRow(error=printable(f"{job.log}: the analysis failed ({type(error).__name__}: {error})"))
     # the worker's peak memory so far: flat over a campaign when nothing accumulates
-    row["worker_peak_mib"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
-    return row
+    peak = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+    return replace(row, seconds=round(time.perf_counter() - started, 3), worker_peak_mib=peak)
 
 
-def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
+def _analysed(raw: Path, config: Config) -> SessionRow:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
@@ -103,43 +107,65 @@ def _analysed(raw: Path, config: Config) -> tuple[dict[str, Any], int]:
     source = LogSource([raw], triage=pipeline.decoder)
     run_pipeline(source.items(blocks=True), pipeline, [], blocks=True)
     snapshot = pipeline.snapshot()
-    result = summary.build(snapshot, config, [str(raw)], source.notes)
+    written = summary.build(snapshot, config, [str(raw)], source.notes)
     missing = summary.missing_required(snapshot, config)
-    row = flatten(result.to_json())
-    row["drive"] = drive_identity(raw).text  # a copy of this drive elsewhere counts once
-    row["error"] = printable(f"{raw}: {missing}") if missing else None
-    if not missing and result.c2n is None:
-        why = snapshot.refusal
-        row["error"] = printable(f"{raw}: no C2n — {why}")
-    return row, snapshot.frames.total
+    error = printable(f"{raw}: {missing}") if missing else None
+    if not missing and written.c2n is None:
+        error = printable(f"{raw}: no C2n — {snapshot.refusal}")
+    return SessionRow(
+        summary=written.to_json(),
+        result=None if error else session_result(snapshot, written),
+        error=error,
+        drive=drive_identity(raw).text,  # a copy of this drive elsewhere counts once
+        frames=snapshot.frames.total,
+    )
 
 
-def flatten(value: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested keys joined with dots; an interval [low, high] as ``.low``/``.high``; other lists
-    (crossings, warnings …) as JSON text, so every value fits a CSV cell or a Parquet column."""
-    out: dict[str, Any] = {}
-    for key, item in value.items():
-        name = f"{prefix}{key}"
-        if isinstance(item, dict):
-            out.update(flatten(item, f"{name}."))
-        elif isinstance(item, list) and len(item) == 2 and all(_scalar_number(x) for x in item):
-            out[f"{name}.low"], out[f"{name}.high"] = item
-        elif isinstance(item, list):
-            out[name] = json.dumps(item, ensure_ascii=False)
-        else:
-            out[name] = item
-    return out
+def session_result(snapshot: "Snapshot", written: "Summary") -> SessionResult | None:
+    """What the comparison takes of a drive: its headline as the summary writes it (C2n and its
+    interval rounded as there, so the results' columns and the comparison read the same numbers),
+    with the data's own interval beside it, and the headline's fit's evidence on the tyres."""
+    headline = snapshot.headline
+    if headline is None or written.c2n is None or written.c2n_ci95 is None:
+        return None
+    low, high = written.c2n_ci95
+    if low is None or high is None or not finite_numbers(written.c2n, low, high):  # open at one end: no C2n
+        return None
+    scale = (written.c2n_scale_se_pct or 0.0) / 100.0
+    own = Estimate.of(written.c2n, (low, high), _rounded(headline.data_only_ci95))
+    fit, row = {
+        Method.REGRESSION: (snapshot.regression, written.regression),
+        Method.QUASI_STEADY: (snapshot.quasi, written.quasi_steady),
+    }.get(headline.method, (None, None))
+    if fit is None or row is None or not row.softening_resolved or not finite_numbers(row.softening_t):
+        return SessionResult(own, headline.method, scale, None, None)
+    return SessionResult(own, headline.method, scale, row.softening_t, _fits(fit, row))
 
 
-def _scalar_number(value: object) -> bool:
-    return value is None or (isinstance(value, int | float) and not isinstance(value, bool))
+def _fits(fit: "RegressionFit", row: "RegressionRow") -> Fits | None:
+    """The fit's two models, where it chose between them by a test (the cascade) and could take
+    either. A marginal fit has one C2n, the softening's prior in its interval: there is nothing
+    to choose, and it is pooled as it is."""
+    if fit.estimator == "marginal" or row.softening_t is None:
+        return None
+    linear = _model(row.c2n_linear_model, row.c2n_linear_ci95, fit.models.linear.data_ci95)
+    if linear is None:
+        return None
+    cubic = fit.models.softening
+    softening = _model(row.c2n_softening_model, row.c2n_softening_ci95, cubic.data_ci95 if cubic else None)
+    return Fits(row.softening_t, linear, softening, "softening" if row.model == "softening" else "linear")
 
 
-def file_warnings(log: Path, row: dict[str, Any]) -> list[str]:
-    """The warnings of a session's row about its file itself (damage that ended the reading, a
-    recording given twice): what the terminal says beside results.csv's column."""
-    try:
-        said = json.loads(row.get("warnings") or "[]")
-    except (TypeError, json.JSONDecodeError):
-        return []
-    return [w for w in said if isinstance(w, str) and (str(log) in w or f"{log.name}:" in w)]
+def _model(
+    c2n: float | None, ci95: tuple[float | None, float | None] | None, data_ci95: tuple[float, float] | None
+) -> Estimate | None:
+    low, high = ci95 or (None, None)
+    if c2n is None or low is None or high is None or not finite_numbers(c2n, low, high):
+        return None
+    return Estimate.of(c2n, (low, high), _rounded(data_ci95) if data_ci95 else (low, high))
+
+
+def _rounded(ci95: tuple[float, float]) -> tuple[float, float]:
+    """An interval rounded as the summary rounds its own (where the sensors' scales are not
+    counted, the two are then the same numbers)."""
+    return (round(ci95[0], 4), round(ci95[1], 4))

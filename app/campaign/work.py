@@ -16,11 +16,12 @@ import socket
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from app.campaign.manifest import Manifest
+from app.campaign.row import SessionRow
 from app.campaign.session import Job, analyse, config_hash, content_hash, where
 from app.errors import C2nError, printable
 from app.output.files import write_json
@@ -35,17 +36,17 @@ class Task:
     known: frozenset[str]  # keys whose rows the campaign has already
 
 
-def run_task(task: Task) -> dict[str, Any]:
+def run_task(task: Task) -> SessionRow | str:
     """On a worker: the row of one drive, or only its key when that row is known."""
     try:
         raw, config_path, dbc_dir = where(task.job)
         key = f"{content_hash([raw])}-{config_hash(config_path, dbc_dir, lambda path: content_hash([path]))}"
     except (C2nError, OSError) as error:
         message = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
-        return {"error": printable(f"{task.job.log}: {message}"), "frames": 0, "seconds": 0.0}
+        return SessionRow(error=printable(f"{task.job.log}: {message}"))
     if key in task.known:
-        return {"key": key}
-    return {"key": key} | analyse(task.job)
+        return key
+    return replace(analyse(task.job), key=key)
 
 
 # what every worker needs, imported once in the fork server (~2.5 s of numba, scipy, python-can
@@ -144,8 +145,8 @@ def run_campaign(
     config: Path | None,
     out: Path,
     workers: Callable[[], AbstractContextManager[cf.Executor]],
-    on_row: Callable[[int, dict[str, Any]], None] = lambda i, row: None,
-) -> list[dict[str, Any]]:
+    on_row: Callable[[int, SessionRow], None] = lambda i, row: None,
+) -> list[SessionRow]:
     """Every entry's row, in manifest order; ``on_row(index, row)`` as each arrives. A drive
     whose log and config this machine sees and whose key has a row already is not sent at all;
     the workers are started (``workers()``) only when something is left to analyse."""
@@ -156,18 +157,18 @@ def run_campaign(
         raise C2nError(f"{cache}: cannot be made ({error.strerror}) — choose another --out") from None
     stored = _stored(cache)
     memo = HashMemo(cache / HASHES)
-    rows: list[dict[str, Any]] = [{} for _ in manifest.entries]
+    rows: list[SessionRow | None] = [None for _ in manifest.entries]
     pending = []
     for i, entry in enumerate(manifest.entries):
         key = memo.key(Job(entry.log, config))
         if key is not None and key in stored:
-            rows[i] = stored[key] | {"cached": True}
-            on_row(i, rows[i])
+            rows[i] = row = replace(stored[key], cached=True)
+            on_row(i, row)
         else:
             pending.append(i)
     if not pending:
         memo.save()
-        return rows
+        return _all(rows)
     known = frozenset(stored)
     with contextlib.ExitStack() as stack:
         try:
@@ -188,14 +189,19 @@ def run_campaign(
                 future.cancel()
             cf.wait(futures)
             for future, i in futures.items():  # (one cut short while being taken, too)
-                if not rows[i] and not future.cancelled() and future.exception() is None:
+                if rows[i] is None and not future.cancelled() and future.exception() is None:
                     _take(future.result(), i, rows, stored, cache, on_row)
-            kept = sum(1 for row in rows if row)
+            kept = sum(1 for row in rows if row is not None)
             raise C2nError(
                 f"interrupted: {kept} of {len(rows)} sessions are done and kept in {cache}; "
                 "run the same command again to go on"
             ) from None
-    return rows
+    return _all(rows)
+
+
+def _all(rows: list[SessionRow | None]) -> list[SessionRow]:
+    assert all(row is not None for row in rows)  # every entry's row arrived
+    return [row for row in rows if row is not None]
 
 
 def _make(folder: Path) -> list[Path]:
@@ -220,20 +226,21 @@ def _unmake(made: list[Path]) -> None:
 
 
 def _take(
-    row: dict[str, Any],
+    done: SessionRow | str,
     i: int,
-    rows: list[dict[str, Any]],
-    stored: dict[str, dict[str, Any]],
+    rows: list[SessionRow | None],
+    stored: dict[str, SessionRow],
     cache: Path,
-    on_row: Callable[[int, dict[str, Any]], None],
+    on_row: Callable[[int, SessionRow], None],
 ) -> None:
     """A worker's row: kept in the cache (or, when only its key came back, the row kept there)."""
-    key = row.get("key")
-    if key is not None and set(row) == {"key"}:
-        row = stored[key] | {"cached": True}
-    elif key is not None:
-        write_json(cache / f"{key}.json", row, "the campaign's cache")
-        row = row | {"cached": False}
+    if isinstance(done, str):
+        row = replace(stored[done], cached=True)
+    elif done.key is not None:
+        write_json(cache / f"{done.key}.json", done.to_json(), "the campaign's cache")
+        row = replace(done, cached=False)
+    else:  # its log could not be read here: no key, nothing to keep
+        row = done
     rows[i] = row
     on_row(i, row)
 
@@ -277,14 +284,17 @@ class HashMemo:
             write_json(self.path, self._known, "the campaign's hash memo")
 
 
-def _stored(cache: Path) -> dict[str, dict[str, Any]]:
-    """The rows of earlier runs (a file that does not read back is no row: its drive runs again)."""
+def _stored(cache: Path) -> dict[str, SessionRow]:
+    """The rows of earlier runs (a file that does not read back, or was written by a c2n that
+    kept rows otherwise, is no row: its drive runs again)."""
     rows = {}
     for path in cache.glob("*.json"):
+        if path.name == HASHES:
+            continue
         try:
-            row = json.loads(path.read_text(encoding="utf-8"))
+            row = SessionRow.from_json(json.loads(path.read_text(encoding="utf-8")))
         except (OSError, ValueError):
             continue
-        if isinstance(row, dict) and row.get("key") == path.stem:
+        if row.key == path.stem:
             rows[path.stem] = row
     return rows

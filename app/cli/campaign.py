@@ -10,7 +10,7 @@ import time
 from concurrent.futures import Executor
 from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
@@ -24,6 +24,7 @@ from app.user_text import shown
 
 if TYPE_CHECKING:
     from app.campaign.outputs import Comparison
+    from app.campaign.row import SessionRow
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -111,7 +112,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.campaign import outputs, work
     from app.campaign.manifest import read_manifest
     from app.campaign.repeats import counted_once
-    from app.campaign.session import file_warnings
 
     need("pyarrow", "c2n campaign (results.parquet)", "export")
     need("matplotlib", "c2n campaign (report.html's plots)", "export")
@@ -148,10 +148,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     ) as progress:
         task = progress.add_task("", total=len(manifest.entries), rate="")
 
-        def arrived(index: int, row: dict[str, Any]) -> None:
+        def arrived(index: int, row: "SessionRow") -> None:
             nonlocal frames
-            if not row.get("cached"):
-                frames += int(row.get("frames") or 0)
+            if not row.cached:
+                frames += row.frames
             elapsed = max(time.perf_counter() - started, 1e-9)
             progress.update(task, advance=1, rate=f"{frames / elapsed:,.0f} frames/s")
 
@@ -165,12 +165,12 @@ def run(args: argparse.Namespace, console: Console) -> int:
     elapsed = time.perf_counter() - started
     rows, repeats = counted_once(manifest, rows)
     columns, table = outputs.table_rows(manifest, rows)
-    comparison = outputs.compare(manifest, table, args.by)
+    comparison = outputs.compare(manifest, rows, args.by)
     with files_together(out, outputs.FILES) as staging:  # an interrupt: the old set or the new
         outputs.write_tables(staging, *outputs.with_compared(columns, table, comparison))
         outputs.write_comparison(staging, comparison)
         outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
-    cached = sum(1 for row in rows if row.get("cached"))
+    cached = sum(1 for row in rows if row.cached)
     console.print(
         f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "
         f"{frames:,} frames analysed); results in {shown(out)}"
@@ -178,7 +178,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     print_comparison(console, comparison, args.by)
     errors = error_console()
     for entry, row in zip(manifest.entries, rows, strict=True):
-        for warning in file_warnings(entry.log, row):
+        for warning in row.warnings_about(entry.log):
             errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     for log, error in comparison.failed:
         errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)

@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 
 from app.config import Config
 from app.gap.model import Mods
+from app.paper import G
 
 _DEG = math.pi / 180.0
 
@@ -185,8 +186,9 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate(
         "road_cross_slope",
         (
-            Param("slope_sin_pct", 2.0, lambda x: {"slope_sin_mps2": 9.81 * x / 100}, -8.0, 8.0),
-            Param("slope_cos_pct", 2.0, lambda x: {"slope_cos_mps2": 9.81 * x / 100}, -8.0, 8.0),
+            # a slope of x % pulls the car sideways with x % of g (the paper's, as the reports read it)
+            Param("slope_sin_pct", 2.0, lambda x: {"slope_sin_mps2": G * x / 100}, -8.0, 8.0),
+            Param("slope_cos_pct", 2.0, lambda x: {"slope_cos_mps2": G * x / 100}, -8.0, 8.0),
         ),
         lambda v: (
             f"the test area slopes {math.hypot(*v):.1f} % (falling towards {_downhill(v)}): drive full "

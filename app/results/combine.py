@@ -14,10 +14,18 @@ class Combined:
     se: float
     n: int
     birge_ratio: float  # √(χ²/dof): > 1 when crossings scatter more than their intervals say
+    data_se: float | None = None  # the crossings' alone, where se holds the sensors' scales too
 
     @property
     def ci95(self) -> tuple[float, float]:
         return (self.c2n - Z95 * self.se, self.c2n + Z95 * self.se)
+
+    @property
+    def data_ci95(self) -> tuple[float, float] | None:
+        """C2n's 95 % interval from the crossings alone, where ci95 holds the sensors' scales too."""
+        if self.data_se is None:
+            return None
+        return (self.c2n - Z95 * self.data_se, self.c2n + Z95 * self.data_se)
 
 
 def combine(crossings: Sequence[Crossing]) -> Combined | None:

@@ -54,6 +54,7 @@ class ModelFit:
 
     c2n: float
     ci95: tuple[float, float] | None
+    data_ci95: tuple[float, float] | None = None  # without the sensors' scales (None: ci95)
 
 
 @dataclass(frozen=True)

@@ -44,8 +44,15 @@ class Method(StrEnum):
 @dataclass(frozen=True)
 class Headline:
     c2n: float
-    ci95: tuple[float, float]
+    ci95: tuple[float, float]  # the data's error and the sensors' scales' ([calibration])
     method: Method
+    data_ci95: tuple[float, float] | None = None  # the data's alone, where ci95 holds the scales too
+
+    @property
+    def data_only_ci95(self) -> tuple[float, float]:
+        """The 95 % interval from the data alone: what a campaign pools sessions on, the scales
+        of the one sensor that drove them all counted once in the group's."""
+        return self.ci95 if self.data_ci95 is None else self.data_ci95
 
 
 def positive(c2n: float) -> bool:
@@ -63,9 +70,9 @@ def headline(
     disagree) are the caller's: they decide whether there is a result, not which one."""
     fit, method = (quasi, Method.QUASI_STEADY) if quasi is not None else (regression, Method.REGRESSION)
     if fit is not None:
-        return Headline(fit.c2n, fit.c2n_ci95, method) if positive(fit.c2n) else None
+        return Headline(fit.c2n, fit.c2n_ci95, method, fit.c2n_data_ci95) if positive(fit.c2n) else None
     if paired is not None and positive(paired.c2n):
-        return Headline(paired.c2n, paired.ci95, Method.PAIRED)
+        return Headline(paired.c2n, paired.ci95, Method.PAIRED, paired.data_ci95)
     if combined is not None and positive(combined.c2n):
-        return Headline(combined.c2n, combined.ci95, Method.CROSSINGS)
+        return Headline(combined.c2n, combined.ci95, Method.CROSSINGS, combined.data_ci95)
     return None

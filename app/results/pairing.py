@@ -42,6 +42,15 @@ class Paired:
     cells: dict[str, float]  # "left up" etc.: the cells' weighted mean C2n
     n: int
     birge_ratio: float
+    data_se: float | None = None  # C2n's error from the crossings alone, where se holds the
+    # sensors' scales too (None: se is the crossings' alone)
+
+    @property
+    def data_ci95(self) -> tuple[float, float] | None:
+        """C2n's 95 % interval from the crossings alone, where ci95 holds the sensors' scales too."""
+        if self.data_se is None:
+            return None
+        return (self.c2n - Z95 * self.data_se, self.c2n + Z95 * self.data_se)
 
     @property
     def cancels(self) -> tuple[str, ...]:

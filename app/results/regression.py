@@ -178,6 +178,7 @@ class RegressionFit:
     yaw_bias: YawBiasResult | None = None  # where it was fitted
     held_open: HeldOpen | None = None  # the marginal fit's
     scale_se: float = 0.0  # C2n's relative error from the sensors' scales, in its intervals
+    c2n_data_ci95: tuple[float, float] | None = None  # without the sensors' scales (None: c2n_ci95)
     estimator: Literal["cascade", "marginal"] = "cascade"  # terms chosen by tests, or all with priors
 
 
@@ -548,9 +549,10 @@ class SampleRegression:
         data_ses = [f[0].se(Term.AY) * self.g * c * c for (f, _), c in zip(kept, c2ns, strict=True)]
         c2n_ses = [math.hypot(se, self.scale_se * abs(c)) for se, c in zip(data_ses, c2ns, strict=True)]
         c2n, c2n_ci = mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
+        data_ci = c2n_ci
         if self.scale_se:  # the sensors' scales widen the interval; the value is the data's mixture's,
             # which a stated tolerance does not move (its median would: the widths weigh it)
-            c2n = mixture(c2ns, data_ses, shares, dof, priors.confidence)[0]
+            c2n, data_ci = mixture(c2ns, data_ses, shares, dof, priors.confidence)
         c2n_se = (c2n_ci[1] - c2n_ci[0]) / (2.0 * q)
         d_m, d_ci = mixture(
             [f[0].value(Term.D) for f, _ in kept],
@@ -593,8 +595,8 @@ class SampleRegression:
             models=ModelChoice(
                 chosen="softening" if softens else "linear",
                 softening_t=t3,
-                linear=ModelFit(c2n, c2n_ci),
-                softening=ModelFit(c2n, c2n_ci),
+                linear=ModelFit(c2n, c2n_ci, data_ci),
+                softening=ModelFit(c2n, c2n_ci, data_ci),
             ),
             softening=SofteningResult(
                 per_mps2_2=-post.value(Term.AY3) * self.g * c2n,
@@ -616,6 +618,7 @@ class SampleRegression:
             if held
             else None,
             scale_se=self.scale_se,
+            c2n_data_ci95=data_ci,
             estimator="marginal",
         )
 
@@ -771,27 +774,30 @@ class SampleRegression:
         def ci(value: float, se: float) -> tuple[float, float]:
             return (value - q * se, value + q * se)
 
-        def model_se(model: _Solution) -> float:
-            """C2n's error: the data's (with the tape's where d is held) and the sensors' scales',
-            which no drive can show."""
+        def model_se(model: _Solution, scales: bool = True) -> float:
+            """C2n's error: the data's (with the tape's where d is held) and, with ``scales``, the
+            sensors' scales', which no drive can show."""
             if c.d_fixed:
                 data = self._held_se(model, c.xtx, c.xty, c.run, c.n, self.d_tape_se_m)
             else:
                 data = _c2n_se(model, self.g)
+            if not scales:
+                return data
             scale = self.scale_se / (self.g * abs(float(model.coef[model.terms.index(Term.AY)])))
             return math.hypot(data, scale)
 
-        def model_ci(model: _Solution) -> tuple[float, float] | None:
+        def model_ci(model: _Solution, scales: bool = True) -> tuple[float, float] | None:
             slope = model.coef[model.terms.index(Term.AY)]
             if slope >= 0:  # no stiffness
                 return None
-            half = float(stdtrit(max(c.blocks - len(model.terms), 1), 0.975)) * model_se(model)
+            half = float(stdtrit(max(c.blocks - len(model.terms), 1), 0.975)) * model_se(model, scales)
             return (-1.0 / (self.g * slope) - half, -1.0 / (self.g * slope) + half)
 
         slope = chosen.coef[terms.index(Term.AY)]
         c2n = -1.0 / (self.g * slope)
         c2n_se = model_se(chosen)
         c2n_ci95 = ci(c2n, c2n_se)
+        data_ci95 = ci(c2n, model_se(chosen, scales=False))
         c2n_linear = -1.0 / (self.g * c.linear.coef[c.linear.terms.index(Term.AY)])
         c2n_cubic = -1.0 / (self.g * cubic.coef[cubic.terms.index(Term.AY)])
         # the two models differ by the a_y³ term alone, so their difference has the term's t
@@ -803,6 +809,7 @@ class SampleRegression:
             cubic_se = math.sqrt(cubic.cov[i_cubic, i_cubic]) / (self.g * slope3 * slope3)
             low, high = ci(c2n_cubic, cubic_se) if slope3 < 0 else (c2n_ci95[0], math.inf)
             c2n_ci95 = (min(c2n_ci95[0], low), max(c2n_ci95[1], high))
+            data_ci95 = (min(data_ci95[0], low), max(data_ci95[1], high))
             c2n_se = max(c2n_se, cubic_se)
         if c.d_fixed and self.d_tape_m is not None:
             d, d_se = self.d_tape_m, 0.0
@@ -848,8 +855,8 @@ class SampleRegression:
             models=ModelChoice(
                 chosen="softening" if chosen is cubic else "linear",
                 softening_t=t3,
-                linear=ModelFit(c2n_linear, model_ci(c.linear)),
-                softening=ModelFit(c2n_cubic, model_ci(cubic)),
+                linear=ModelFit(c2n_linear, model_ci(c.linear), model_ci(c.linear, scales=False)),
+                softening=ModelFit(c2n_cubic, model_ci(cubic), model_ci(cubic, scales=False)),
                 resolved=resolved,
                 hidden_pct=hidden,
             ),
@@ -867,6 +874,7 @@ class SampleRegression:
             else None,
             yaw_bias=YawBiasResult(bias[0], bias[1]) if bias else None,
             scale_se=self.scale_se,
+            c2n_data_ci95=data_ci95,
         )
 
 

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from app.errors import OutputError
 from app.output.files import write_atomically
+from app.paper import G, crossing_speed
 from app.sinks.summary import CrossingRow, Summary
 from app.sinks.trace import Trace
 
@@ -223,16 +224,16 @@ def draw_vr_vs_u2(figure: Figure, trace: Trace, summary: Summary) -> None:
         _dots(ax, x[mine], y[mine], colour, f"{name} turns", alpha=0.5)
     c2n = (fit.c2n_linear_model or fit.c2n) if fit else None
     d = fit.d_m if fit else None
-    g = summary.g_mps2 or 9.81
+    g = summary.g_mps2 or G
     line_y: list[float] = []
     if c2n is not None and d is not None and c2n > 0:
-        u0_squared = d * g * c2n
+        u0_squared = d * g * c2n  # the line's zero: paper eq. 7
         x_end = max(float(np.max(x)) if len(x) else 0.0, u0_squared) * 1.05
         line_x = np.array([0.0, x_end])
         line_y = list(d - line_x / (g * c2n))
         ax.plot(line_x, line_y, color="black", linewidth=1.5, label=f"d − u²/(g·C2n), C2n = {c2n:.3f} 1/rad")
         if u0_squared > 0:
-            u0 = math.sqrt(u0_squared)
+            u0 = crossing_speed(c2n, d, g)
             ax.axvline(
                 u0_squared,
                 color="0.3",

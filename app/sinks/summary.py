@@ -18,7 +18,6 @@ from app.output.files import json_ready, write_json
 from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results import advice
 from app.results.combine import Combined
-from app.results.headline import Method
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
 from app.snapshot import Snapshot
@@ -224,7 +223,9 @@ def build(
         c2n=_round(headline.c2n) if headline else None,
         c2n_ci95=_pair(headline.ci95) if headline else None,
         c2n_method=headline.method.value if headline else None,
-        c2n_scale_se_pct=_scale_se_pct(headline.method, config) if headline else None,
+        c2n_scale_se_pct=_round(100.0 * config.calibration.c2n_se(headline.method.is_fit, config.d_m))
+        if headline
+        else None,
         u0_mps=_round(u0) if u0 is not None else None,
         crossings=tuple(_crossing(c, t0) for c in snapshot.crossings),
         regression=_regression(snapshot.regression),
@@ -349,14 +350,6 @@ def _crossing(c: Crossing, t0: float) -> CrossingRow:
 
 def _rejected(r: CrossingRejected, t0: float) -> RejectedRow:
     return RejectedRow(_round(r.t - t0, 3), r.direction, r.sweep, _round(r.u_mps, 3), r.reason)
-
-
-def _scale_se_pct(method: Method, config: Config) -> float:
-    """What the sensors' scales add to the headline's error: a fit's C2n scales with the gyro's
-    and the speed's, a crossing's with the speed's twice."""
-    calibration = config.calibration
-    share = calibration.fit_se if method.is_fit else calibration.crossing_se(config.d_m)
-    return round(100.0 * share, 4)
 
 
 def _regression(fit: RegressionFit | None) -> RegressionRow | None:

@@ -91,6 +91,7 @@ def test_a_row_reads_back_from_its_cache_file_as_it_was(tmp_path: Path) -> None:
         ROW.to_json() | {"format": 1},
         ROW.to_json() | {"result": {"own": [14.1, [13.9], 0.09]}},
         ROW.to_json() | {"error": 3},
+        ROW.to_json() | {"result": ROW.to_json()["result"] | {"own": [14.1, [13.9, 14.3], float("nan")]}},
         ROW.to_json() | {"key": "another"},  # named for another drive
         [1, 2, 3],
     ],

@@ -136,6 +136,8 @@ def _estimate_json(estimate: Estimate) -> list[Any]:
 
 def _estimate(value: Any) -> Estimate:
     c2n, (low, high), se = value
+    if not finite_numbers(c2n, low, high, se):  # a worker writes only finite ones
+        raise ValueError(f"{value!r}: not a C2n with its interval")
     return Estimate(float(c2n), (float(low), float(high)), float(se))
 
 

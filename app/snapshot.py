@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from app.decode.counts import FrameCounts
 from app.detect.quasi_steady import NO_CORNERING, Cornering
 from app.detect.signs import SignVotes, odd_sign
-from app.estimate.model import FilterCounts
+from app.estimate.motion_model import FilterCounts
 from app.paper import crossing_speed
 from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.combine import Combined

@@ -8,7 +8,7 @@ import pytest
 
 from app.config import Config, load_config
 from app.pipeline import Pipeline
-from app.sim.session import SimulatedDrive
+from app.sim.simulated_drive import SimulatedDrive
 from tests.simulated import REPO, cached_drive, run_pipeline
 
 

@@ -13,7 +13,7 @@ import can
 from app.config import Config, load_config
 from app.pipeline import Pipeline
 from app.records import Event
-from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive
+from app.sim.simulated_drive import DriveOptions, SimulatedDrive, simulate_drive
 from app.sinks.sink import Sink
 
 REPO = Path(__file__).resolve().parents[1]

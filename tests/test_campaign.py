@@ -18,7 +18,7 @@ from app.campaign.outputs import compare, table_rows, with_compared
 from app.campaign.row import SessionResult, SessionRow
 from app.cli import main
 from app.results.headline import Method
-from app.sim.campaign import write_campaign
+from app.sim.tyre_programme import write_campaign
 from tests.simulated import FAST_SENSORS
 
 N = 42  # sessions: 14 per tyre set

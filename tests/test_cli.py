@@ -13,7 +13,7 @@ import pytest
 from rich.console import Console
 
 from app.cli import main
-from app.sim.session import write_drive
+from app.sim.simulated_drive import write_drive
 from tests.simulated import REPO, cached_drive
 
 

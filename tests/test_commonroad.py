@@ -16,7 +16,7 @@ from app.sim.commonroad import CommonRoadCar, Road, parameters, simulate_commonr
 from app.sim.effects import Effect
 from app.sim.scenarios import Scenario, Segment, Steer
 from app.sim.sensors import SensorSetup, frames
-from app.sim.session import DBC_DIR
+from app.sim.simulated_drive import DBC_DIR
 from app.sim.standard import StandardOptions, simulate_standard
 from app.sim.two_track import TwoTrackTrace
 

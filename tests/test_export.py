@@ -16,7 +16,7 @@ from asammdf import MDF
 
 from app.cli import main
 from app.config import load_config
-from app.sim.session import write_drive
+from app.sim.simulated_drive import write_drive
 from app.sinks.channels import csv_header
 from app.sinks.trace import DECODED, TraceRecorder
 from app.sources.logs import LogSource

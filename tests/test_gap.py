@@ -20,9 +20,9 @@ from app.gap.diagnose import diagnose, problem, roll_lever_m
 from app.gap.forked import Later
 from app.gap.measured import Measured, Method, measure
 from app.gap.method_effects import BY_RIG
-from app.gap.model import Mods, prepare, run_model, run_model_reference, simulate
+from app.gap.nominal_model import Mods, prepare, run_model, run_model_reference, simulate
 from app.gap.result import BeforeAfter, C2nEffect, Effect, GapC2n, GapNoise, GapResult
-from app.sim.session import DriveOptions, simulate_drive, write_drive
+from app.sim.simulated_drive import DriveOptions, simulate_drive, write_drive
 from app.sim.vehicle_model import BicycleParams
 from app.sinks.summary import Summary
 from tests.simulated import FAST_SENSORS, REPO
@@ -131,7 +131,7 @@ def test_a_force_that_follows_the_turn_follows_the_body_s_lean_across_a_slope() 
     leans with the specific force a_y − g_y = −g_y, so the force that follows the turn pushes
     g·f·tanh(−g_y/TURN_AY) — the same drive as a slope that much steeper and no such force; g
     the car's own (the config's gravity_mps2, here a pole's), not a constant of the model's."""
-    from app.gap.model import TURN_AY_MPS2
+    from app.gap.nominal_model import TURN_AY_MPS2
 
     config = load_config()
     p = dataclasses.replace(BicycleParams.from_config(config), g=9.83)

@@ -13,7 +13,7 @@ from app.config import FilterSettings, load_config
 from app.decode.decoder import Decoder
 from app.estimate import compiled
 from app.estimate.compiled import CompiledMotionFilter
-from app.estimate.model import transition
+from app.estimate.motion_model import transition
 from app.estimate.reference import FilterpyKalman, MotionFilter
 from app.records import Record
 from tests.simulated import cached_drive

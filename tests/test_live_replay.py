@@ -14,7 +14,7 @@ from app.cli.demo import Player
 from app.config import Config, load_config
 from app.pipeline import Pipeline
 from app.run_loop import run
-from app.sim.session import write_drive
+from app.sim.simulated_drive import write_drive
 from app.sinks import summary
 from app.sources.buses import BusSource
 from app.sources.logs import LogSource

@@ -28,7 +28,7 @@ from app.errors import LogFileError
 from app.pipeline import Pipeline
 from app.sim.measured_drive import SOURCE_FILES, MeasuredOptions, measured_drive, read_channels
 from app.sim.sensors import LOG_START
-from app.sim.session import SimulatedDrive, truth_path, write_drive
+from app.sim.simulated_drive import SimulatedDrive, truth_path, write_drive
 from tests.real_data import REPO_ROOT, needs_real_data, real_path
 
 pytestmark = needs_real_data

@@ -21,7 +21,7 @@ from app.sim.imperfections import NO_IMPERFECTIONS, of_session
 from app.sim.pack import LOG_NAME, case_seed, plan_pack, write_pack
 from app.sim.scenarios import Scenario, Segment, Steer
 from app.sim.sensors import SensorSetup, frames
-from app.sim.session import DBC_DIR
+from app.sim.simulated_drive import DBC_DIR
 from app.sim.standard import StandardOptions, StandardPlan, simulate_standard, standard_session
 from app.sim.two_track import TwoTrackParams, TwoTrackTrace, simulate_two_track
 from app.sources.logs import open_log

@@ -10,7 +10,7 @@ import pytest
 
 from app.config import Calibration, Config, load_config
 from app.pipeline import Pipeline
-from app.sim.session import SimulatedDrive
+from app.sim.simulated_drive import SimulatedDrive
 from app.units import Z95
 from tests.simulated import REPO, cached_drive, run_pipeline
 
@@ -219,7 +219,7 @@ def test_paired_crossings_on_softening_tyres_read_the_slope_at_zero_a_y(config: 
     secant at its own a_y (0.7–1.1 % low paired, the truth outside the interval); scaled by the
     regression's softening term, the pairing reads within 0.5 % with the truth inside. The
     crossings listed stay as read."""
-    from app.sim.session import DriveOptions, simulate_drive
+    from app.sim.simulated_drive import DriveOptions, simulate_drive
     from tests.simulated import FAST_SENSORS
 
     options = DriveOptions("radii", seed, 14.2, "magic", 1.0, ay_max_mps2=4.0, sensor=FAST_SENSORS)

@@ -25,9 +25,9 @@ from app.pipeline import Pipeline
 from app.records import Estimate
 from app.results.regression import RegressionFit, SampleRegression
 from app.sim.imperfections import Imperfections, draw_imperfections
+from app.sim.laps_and_circles import TrackPlan
 from app.sim.pack import write_log
-from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive, truth_path
-from app.sim.sessions import TrackPlan
+from app.sim.simulated_drive import DriveOptions, SimulatedDrive, simulate_drive, truth_path
 from app.sim.standard import StandardOptions, simulate_standard
 from app.sinks import summary
 from app.sinks.event_printer import result_line

@@ -31,7 +31,7 @@ from app.errors import BusError
 from app.pipeline import Pipeline
 from app.records import Crossing
 from app.run_loop import run
-from app.sim.session import SimulatedDrive
+from app.sim.simulated_drive import SimulatedDrive
 from app.sinks import summary
 from app.sinks.dashboard import Dashboard
 from app.sinks.recorder import SessionRecorder

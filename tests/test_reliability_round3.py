@@ -20,18 +20,18 @@ import pytest
 from rich.console import Console
 from scipy.special import stdtrit
 
+from app.campaign.analysis import content_hash
 from app.campaign.compare import trend
 from app.campaign.manifest import read_manifest
 from app.campaign.outputs import finite
 from app.campaign.repeats import counted_once
 from app.campaign.row import SessionRow
-from app.campaign.session import content_hash
 from app.campaign.work import probe_scheduler
 from app.cli import main
 from app.cli.replay import Router, log_channel
 from app.errors import C2nError
 from app.results.agreement import Z95, DriveResult, disagreement
-from app.sim.session import write_drive
+from app.sim.simulated_drive import write_drive
 from app.sources.logs import drive_identity, first_of_each
 from app.user_text import shown
 from tests.simulated import cached_drive

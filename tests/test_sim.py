@@ -12,7 +12,7 @@ from app import paper
 from app.config import Config
 from app.sim.drive import simulate
 from app.sim.scenarios import SweepPlan, constant_radius, constant_steer
-from app.sim.session import DriveOptions, SimulatedDrive, simulate_drive, truth_path, write_drive
+from app.sim.simulated_drive import DriveOptions, SimulatedDrive, simulate_drive, truth_path, write_drive
 from app.sim.vehicle_model import BicycleParams
 from app.sources.logs import open_log
 

@@ -13,8 +13,8 @@ from rich.console import Console
 from app import paper
 from app.cli import main
 from app.config import Config
-from app.sim.session import SimulatedDrive, truth_path
-from app.sim.sessions import CIRCUIT, TRACK_PLAN, track_session
+from app.sim.laps_and_circles import CIRCUIT, TRACK_PLAN, track_session
+from app.sim.simulated_drive import SimulatedDrive, truth_path
 from app.sim.standard import TIGHT_PLAN, StandardOptions, simulate_standard
 from app.sources.logs import open_log
 

@@ -63,7 +63,7 @@ from app.config import Config, load_config
 from app.pipeline import Pipeline
 from app.records import Record
 from app.run_loop import run
-from app.sim.session import DriveOptions, simulate_drive
+from app.sim.simulated_drive import DriveOptions, simulate_drive
 from app.sinks.dashboard import Dashboard
 from app.sinks.recorder import SessionRecorder, _CandumpWriter
 from app.sinks.sink import Sink
@@ -525,9 +525,9 @@ def campaign_figures(sessions: int) -> dict[str, float]:
     each file in this process, then the campaign on 1 and on 2 local workers (fresh each), and a
     re-run with nothing changed; the children's peak RSS."""
     from app.campaign import work
+    from app.campaign.analysis import Job, analyse
     from app.campaign.manifest import read_manifest
-    from app.campaign.session import Job, analyse
-    from app.sim.campaign import write_campaign
+    from app.sim.tyre_programme import write_campaign
 
     figures: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -51,7 +51,7 @@ from app.config import COMMONROAD_CONFIG, Calibration, Config, load_config
 from app.pipeline import Pipeline
 from app.sim.effects import Effect
 from app.sim.imperfections import draw_imperfections
-from app.sim.session import DriveOptions, simulate_drive
+from app.sim.simulated_drive import DriveOptions, simulate_drive
 from app.sim.standard import TIGHT_PLAN, StandardOptions, simulate_standard
 
 CASES: dict[str, tuple[str, dict[str, Any]]] = {

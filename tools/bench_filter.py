@@ -21,7 +21,7 @@ from app.config import Config, load_config
 from app.estimate.smoother import smooth
 from app.pipeline import Pipeline
 from app.sim.sensors import LOG_START
-from app.sim.session import DriveOptions, simulate_drive
+from app.sim.simulated_drive import DriveOptions, simulate_drive
 
 
 def with_source(config: Config, source: str) -> Config:

@@ -22,7 +22,7 @@ from pathlib import Path
 from app.config import load_config
 from app.errors import C2nError
 from app.sim.measured_drive import MeasuredOptions, describe, measured_drive
-from app.sim.session import write_drive
+from app.sim.simulated_drive import write_drive
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "config" / "revs_250lm.toml"
 

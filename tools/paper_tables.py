@@ -27,7 +27,7 @@ from app.pipeline import Pipeline
 from app.sim.drive import simulate
 from app.sim.scenarios import Scenario, Segment, Steer, SweepPlan, step_steer
 from app.sim.sensors import SensorSetup, frames
-from app.sim.session import DBC_DIR, DriveOptions, simulate_drive
+from app.sim.simulated_drive import DBC_DIR, DriveOptions, simulate_drive
 from app.snapshot import Snapshot
 
 C2N_TRUTH = paper.normalised_stiffness(46494, 4090)  # eq. 9: 11.37

@@ -1,6 +1,6 @@
 """A campaign's drives sent to workers, resumably: local processes or a Dask cluster.
 
-Each task runs where the logs are (``session.analyse`` on a worker); it hashes its log and config
+Each task runs where the logs are (``analysis.analyse`` on a worker); it hashes its log and config
 there and, when the result of that pair is known already (``known``), returns only the key.
 Every finished row is written to ``cache/<key>.json`` at once, so a re-run analyses only what is
 new or changed and an interrupted run picks up where it stopped.
@@ -20,9 +20,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from app.campaign.analysis import Job, analyse, config_hash, content_hash, where
 from app.campaign.manifest import Manifest
 from app.campaign.row import SessionRow
-from app.campaign.session import Job, analyse, config_hash, content_hash, where
 from app.errors import C2nError, printable
 from app.output.files import write_json
 
@@ -51,7 +51,7 @@ def run_task(task: Task) -> SessionRow | str:
 
 # what every worker needs, imported once in the fork server (~2.5 s of numba, scipy, python-can
 # and the pipeline) instead of once per worker on cores the workers share
-PRELOAD = ["app.campaign.session", "app.pipeline", "app.run_loop", "app.sinks.summary", "app.sources.logs"]
+PRELOAD = ["app.campaign.analysis", "app.pipeline", "app.run_loop", "app.sinks.summary", "app.sources.logs"]
 
 
 @contextmanager

@@ -23,7 +23,7 @@ from app.user_text import shown
 if TYPE_CHECKING:
     import can
 
-    from app.sim.session import SimulatedDrive
+    from app.sim.simulated_drive import SimulatedDrive
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -72,7 +72,7 @@ class Player(threading.Thread):
 
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
-    from app.sim.session import DriveOptions, describe, simulate_drive
+    from app.sim.simulated_drive import DriveOptions, describe, simulate_drive
 
     config = load_config(args.config)
     console.print(f"c2n demo: simulating a {args.scenario} drive (seed {args.seed})…", style="dim")
@@ -100,7 +100,7 @@ def _replay(
 
     from app.pipeline import Pipeline
     from app.run_loop import run as run_pipeline
-    from app.sim.session import write_drive
+    from app.sim.simulated_drive import write_drive
     from app.sinks.dashboard import Dashboard
     from app.sinks.event_printer import EventPrinter, print_result
     from app.sources.buses import BusSource

@@ -209,7 +209,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         raise C2nError(
             "--effect, --effect-size, --quick, --realistic and --ideal need --session standard or --pack N"
         )
-    from app.sim.session import DriveOptions, describe, simulate_drive, write_drive
+    from app.sim.simulated_drive import DriveOptions, describe, simulate_drive, write_drive
 
     args.scenario = args.scenario or "constant_radius"
     config = load_config(args.config)
@@ -247,7 +247,7 @@ def _check_log(out: Path, config: object, force: bool) -> None:
     """A log and its truth: never an input, never an existing file unless ``--force``; a log
     format c2n writes (said before the drive is simulated, not after)."""
     from app.errors import LogFileError
-    from app.sim.session import LOG_SUFFIXES, truth_path
+    from app.sim.simulated_drive import LOG_SUFFIXES, truth_path
 
     outputs = [Output("--out", out, never)]
     if out != Path("-"):
@@ -290,8 +290,8 @@ def _plan(args: argparse.Namespace) -> "StandardPlan":
 
 def _run_session(args: argparse.Namespace, console: Console) -> int:
     from app.sim.imperfections import NO_IMPERFECTIONS, of_session
-    from app.sim.session import describe, write_drive
-    from app.sim.sessions import CIRCLES_PLAN, QUICK_CIRCLES_PLAN, QUICK_TRACK_PLAN, TRACK_PLAN
+    from app.sim.laps_and_circles import CIRCLES_PLAN, QUICK_CIRCLES_PLAN, QUICK_TRACK_PLAN, TRACK_PLAN
+    from app.sim.simulated_drive import describe, write_drive
     from app.sim.standard import StandardOptions, simulate_standard
 
     config = load_config(args.config)
@@ -364,7 +364,7 @@ def _run_pack(args: argparse.Namespace, console: Console) -> int:
 
 
 def _run_campaign(args: argparse.Namespace, console: Console) -> int:
-    from app.sim.campaign import write_campaign
+    from app.sim.tyre_programme import write_campaign
 
     if args.pack is not None or args.session is not None or args.scenario is not None:
         raise C2nError("--campaign writes drives of its own: leave out --pack, --session and --scenario")

@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from app.config import FilterSettings
-from app.estimate.model import (  # the shared constants: numba compiles them in as they are
+from app.estimate.motion_model import (  # the shared constants: numba compiles them in as they are
     HEALTH_ALPHA,
     LATE_TOLERANCE_S,
     MAX_CONSECUTIVE_REJECTS,
@@ -281,7 +281,7 @@ def _initialise(s: Array, c: Array, t: float, vx: float, vy: float, beta: float,
 @_compiled
 def _predict(s: Array, c: Array, dt: float) -> None:
     """x = F·x, P = F·P·Fᵀ + Q, per 2×2 block of the [value, rate] pairs: a value's row and
-    column gain dt × its rate's; Q adds to the diagonal blocks (``app.estimate.model.transition``)."""
+    column gain dt × its rate's; Q adds to the diagonal blocks (``app.estimate.motion_model.transition``)."""
     s[0] += dt * s[1]
     s[2] += dt * s[3]
     s[4] += dt * s[5]

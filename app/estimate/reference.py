@@ -1,4 +1,4 @@
-"""The motion filter written to be read: the model of ``app.estimate.model`` on filterpy's
+"""The motion filter written to be read: the model of ``app.estimate.motion_model`` on filterpy's
 ``KalmanFilter``, F, Q and H formed as matrices each step and updated jointly (Joseph form).
 
 The pipeline runs ``app.estimate.compiled.CompiledMotionFilter``: the same steps compiled with
@@ -12,7 +12,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 
 from app.config import FilterSettings
-from app.estimate.model import (
+from app.estimate.motion_model import (
     HEALTH_ALPHA,
     LATE_TOLERANCE_S,
     MAX_CONSECUTIVE_REJECTS,

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from app.config import Config
-from app.gap.model import Mods
+from app.gap.nominal_model import Mods
 from app.paper import G
 
 _DEG = math.pi / 180.0

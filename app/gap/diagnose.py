@@ -59,7 +59,7 @@ from app.gap.effects import (
 from app.gap.forked import map_forked
 from app.gap.measured import Measured
 from app.gap.method_effects import DIRECT, HELDOUT_FIT, method_effects, with_method_effects
-from app.gap.model import Mods, Prepared, Simulated, prepare, run_model, simulate
+from app.gap.nominal_model import Mods, Prepared, Simulated, prepare, run_model, simulate
 from app.gap.result import (
     BeforeAfter,
     C2nEffect,

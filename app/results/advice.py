@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from app.config import Config
 from app.decode.counts import FrameCounts
 from app.detect.steady_state import WHEELBASE_M
-from app.estimate.model import FilterCounts
+from app.estimate.motion_model import FilterCounts
 from app.results.headline import Headline, Method
 from app.results.pairing import Paired
 from app.results.regression import TIGHT_WHEELBASES, RegressionFit

@@ -24,7 +24,7 @@ from app.dbc import load_dbc
 from app.errors import C2nError, LogFileError
 from app.sim.drive import DriveTrace
 from app.sim.sensors import SensorSetup, frames
-from app.sim.session import DBC_DIR, SimulatedDrive
+from app.sim.simulated_drive import DBC_DIR, SimulatedDrive
 from app.sim.vehicle_model import BicycleParams
 
 # The 15 files, by their stem; each is one column of the drive, one number a line.

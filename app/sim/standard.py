@@ -13,7 +13,7 @@ to the config's nominal crossing speed u0 = √(C2n·g·d), radii from the top s
 
 With the Mondeo config: u0 12.7 m/s, speeds 7.6–16.5 m/s, radii 68/96/137 m, 9.4 minutes of driving.
 
-``StandardOptions.session`` drives this session or one of app/sim/sessions.py's (track laps,
+``StandardOptions.session`` drives this session or one of app/sim/laps_and_circles.py's (track laps,
 one-speed circles) on either generator.
 """
 
@@ -33,10 +33,7 @@ from app.sim import commonroad
 from app.sim.axle import axle_c2n
 from app.sim.effects import NO_EFFECT, Effect, apply_to_sensor, apply_to_vehicle
 from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections
-from app.sim.scenarios import Part, Scenario, Segment, Session, Steer
-from app.sim.sensors import SensorSetup, frames
-from app.sim.session import DBC_DIR, SimulatedDrive
-from app.sim.sessions import (
+from app.sim.laps_and_circles import (
     CIRCLES_PLAN,
     TRACK_PLAN,
     CirclesPlan,
@@ -44,6 +41,9 @@ from app.sim.sessions import (
     circles_session,
     track_session,
 )
+from app.sim.scenarios import Part, Scenario, Segment, Session, Steer
+from app.sim.sensors import SensorSetup, frames
+from app.sim.simulated_drive import DBC_DIR, SimulatedDrive
 from app.sim.two_track import TwoTrackParams, TwoTrackTrace, simulate_two_track
 from app.sim.vehicle_model import BicycleParams
 

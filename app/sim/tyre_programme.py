@@ -24,7 +24,7 @@ from app.config import DEFAULT_CONFIG, load_config
 from app.errors import C2nError, OutputError
 from app.output.files import folder_atomically, write_json, write_text
 from app.sim.pack import write_log
-from app.sim.session import DriveOptions, simulate_drive
+from app.sim.simulated_drive import DriveOptions, simulate_drive
 
 # tyre set -> (true C2n [1/rad], pressure [kPa]): stiffer with pressure, as tyres are
 TYRE_SETS: dict[str, tuple[float, float]] = {"A": (13.8, 200.0), "B": (14.9, 230.0), "C": (16.1, 260.0)}

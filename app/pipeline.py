@@ -27,7 +27,7 @@ from app.detect.quasi_steady import QuasiSteadyGate
 from app.detect.signs import SignVotes
 from app.detect.steady_state import DIRECTIONS, STEADY, WHEELBASE_M, SteadyStateGate
 from app.estimate.compiled import CompiledMotionFilter, estimate_of
-from app.records import Crossing, CrossingRejected, Estimate, Event, Record, SteadyState
+from app.records import Crossing, CrossingRejected, Direction, Estimate, Event, Record, SteadyState
 from app.results.combine import Combined, combine
 from app.results.crossing_slope import with_tilt
 from app.results.heading import Heading
@@ -43,7 +43,6 @@ BlockHook = Callable[[RecordBlock, np.ndarray, np.ndarray, np.ndarray, np.ndarra
 _FILTER_ROLES = frozenset({"vx", "vy", "beta", "speed", "yaw_rate", "ay"})
 _OPTICAL = frozenset(OPTICAL_ROLES)
 _LATERAL = {"beta": ("beta",), "vy": ("vy",), "auto": ("beta", "vy")}  # what sideslip_source allows
-_U = Estimate._fields.index("u_mps")
 _R = Estimate._fields.index("r_radps")  # the yaw rate's column of the filter's estimates
 _V_MEAS = Estimate._fields.index("v_meas_mps")  # the measured lateral velocity's
 _FIRST_STAGE_FIELDS = (  # the Snapshot's fields that the decoder and ``filter_block`` make
@@ -175,7 +174,8 @@ class Pipeline:
 
     def take(self, record: Record) -> Record:
         """Take one decoded frame (``process`` after the decoder): the Record with what the
-        filter, the gate and the detector made of it."""
+        filter, the gates and the detector made of it. Its estimate goes on as ``take_filtered``'s
+        rows do (``_route``)."""
         state = self.state
         if state.t_first is None:
             state.t_first = record.t
@@ -192,36 +192,19 @@ class Pipeline:
         if estimate is None:
             return record
         heading = self.heading.step(record.t, estimate.r_radps)
-        steady = self.gate.step(record.t, estimate, state.latest.get("steer"), state.sensor_problem)
+        latest = state.latest
+        steady = self.gate.step(record.t, estimate, latest.get("steer"), state.sensor_problem)
         quasi = self.quasi_gate.step(record.t, estimate, state.sensor_problem is None)
-        events = self.detector.step(record.t, estimate, steady, heading)
-        self._collect(events)
-        if (  # a sample the regressions could take votes, one per VOTE_EVERY_S
-            (steady.steady or quasi)
-            and record.t >= state.signs.next_t
-            and estimate.r_radps is not None
-            and estimate.v_meas_mps is not None
-        ):
-            latest = state.latest
-            ay = latest.get("ay") if self._ay_votes else None
-            state.signs.add(record.t, estimate.u_mps, estimate.r_radps, ay, latest.get("steer"))
-        if steady.steady and estimate.v_meas_mps is not None:
-            self.profile.add(estimate.u_mps, estimate.v_meas_mps, steady.direction)
-            if estimate.r_radps is not None:  # with u̇: a small pad's sweeps move load (regression.py)
-                u_dot = estimate.u_dot_mps2
-                self.regression.add(
-                    record.t, estimate.u_mps, estimate.r_radps, estimate.v_meas_mps, heading, u_dot=u_dot
-                )
-        if quasi and estimate.v_meas_mps is not None and not state.crossings:  # after one, no quasi fit
-            e, v = estimate, estimate.v_meas_mps
-            r, r_dot = e.r_radps, e.r_dot_radps2
-            assert r is not None and r_dot is not None  # the gate saw them
-            self.quasi.add(record.t, e.u_mps, r, v, heading, r_dot, e.u_dot_mps2)
-            if self._drives:
-                self._drives[-1].add(record.t, e.u_mps, r, v, heading, r_dot, e.u_dot_mps2)
-        if not 0.0 <= record.t - self._last_fit < _REFIT_EVERY_S:
-            self._last_fit = record.t
-            self._refit()
+        events = self._route(
+            record.t,
+            estimate,
+            steady.steady,
+            steady.direction,
+            quasi,
+            heading,
+            latest.get("ay") if self._ay_votes else None,
+            latest.get("steer"),
+        )
         record = Record(  # not dataclasses.replace: this runs for every filtered frame
             record.t,
             record.channel,
@@ -303,58 +286,81 @@ class Pipeline:
         )
 
     def take_filtered(self, filtered: "Filtered") -> list[Event]:
-        """The second stage of ``take_block``: the sign votes, the detector, the sideslip profile
-        and the regressions over a block's filtered rows, one by one, refitting on the frames'
-        clock. Returns the events, in order."""
-        state, out, kinds, directions = self.state, filtered.out, filtered.kinds, filtered.directions
-        ay, steer = filtered.ay, filtered.steer
-        quasi_fields = iter(out[filtered.quasi].tolist())
+        """The second stage of ``take_block``: each of a block's filtered rows in turn to what
+        ``take`` routes a frame's estimate to (``_route``: the sign votes, the detector, the
+        sideslip profile and the regressions, refitting on the frames' clock). Returns the
+        events, in order."""
+        kinds, directions = filtered.kinds, filtered.directions
         quasi_flags = filtered.quasi.tolist()
-        headings = filtered.headings.tolist()
-        times = filtered.t.tolist()
-        # the rows the detector takes samples from: steady, with a measured lateral velocity
-        sampled = np.equal(kinds, STEADY) & ~np.isnan(out[:, _V_MEAS])
-        sampled_flags = sampled.tolist()
-        sampled_fields = iter(out[sampled].tolist())
-        detector, regression, profile, quasi_fit = self.detector, self.regression, self.profile, self.quasi
+        # the rows a consumer takes a sample from: steady or quasi-steady, with a measured lateral
+        # velocity (the quasi flag has it). Only they are made Estimates: the others, most rows of
+        # a drive, are only a time for the detector's quiet runs and the refit
+        taken = (np.equal(kinds, STEADY) | filtered.quasi) & ~np.isnan(filtered.out[:, _V_MEAS])
+        taken_flags = taken.tolist()
+        estimates = map(estimate_of, filtered.out[taken].tolist())
+        headings, ay, steer = filtered.headings.tolist(), filtered.ay.tolist(), filtered.steer.tolist()
+        route = self._route
         events: list[Event] = []
-        own: tuple[Event, ...] = ()  # the last record's
-        signs = state.signs
-        for k, now in enumerate(times):
-            steady = kinds[k] == STEADY
-            if (
-                now >= signs.next_t
-                and (steady or quasi_flags[k])
-                and not math.isnan(out[k, _R] + out[k, _V_MEAS])
-            ):
-                signs.add(now, float(out[k, _U]), float(out[k, _R]), ay[k], steer[k])
-            if steady or detector.running:
-                if sampled_flags[k]:
-                    estimate = estimate_of(next(sampled_fields))
-                    new = detector.step(
-                        now, estimate, SteadyState(True, DIRECTIONS[directions[k]]), headings[k]
-                    )
-                else:  # all ``step`` does with a frame it takes no sample from
-                    new = detector.end_quiet_runs(now)
-                if new:
-                    self._collect(new)
-                    events += new
-                    own = tuple(new) if k == len(times) - 1 else ()
-                if sampled_flags[k] and estimate.v_meas_mps is not None:  # (always, when sampled)
-                    profile.add(estimate.u_mps, estimate.v_meas_mps, DIRECTIONS[directions[k]])
-                    if estimate.r_radps is not None:
-                        u, r, v = estimate.u_mps, estimate.r_radps, estimate.v_meas_mps
-                        regression.add(now, u, r, v, headings[k], u_dot=estimate.u_dot_mps2)
-            if quasi_flags[k]:
-                u, u_dot, _, _, r, r_dot, *_, v = next(quasi_fields)[:11]
-                if not state.crossings:  # after one, there is no quasi-steady fit
-                    quasi_fit.add(now, u, r, v, headings[k], r_dot, u_dot)
-                    if self._drives:
-                        self._drives[-1].add(now, u, r, v, headings[k], r_dot, u_dot)
-            if not 0.0 <= now - self._last_fit < _REFIT_EVERY_S:
-                self._last_fit = now
-                self._refit()
-        state.last = filtered.last._replace(events=own)
+        own: list[Event] = []  # the last row's
+        for k, now in enumerate(filtered.t.tolist()):
+            own = route(
+                now,
+                next(estimates) if taken_flags[k] else None,
+                kinds[k] == STEADY,
+                DIRECTIONS[directions[k]],
+                quasi_flags[k],
+                headings[k],
+                ay[k],
+                steer[k],
+            )
+            if own:
+                events += own
+        self.state.last = filtered.last._replace(events=tuple(own))
+        return events
+
+    def _route(
+        self,
+        t: float,
+        estimate: Estimate | None,
+        steady: bool,
+        direction: Direction | None,
+        quasi: bool,
+        heading: float,
+        ay: float | None,
+        steer: float | None,
+    ) -> list[Event]:
+        """One filtered sample at time t to everything after the gates, for ``take`` (a frame) and
+        ``take_filtered`` (a block's row): the sign votes, the detector, the sideslip profile, the
+        steady regression and the quasi-steady fits, then the refit every ``_REFIT_EVERY_S`` of
+        the frames' clock. ``steady`` and ``direction`` are the steady-state gate's verdict,
+        ``quasi`` the quasi-steady gate's, ``heading`` the integrated yaw rate (rad), ``ay`` and
+        ``steer`` the latest measured values (None or NaN: none). ``estimate`` may be None where
+        none of them takes the sample: neither gate held, or no lateral velocity was measured.
+        Returns the detector's events, collected."""
+        if steady and estimate is not None and estimate.v_meas_mps is not None:
+            events = self.detector.step(t, estimate, SteadyState(True, direction), heading)
+        else:  # all ``step`` does with a sample it does not take
+            events = self.detector.end_quiet_runs(t)
+        if events:
+            self._collect(events)
+        if (steady or quasi) and estimate is not None and estimate.v_meas_mps is not None:
+            state = self.state
+            u, r, v = estimate.u_mps, estimate.r_radps, estimate.v_meas_mps
+            if t >= state.signs.next_t and r is not None:  # one vote per VOTE_EVERY_S
+                state.signs.add(t, u, r, ay, steer)
+            if steady:
+                self.profile.add(u, v, direction)
+                if r is not None:  # with u̇: a small pad's sweeps move load (regression.py)
+                    self.regression.add(t, u, r, v, heading, u_dot=estimate.u_dot_mps2)
+            if quasi and not state.crossings:  # after a crossing, no quasi-steady fit
+                r_dot, u_dot = estimate.r_dot_radps2, estimate.u_dot_mps2
+                assert r is not None and r_dot is not None  # the gate saw them
+                self.quasi.add(t, u, r, v, heading, r_dot, u_dot)
+                if self._drives:
+                    self._drives[-1].add(t, u, r, v, heading, r_dot, u_dot)
+        if not 0.0 <= t - self._last_fit < _REFIT_EVERY_S:
+            self._last_fit = t
+            self._refit()
         return events
 
     def _sensor_problems(self, block: RecordBlock) -> tuple[np.ndarray, list[str]]:

@@ -6,7 +6,7 @@ import re
 from collections import Counter
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 import pytest
@@ -16,7 +16,17 @@ from app.cli import main
 from app.config import Config, load_config
 from app.dbc import load_dbc
 from app.errors import C2nError
-from app.sim.effects import EFFECT_NAMES, EFFECTS, NO_EFFECT, Effect, apply_to_sensor, draw_effect
+from app.sim import commonroad
+from app.sim.effects import (
+    EFFECT_NAMES,
+    EFFECTS,
+    NO_EFFECT,
+    Effect,
+    EffectName,
+    apply_to_sensor,
+    draw_effect,
+    effect_name,
+)
 from app.sim.imperfections import NO_IMPERFECTIONS, of_session
 from app.sim.pack import LOG_NAME, case_seed, plan_pack, write_pack
 from app.sim.scenarios import Scenario, Segment, Steer
@@ -55,6 +65,16 @@ def test_vocabulary_is_design_section_6() -> None:
     for spec in EFFECTS.values():
         assert 0.0 <= spec.low <= spec.high
         assert Effect.of(spec.name).size == pytest.approx(0.5 * (spec.low + spec.high))
+
+
+def test_the_effects_type_is_the_vocabulary() -> None:
+    """``EffectName``, what the type checker holds every effect to, names exactly the registry's
+    effects; CommonRoad's car carries some of them; a name read from a file is checked."""
+    assert get_args(EffectName) == EFFECT_NAMES
+    assert set(commonroad.EFFECTS) < set(EFFECT_NAMES)
+    assert effect_name("roll_steer") == "roll_steer"
+    with pytest.raises(C2nError, match="unknown effect 'Roll_steer'"):
+        effect_name("Roll_steer")
 
 
 def test_draws_cover_every_effect_with_sizes_in_range() -> None:

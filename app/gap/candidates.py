@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 from app.config import Config
 from app.gap.nominal_model import Mods
 from app.paper import G
+from app.sim.effects import EffectName
 
 _DEG = math.pi / 180.0
 
@@ -45,7 +46,7 @@ class Param:
 
 @dataclass(frozen=True)
 class Candidate:
-    effect: str
+    effect: EffectName
     params: tuple[Param, ...]
     action: Callable[[tuple[float, ...]], str]  # what the fitted size means, and what to do
 
@@ -287,7 +288,7 @@ HIDDEN_BY_CALIBRATION: dict[str, str] = {
 # A nuisance that imitates an effect on a drive without the manoeuvre that tells them apart: the
 # effect is fitted with the nuisance held at its nominal value and named only where it explains
 # the drive better than the calibrated nuisance does.
-RIVAL_NUISANCE: dict[str, str] = {
+RIVAL_NUISANCE: dict[EffectName, str] = {
     # a force that follows the turn moves the sideslip by a constant per turn direction, a sensor
     # position error by d·κ: on one radius they are the same; radii apart tell them apart
     "sensor_position_error": "turn_force_pct",

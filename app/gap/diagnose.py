@@ -72,6 +72,7 @@ from app.gap.result import (
     Located,
     Secondary,
 )
+from app.sim.effects import EffectName
 from app.sim.vehicle_model import BicycleParams
 from app.units import Z95
 
@@ -403,7 +404,7 @@ class NuisanceFit:
     def mods(self, *effect: dict[str, float]) -> Mods:
         return mods_of(self.fit.fields(), *effect)
 
-    def params_for(self, effect: str, rival_free: bool = False) -> tuple[Param, ...]:
+    def params_for(self, effect: EffectName, rival_free: bool = False) -> tuple[Param, ...]:
         """The nuisances fitted beside ``effect``; its rival (a nuisance that imitates it) held at
         its nominal value, or with ``rival_free`` fitted beside it even where the calibration
         alone did not show it (the effect may have hidden it)."""
@@ -412,7 +413,7 @@ class NuisanceFit:
             return tuple(d if d.name == rival else p for p, d in zip(self.params, self.declared, strict=True))
         return tuple(p.fixed() if p.name == rival else p for p in self.params)
 
-    def start_for(self, effect: str) -> tuple[float, ...]:
+    def start_for(self, effect: EffectName) -> tuple[float, ...]:
         return tuple(
             v if p.free else p.nominal for p, v in zip(self.params_for(effect), self.values, strict=True)
         )
@@ -539,7 +540,7 @@ def heldout(pb: Problem, fold: np.ndarray, baseline: tuple[Fit, ...]) -> Heldout
     )
 
 
-def _baseline_jobs(pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effect: str) -> list[_Job]:
+def _baseline_jobs(pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effect: EffectName) -> list[_Job]:
     """The calibrated model's fits on each training fold (with the nuisances ``effect`` is
     fitted beside)."""
     params, start = calibration.params_for(effect), calibration.start_for(effect)
@@ -547,7 +548,7 @@ def _baseline_jobs(pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effe
 
 
 def _baselines(
-    pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effects: Sequence[str], workers: int
+    pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effects: Sequence[EffectName], workers: int
 ) -> list[Heldout]:
     """``heldout`` for each of ``effects``, their fits made together in ``workers`` processes."""
     jobs = [job for effect in effects for job in _baseline_jobs(pb, calibration, fold, effect)]
@@ -762,7 +763,7 @@ class Diagnosis:
 
 
 def _scores(
-    pb: Problem, calibration: NuisanceFit, ho: Heldout, rivals: dict[str, Heldout], workers: int
+    pb: Problem, calibration: NuisanceFit, ho: Heldout, rivals: dict[EffectName, Heldout], workers: int
 ) -> list[tuple[Scored, tuple[tuple[float, float], ...]]]:
     """Every candidate scored, with its effect's 95 % intervals: fitted with the nuisances on every
     sample, then on each training fold starting from there, and its held-out gaps.
@@ -837,10 +838,10 @@ class _Judged:
     shift: C2nShift
     size: tuple[float, float] | None
     importance: float
-    confounded: list[str]
+    confounded: list[EffectName]
 
     @property
-    def effect(self) -> str:
+    def effect(self) -> EffectName:
         return self.scored.candidate.effect
 
     @property
@@ -1071,6 +1072,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     after_sim = calibrated
     beside = calibration.fit  # the nuisances as reported: calibrated beside the effects named
     confounded: list[str] = []
+    diagnosis: str  # an effect of the vocabulary, or "unexplained"
     if lead is not None and best is not None:
         diagnosis = lead.effect
         confounded = list(lead.confounded)
@@ -1248,7 +1250,7 @@ def hidden_by_rivals(calibration: NuisanceFit) -> list[str]:
 
 def _verdict(diagnosis: str, lead: Effect | None, ho: Heldout, confounded: list[str], config: Config) -> str:
     """The diagnosis in a sentence: what was found, and what the held-out test showed."""
-    twins = {**NUISANCE_TWINS, **RIVAL_NUISANCE}
+    twins: dict[str, str] = {**NUISANCE_TWINS, **dict(RIVAL_NUISANCE.items())}
     inside: dict[str, list[str]] = {}
     for effect in confounded:
         if effect in twins:

@@ -34,6 +34,7 @@ import numpy as np
 
 from app.config import Config
 from app.gap.measured import Measured
+from app.sim.effects import EffectName
 
 CONFIDENCE = 0.95  # the one statistical constant: intervals cover this much, a test errs 1 − it
 Z_INTERVAL = float(NormalDist().inv_cdf(0.5 + CONFIDENCE / 2))  # two-sided: a 95 % interval is ±1.96 σ
@@ -46,12 +47,12 @@ Z_TEST = float(NormalDist().inv_cdf(1.0 - (1.0 - CONFIDENCE) / TESTS))  # 2.50 �
 SPEED_CHANNEL = frozenset({"speed_scale_error", "signal_latency"})
 
 
-def channel(effect: str) -> str:
+def channel(effect: EffectName) -> str:
     """The channel an effect shows in first: the vehicle speed signal, or the sideslip."""
     return "speed" if effect in SPEED_CHANNEL else "sideslip"
 
 
-def own_size(effect: str, params: Mapping[str, float], config: Config) -> tuple[float, float] | None:
+def own_size(effect: EffectName, params: Mapping[str, float], config: Config) -> tuple[float, float] | None:
     """An effect's size in its own unit and the config's tolerance for it, where one is stated."""
     gap = config.gap
     sizes = {

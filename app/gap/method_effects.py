@@ -31,6 +31,7 @@ from app.gap.effects import Z_INTERVAL, Z_TEST, C2nShift
 from app.gap.measured import Measured
 from app.gap.result import C2nEffect, Effect
 from app.results.headline import Method
+from app.sim.effects import EffectName
 
 HELDOUT_FIT = "held-out fit"
 # effects whose own parameter the method measures on every steady sample, where the bicycle
@@ -104,7 +105,7 @@ def _judged(present: bool, z: float, matters: bool, what: str, config: Config) -
 
 
 def _effect(
-    effect: str,
+    effect: EffectName,
     channel: str,
     params: dict[str, float],
     ci95: dict[str, tuple[float, float]],

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from app.output.files import json_ready
+from app.sim.effects import EffectName
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ class CandidateScore:
     """One effect fitted (with the nuisances) on some manoeuvres and scored on the others: the
     held-out sideslip and yaw-rate gaps of the calibrated model before and after."""
 
-    effect: str
+    effect: EffectName
     params: Mapping[str, float]
     at_bound: tuple[str, ...]  # parameters whose fit ended on a physical bound
     heldout_rms_before: float  # sideslip gap, deg
@@ -56,7 +57,7 @@ class CandidateScore:
 class Secondary:
     """An effect that shrinks the held-out gap further once added to the dominant one."""
 
-    effect: str
+    effect: EffectName
     params: Mapping[str, float]
     shrink_heldout: float  # of what the dominant effect left
     action: str
@@ -107,7 +108,7 @@ class Effect:
     above the drive's own spread (a normal quantile), what it does to C2n, and whether that is
     beyond the config's tolerance (``matters``) or within it."""
 
-    effect: str
+    effect: EffectName
     channel: str  # "sideslip" (at the sensor), "speed" (the vehicle speed signal), "c2n" (the axle's)
     params: Mapping[str, float]
     ci95: Mapping[str, tuple[float, float]]

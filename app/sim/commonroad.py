@@ -34,13 +34,14 @@ from scipy.integrate import solve_ivp
 
 from app.errors import C2nError
 from app.sim.drive import _KI, _KP
+from app.sim.effects import EffectName
 from app.sim.scenarios import Scenario
 from app.sim.two_track import TwoTrackParams, TwoTrackTrace, _path
 from app.sim.vehicle_model import BicycleParams
 
 PARAMETER_SETS = ("vehicle1", "vehicle2", "vehicle3")
 DEFAULT_SET = "vehicle2"
-EFFECTS = (
+EFFECTS: tuple[EffectName, ...] = (
     "none",
     "sensor_yaw_misalignment",
     "sensor_position_error",

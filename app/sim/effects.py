@@ -30,9 +30,23 @@ if TYPE_CHECKING:  # annotations only: `c2n simulate --help` lists the effects w
     from app.sim.two_track import TwoTrackParams
 
 
+# the vocabulary of unmodelled effects (DESIGN's), "none" among them: ``EFFECTS`` holds each one's spec
+EffectName = Literal[
+    "none",
+    "sensor_yaw_misalignment",
+    "sensor_position_error",
+    "speed_scale_error",
+    "signal_latency",
+    "road_cross_slope",
+    "load_transfer_nonlinearity",
+    "roll_steer",
+    "tyre_ply_steer",
+]
+
+
 @dataclass(frozen=True)
 class EffectSpec:
-    name: str
+    name: "EffectName"
     unit: str
     low: float  # pack range of the magnitude
     high: float
@@ -47,7 +61,7 @@ class EffectSpec:
         return 0.5 * (self.low + self.high)
 
 
-EFFECTS: dict[str, EffectSpec] = {
+EFFECTS: dict[EffectName, EffectSpec] = {
     spec.name: spec
     for spec in (
         EffectSpec("none", "", 0.0, 0.0, False, "nothing", "every effect off", ""),
@@ -145,19 +159,25 @@ EFFECTS: dict[str, EffectSpec] = {
     )
 }
 
-EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
+EFFECT_NAMES: tuple[EffectName, ...] = tuple(EFFECTS)
+
+
+def effect_name(text: str) -> EffectName:
+    """``text`` as an effect of the vocabulary, or a C2nError naming them all."""
+    for name in EFFECT_NAMES:
+        if text == name:
+            return name
+    raise C2nError(f"unknown effect '{text}' — use one of {', '.join(EFFECT_NAMES)}")
 
 
 @dataclass(frozen=True)
 class Effect:
-    name: str = "none"
+    name: EffectName = "none"
     size: float = 0.0
     unit: str = ""
 
     def __post_init__(self) -> None:
-        spec = EFFECTS.get(self.name)
-        if spec is None:
-            raise C2nError(f"unknown effect '{self.name}' — use one of {', '.join(EFFECT_NAMES)}")
+        spec = EFFECTS[effect_name(self.name)]  # (a name read from a file is checked here)
         if self.unit != spec.unit:
             raise C2nError(f"effect {self.name}: size is in '{spec.unit}', not '{self.unit}'")
         if not spec.signed and self.size < 0:
@@ -168,10 +188,8 @@ class Effect:
     @classmethod
     def of(cls, name: str, size: float | None = None) -> "Effect":
         """The effect with its unit; size None: the middle of its pack range."""
-        spec = EFFECTS.get(name)
-        if spec is None:
-            raise C2nError(f"unknown effect '{name}' — use one of {', '.join(EFFECT_NAMES)}")
-        return cls(name, spec.typical if size is None else float(size), spec.unit)
+        spec = EFFECTS[effect_name(name)]
+        return cls(spec.name, spec.typical if size is None else float(size), spec.unit)
 
     @property
     def spec(self) -> EffectSpec:
@@ -184,7 +202,7 @@ class Effect:
 NO_EFFECT = Effect()
 
 
-def draw_effect(rng: "np.random.Generator", names: tuple[str, ...] = EFFECT_NAMES) -> Effect:
+def draw_effect(rng: "np.random.Generator", names: tuple[EffectName, ...] = EFFECT_NAMES) -> Effect:
     """One effect of ``names``, each (none too) equally likely; magnitude uniform in its range, sign
     random."""
     spec = EFFECTS[names[int(rng.integers(len(names)))]]

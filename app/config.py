@@ -15,6 +15,7 @@ from typing import Any, Literal
 
 from app.dbc import ChannelSpec, Dbc, load_dbc
 from app.errors import ConfigError
+from app.paper import G
 from app.units import ROLE_UNITS, Z95, known_units, si_factor
 
 DEFAULT_CONFIG = Path(__file__).resolve().parent.parent / "config" / "mondeo.toml"
@@ -40,7 +41,7 @@ class Vehicle:
     track_m: float | None = None
     steering_ratio: float | None = None
     tyre_radius_m: float | None = None
-    gravity_mps2: float = 9.81  # the paper's g; local gravity may differ by 0.3 %
+    gravity_mps2: float = G  # the paper's g; local gravity may differ by 0.3 %
 
 
 @dataclass(frozen=True)

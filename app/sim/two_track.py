@@ -36,6 +36,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.config import Config
+from app.paper import G
 from app.sim.drive import _KI, _KP, _MAX_STEER_RATE, DriveTrace, _speed_profile, _steer_commands
 from app.sim.scenarios import Scenario
 from app.sim.vehicle_model import Axles, BicycleParams
@@ -77,7 +78,7 @@ class TwoTrackParams(Axles):
     mu: float = 1.0  # peak friction (Magic Formula D = μ·F_z)
     shape: float = 1.3  # Magic Formula C, as BicycleParams
     curvature: float = -1.0  # Magic Formula E, as BicycleParams
-    g: float = 9.81
+    g: float = G
     # effects (effects.py sets them; zero is "off")
     load_sensitivity: float = 0.0  # k in C(F_z) = c·F_z·(1 − k·(F_z − F_z0)/F_z0)
     roll_steer: float = 0.0  # ε: rear axle steer δ2 = ε·φ [rad/rad]; > 0 roll understeer

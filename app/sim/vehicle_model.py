@@ -12,6 +12,7 @@ from typing import Literal
 
 from app.config import Config
 from app.errors import ConfigError
+from app.paper import G
 
 TyreModel = Literal["linear", "magic"]
 
@@ -45,7 +46,7 @@ class BicycleParams(Axles):
     b_m: float  # CG to rear axle
     c1_n_per_rad: float  # front axle cornering stiffness
     c2_n_per_rad: float  # rear axle cornering stiffness
-    g: float = 9.81
+    g: float = G
     tyre: TyreModel = "linear"
     mu: float = 1.0  # peak friction for the saturating tyre
     shape: float = 1.3  # Magic Formula C (lateral)
@@ -73,7 +74,7 @@ class BicycleParams(Axles):
         w2_n: float,
         c1n: float,
         c2n: float,
-        g: float = 9.81,
+        g: float = G,
         **tyre: float | str,
     ) -> "BicycleParams":
         mass = (w1_n + w2_n) / g

@@ -455,7 +455,7 @@ def test_a_campaign_never_writes_over_files_it_did_not_write(tmp_path: Path) -> 
     assert code == 2 and "holds an input" in err and named.read_text() == "log,tyre_set\na.blf,A\n"
 
 
-@pytest.mark.parametrize("tag", ["c2n", "error", "key", "frames", "regression.model"])
+@pytest.mark.parametrize("tag", ["c2n", "error", "key", "frames", "drive", "regression.model"])
 def test_a_tag_named_like_a_result_column_is_refused_with_the_fix(tmp_path: Path, tag: str) -> None:
     manifest = tmp_path / "manifest.csv"
     manifest.write_text(f"log,{tag}\na.blf,A\n")

@@ -23,7 +23,7 @@ from app.campaign.compare import (
     with_scale,
 )
 from app.campaign.manifest import Entry, Manifest
-from app.campaign.row import SessionResult, SessionRow
+from app.campaign.row import OWN_COLUMNS, SessionResult, SessionRow
 from app.errors import OutputError
 from app.output.files import json_ready, write_atomically, write_json
 from app.output.paths import HTML_REPORT, json_with
@@ -63,7 +63,7 @@ def clashing_tags(manifest: Manifest) -> list[str]:
 
     from app.sinks.summary import Summary
 
-    written = {*_FIRST, *_COMPARED, *_LAST, *(f.name for f in summary_fields(Summary))}
+    written = {*_FIRST, *_COMPARED, *_LAST, *OWN_COLUMNS, *(f.name for f in summary_fields(Summary))}
     return [tag for tag in manifest.tag_names if tag in written or tag.split(".", 1)[0] in written]
 
 

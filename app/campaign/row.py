@@ -17,6 +17,8 @@ from app.campaign.compare import Estimate, Fits, Model
 from app.results.headline import Method
 
 ROW_FORMAT = 2  # the cache file's layout: a row of another layout is analysed again
+# the row's own columns, after the summary's
+OWN_COLUMNS = ("drive", "error", "frames", "seconds", "worker_peak_mib", "key", "cached")
 
 
 @dataclass(frozen=True)
@@ -46,9 +48,9 @@ class SessionRow:
 
     def columns(self) -> dict[str, Any]:
         """The row as ``results``' columns: the summary's keys joined with dots, then the row's own."""
-        own: dict[str, Any] = {"drive": self.drive} if self.drive is not None else {}  # (none: unread)
-        own |= {"error": self.error, "frames": self.frames, "seconds": self.seconds}
-        own |= {"worker_peak_mib": self.worker_peak_mib, "key": self.key, "cached": self.cached}
+        own = {name: getattr(self, name) for name in OWN_COLUMNS}
+        if self.drive is None:  # its log was never read
+            del own["drive"]
         return flatten(self.summary) | own
 
     def warnings_about(self, log: Path) -> list[str]:

@@ -117,7 +117,6 @@ def _row(
     fits = Fits(t, linear_fit, cubic_fit, "softening" if model == "softening" else "linear")
     result = SessionResult(
         own=Estimate(own, interval, 0.2 / Z95),
-        method=method,
         scale=0.0,
         softening_t=t if fitted else None,
         fits=fits if fitted and estimator == "cascade" else None,
@@ -206,7 +205,7 @@ def test_the_sensors_scale_counts_once_in_a_group_and_not_in_its_differences(tmp
     def row(log: str, c2n: float, scale_pct: float) -> SessionRow:
         se = math.hypot(data_se, scale_pct / 100 * c2n)
         own = Estimate(c2n, (c2n - Z95 * se, c2n + Z95 * se), data_se)
-        return SessionRow(result=SessionResult(own, Method.PAIRED, scale_pct / 100, None, None), key=log)
+        return SessionRow(result=SessionResult(own, scale_pct / 100, None, None), key=log)
 
     values = {"A": [15.0, 15.1, 14.95], "B": [16.0, 16.1, 16.05]}
     for scale_pct in (0.0, 0.3):

@@ -64,7 +64,6 @@ ROW = SessionRow(
     summary={"c2n": 14.1, "c2n_ci95": [13.9, 14.3], "warnings": ["d[1].log: a recording given twice"]},
     result=SessionResult(
         own=Estimate(14.1, (13.9, 14.3), 0.09),
-        method=Method.REGRESSION,
         scale=0.002,
         softening_t=-2.4,
         fits=Fits(-2.4, Estimate(14.0, (13.8, 14.2), 0.1), Estimate(14.1, (13.9, 14.3), 0.09), "softening"),

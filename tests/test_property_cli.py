@@ -17,7 +17,6 @@ from rich.console import Console
 from app.campaign.compare import Z95, Estimate
 from app.campaign.row import SessionResult, SessionRow
 from app.cli import main
-from app.results.headline import Method
 from tests.simulated import REPO, cached_drive
 
 NUMBERS = ["0", "-1", "-5", "nan", "inf", "-inf", "1e308", "abc", "", "0.5", "3", "20000"]
@@ -256,7 +255,7 @@ TAGS = st.one_of(
 
 def _row(log: str, c2n: float) -> SessionRow:
     own = Estimate(c2n, (c2n - 0.2, c2n + 0.2), 0.2 / Z95)
-    return SessionRow(summary={"c2n": c2n}, result=SessionResult(own, Method.PAIRED, 0.0, None, None))
+    return SessionRow(summary={"c2n": c2n}, result=SessionResult(own, 0.0, None, None))
 
 
 @st.composite

@@ -138,8 +138,8 @@ def session_result(snapshot: "Snapshot", written: "Summary") -> SessionResult | 
         Method.QUASI_STEADY: (snapshot.quasi, written.quasi_steady),
     }.get(headline.method, (None, None))
     if fit is None or row is None or not row.softening_resolved or not finite_numbers(row.softening_t):
-        return SessionResult(own, headline.method, scale, None, None)
-    return SessionResult(own, headline.method, scale, row.softening_t, _fits(fit, row))
+        return SessionResult(own, scale, None, None)
+    return SessionResult(own, scale, row.softening_t, _fits(fit, row))
 
 
 def _fits(fit: "RegressionFit", row: "RegressionRow") -> Fits | None:

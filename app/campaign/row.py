@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from app.campaign.compare import Estimate, Fits, Model
-from app.results.headline import Method
+from app.output.files import json_ready
 
 ROW_FORMAT = 2  # the cache file's layout: a row of another layout is analysed again
 # the row's own columns, after the summary's
@@ -26,7 +26,6 @@ class SessionResult:
     """A session's C2n as the comparison reads it."""
 
     own: Estimate  # its headline
-    method: Method
     scale: float  # C2n's relative standard error from the sensors' scales, counted in own.ci95
     softening_t: float | None  # its fit's a_y³ t, where its a_y range could tell the models apart
     fits: Fits | None  # its two fits, where the headline chose between them by a test (the cascade)
@@ -63,35 +62,9 @@ class SessionRow:
 
     def to_json(self) -> dict[str, Any]:
         """The cache file's content (``cached`` is not kept: it is the run's, not the drive's)."""
-        r = self.result
-        result = None
-        if r is not None:
-            fits = r.fits
-            result = {
-                "own": _estimate_json(r.own),
-                "method": r.method.value,
-                "scale": r.scale,
-                "softening_t": r.softening_t,
-                "fits": None
-                if fits is None
-                else {
-                    "softening_t": fits.softening_t,
-                    "linear": _estimate_json(fits.linear),
-                    "softening": _estimate_json(fits.softening) if fits.softening else None,
-                    "chosen": fits.chosen,
-                },
-            }
-        return {
-            "format": ROW_FORMAT,
-            "key": self.key,
-            "error": self.error,
-            "drive": self.drive,
-            "frames": self.frames,
-            "seconds": self.seconds,
-            "worker_peak_mib": self.worker_peak_mib,
-            "result": result,
-            "summary": self.summary,
-        }
+        kept = json_ready(self)
+        del kept["cached"]
+        return {"format": ROW_FORMAT, **kept}
 
     @classmethod
     def from_json(cls, data: Any) -> "SessionRow":
@@ -106,7 +79,6 @@ class SessionRow:
                 fits = r["fits"]
                 result = SessionResult(
                     own=_estimate(r["own"]),
-                    method=Method(r["method"]),
                     scale=float(r["scale"]),
                     softening_t=_number(r["softening_t"]),
                     fits=None
@@ -130,10 +102,6 @@ class SessionRow:
             )
         except (KeyError, TypeError, IndexError) as error:
             raise ValueError(f"no campaign row ({type(error).__name__}: {error})") from None
-
-
-def _estimate_json(estimate: Estimate) -> list[Any]:
-    return [estimate.c2n, list(estimate.ci95), estimate.se]
 
 
 def _estimate(value: Any) -> Estimate:

@@ -9,7 +9,7 @@ import tomllib
 import types
 import typing
 from collections.abc import Mapping
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -42,6 +42,16 @@ class Vehicle:
     steering_ratio: float | None = None
     tyre_radius_m: float | None = None
     gravity_mps2: float = G  # the paper's g; local gravity may differ by 0.3 %
+
+    @property
+    def load_transfer_per_g(self) -> float | None:
+        """The rear axle's load moved per g of longitudinal acceleration, as a share of its own load:
+        h·W/(l·W2) (W·h/l moved, W2 carried); None where the config lacks a figure for it."""
+        h, length = self.cg_height_m, self.wheelbase_m
+        w1, w2 = self.front_axle_load_N, self.rear_axle_load_N
+        if h is None or length is None or w1 is None or w2 is None:
+            return None
+        return h * (w1 + w2) / (length * w2)
 
 
 @dataclass(frozen=True)
@@ -257,6 +267,11 @@ class StatusCondition:
         return f"{self.message}.{self.signal}"
 
 
+# the rear axle's load moved per g as a share of its own, where a config gives no figure for its
+# car: a CG 0.55 m high over a 2.7 m wheelbase with 45 % of the weight on the rear axle
+GENERIC_LOAD_TRANSFER_PER_G = 0.55 / (0.45 * 2.7)
+
+
 @dataclass(frozen=True)
 class Priors:
     """The policy of the marginal fit: its confidence level and each nuisance's prior standard
@@ -271,12 +286,15 @@ class Priors:
     # a test pad's grade, each of its two components: ISO 4138 asks for a test surface within 2 %
     # in any direction, and drainage slopes of 1–2 % are common
     slope_pct: float = 2.0
-    # how much the rear axle's stiffness changes per unit of longitudinal acceleration in g (a slope's
-    # gravity along the heading, braking): the load moved to it, h/l, with cornering stiffness about
-    # proportional to load — a car's centre of gravity at 0.5 m over a 2.5–3 m wheelbase: 0.2. A
-    # slope's load transfer is tied to its pull with this L as N(L, L²) (our two-track car's 0.45
-    # lies within 1.3 σ): on a level pad it has no room of its own
-    load_transfer_per_g: float = 0.2
+    # how much the rear axle's stiffness changes, as a share of itself, per unit of longitudinal
+    # acceleration in g (a slope's gravity along the heading, braking), with cornering stiffness
+    # about proportional to load: the load moved, W·h/l, over the rear axle's own W2 — h·W/(l·W2),
+    # which is h over the CG's distance from the front axle. A config whose [vehicle] gives
+    # cg_height_m, wheelbase_m and both axle loads has its car's own (``Vehicle.load_transfer_per_g``:
+    # the Mondeo's 0.51); else a car's CG at 0.55 m over a 2.7 m wheelbase with 45 % of its weight
+    # on the rear: 0.45. A slope's load transfer is tied to its pull with this L as N(L, L²): on a
+    # level pad it has no room of its own
+    load_transfer_per_g: float = GENERIC_LOAD_TRANSFER_PER_G
     # the tyres' softening s in α = a_y/(g·C2n)·(1 + s·a_y²), (m/s²)⁻²: a Magic-Formula tyre loses
     # 3–4 % of its stiffness by 4 m/s² (s ≈ 0.002); 0.004 holds twice that within one σ
     softening_per_mps2_2: float = 0.004
@@ -369,6 +387,9 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     calibration = _dataclass_from(path, "calibration", Calibration, _section(path, table, "calibration"))
     gap = _dataclass_from(path, "gap", GapSettings, _section(path, table, "gap"))
     priors = _dataclass_from(path, "priors", Priors, _section(path, table, "priors"))
+    own_transfer = vehicle.load_transfer_per_g
+    if own_transfer is not None and "load_transfer_per_g" not in _section(path, table, "priors"):
+        priors = replace(priors, load_transfer_per_g=own_transfer)  # the car's own, where it has one
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(

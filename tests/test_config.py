@@ -197,3 +197,23 @@ def test_the_tape_s_tolerance_on_d_holds_95_percent_and_zero_means_exact(
     for bad in ("-1", "nan"):
         with pytest.raises(ConfigError, match="d_tolerance_mm"):
             calibration(f"d_tolerance_mm = {bad}")
+
+
+def test_a_slope_s_load_transfer_prior_is_the_car_s_own(write_config: Callable[[str], Path]) -> None:
+    """Braking or a slope's gravity along the car moves W·h/l of load to the rear axle, which carries
+    W2: its stiffness changes by h·W/(l·W2) per g. The Mondeo's figures give 0.55·14224/(2.7·5734);
+    a config without them the generic car's (h 0.55 m, l 2.7 m, 45 % on the rear: h/(0.45·l)); a
+    figure in [priors] is the user's and is kept."""
+    assert load_config(DEFAULT_CONFIG).priors.load_transfer_per_g == pytest.approx(
+        0.55 * (8490 + 5734) / (2.70 * 5734)
+    )
+    assert load_config(write_config(GOOD)).priors.load_transfer_per_g == pytest.approx(0.55 / (0.45 * 2.7))
+    car = GOOD.replace(
+        "sensor_lateral_m = 0.2\n",
+        "sensor_lateral_m = 0.2\nwheelbase_m = 3.0\ncg_height_m = 0.6\n"
+        "front_axle_load_N = 6000\nrear_axle_load_N = 4000\n",
+    )
+    own = load_config(write_config(car)).priors.load_transfer_per_g
+    assert own == pytest.approx(0.6 * 10000 / (3.0 * 4000))
+    stated = car.replace("[sensor_status]", "[priors]\nload_transfer_per_g = 0.3\n[sensor_status]")
+    assert load_config(write_config(stated)).priors.load_transfer_per_g == 0.3

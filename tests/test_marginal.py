@@ -175,7 +175,9 @@ def test_the_config_chooses_the_estimator(tmp_path) -> None:  # type: ignore[no-
     for path, text in ((good, 'estimator = "marginal"\nslope_pct = 1.0'), (bad, 'estimator = "bayes"')):
         path.write_text(base.replace("../dbc/", f"{source}/../dbc/") + f"\n[priors]\n{text}\n")
     config = load_config(good)
-    assert config.priors == replace(Priors(), estimator="marginal", slope_pct=1.0)
+    own = config.vehicle.load_transfer_per_g  # the Mondeo's h·W/(l·W2), where [priors] gives none
+    assert own is not None
+    assert config.priors == replace(Priors(), estimator="marginal", slope_pct=1.0, load_transfer_per_g=own)
     with pytest.raises(ConfigError, match=r"\[priors\] estimator must be 'cascade' \| 'marginal'"):
         load_config(bad)
 
@@ -195,8 +197,8 @@ def test_the_pipeline_reads_a_simulated_drive_with_the_marginal_regression(confi
 
 def test_a_slopes_load_transfer_follows_its_pull() -> None:
     """A 2 % grade falling towards 40°: gravity pulls the rear by g·s·sin(D − ψ) and, along the
-    heading, moves its load by L·s·cos(D − ψ) (L = 0.45 per g: our two-track car's, over twice the
-    data sheet's 0.2). The fit finds the grade and its direction, and C2n within its interval."""
+    heading, moves its load by L·s·cos(D − ψ) (L = 0.45 per g: our two-track car's; its
+    geometry's h·W/(l·W2) is 0.51). The fit finds the grade and its direction, and C2n within its interval."""
     grade, falls, transfer, c2n, d = 0.02, math.radians(40.0), 0.45, 14.0, 1.1
     regression = SampleRegression(G, d_tape_m=d, wheelbase_m=2.7, priors=MARGINAL)
     rng = np.random.default_rng(8)

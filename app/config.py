@@ -378,6 +378,22 @@ def load_config(path: Path | str = DEFAULT_CONFIG, dbc_dir: Path | None = None) 
     return _build(path, table, dbc_dir)
 
 
+def _own_load_transfer(path: Path, vehicle: Vehicle, priors: Priors) -> Priors:
+    """The priors with the car's own load transfer where its [vehicle] gives the figures; a car whose
+    figures put it beyond the priors' range (its rear axle would lift braking at 0.5 g) is refused."""
+    own = vehicle.load_transfer_per_g
+    if own is None:
+        return priors
+    top = _RANGES[("priors", "load_transfer_per_g")][1]
+    if not own <= top:
+        raise ConfigError(
+            f"{path}: [vehicle] cg_height_m, wheelbase_m and the axle loads move {own:.3g} of the rear "
+            f"axle's load per g (its wheels would lift braking at {1.0 / own:.2g} g) — check them, or "
+            f"set [priors] load_transfer_per_g (0–{top:g})"
+        )
+    return replace(priors, load_transfer_per_g=own)
+
+
 def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Config:
     _check_keys(path, "", table, _SECTIONS)
     vehicle = _dataclass_from(path, "vehicle", Vehicle, _section(path, table, "vehicle", required=True))
@@ -387,9 +403,8 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     calibration = _dataclass_from(path, "calibration", Calibration, _section(path, table, "calibration"))
     gap = _dataclass_from(path, "gap", GapSettings, _section(path, table, "gap"))
     priors = _dataclass_from(path, "priors", Priors, _section(path, table, "priors"))
-    own_transfer = vehicle.load_transfer_per_g
-    if own_transfer is not None and "load_transfer_per_g" not in _section(path, table, "priors"):
-        priors = replace(priors, load_transfer_per_g=own_transfer)  # the car's own, where it has one
+    if "load_transfer_per_g" not in _section(path, table, "priors"):
+        priors = _own_load_transfer(path, vehicle, priors)
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(

@@ -217,3 +217,8 @@ def test_a_slope_s_load_transfer_prior_is_the_car_s_own(write_config: Callable[[
     assert own == pytest.approx(0.6 * 10000 / (3.0 * 4000))
     stated = car.replace("[sensor_status]", "[priors]\nload_transfer_per_g = 0.3\n[sensor_status]")
     assert load_config(write_config(stated)).priors.load_transfer_per_g == 0.3
+    tall = car.replace("cg_height_m = 0.6", "cg_height_m = 4.0")  # 3.33 per g: lifts braking at 0.3 g
+    with pytest.raises(ConfigError, match=r"car\.toml: \[vehicle\] cg_height_m, .* 3\.33 .* at 0\.3 g"):
+        load_config(write_config(tall))
+    stated_tall = tall + "\n[priors]\nload_transfer_per_g = 0.5\n"  # the user's figure stands
+    assert load_config(write_config(stated_tall)).priors.load_transfer_per_g == 0.5

@@ -100,7 +100,9 @@ def test_a_scheduler_address_dask_cannot_use_is_a_usage_error(address: str, tmp_
 
 
 def test_gap_on_a_car_whose_model_diverges_is_one_line(drive_log: Path, tmp_path: Path) -> None:
-    config = config_with(tmp_path, ("wheelbase_m = 2.70", "wheelbase_m = 0.01"))
+    # the load transfer stated: else a 1 cm wheelbase is refused at load (its rear would lift braking)
+    priors = ("[tyres]", "[priors]\nload_transfer_per_g = 0.2\n\n[tyres]")
+    config = config_with(tmp_path, ("wheelbase_m = 2.70", "wheelbase_m = 0.01"), priors)
     code, _, err = run_cli(["gap", str(drive_log), "--config", str(config)])
     assert code == 1
     assert one_line(err).startswith("c2n: error: the config's car cannot follow this drive")

@@ -2,6 +2,7 @@
 crossings as the offline analysis of its log file."""
 
 import threading
+import time
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -16,7 +17,7 @@ from app.pipeline import Pipeline
 from app.run_loop import run
 from app.sim.simulated_drive import write_drive
 from app.sinks import summary
-from app.sources.buses import BusSource
+from app.sources.buses import _DRAIN_S, BusSource
 from app.sources.logs import LogSource
 from tests.simulated import EventLog, cached_drive
 
@@ -206,3 +207,44 @@ def test_a_drive_taken_ten_times_too_fast_is_said_to_be_a_replay(tmp_path: Path)
     hint = next(w for w in warnings if "faster than a sensor sends them" in w)
     assert 480 <= float(hint.split("arrive at ")[1].split(" Hz")[0]) <= 520  # 50 Hz × 10
     assert "--rate" in hint
+
+
+@pytest.mark.parametrize("buses", [1, 2])
+def test_a_stop_keeps_the_frames_that_arrived_before_it(buses: int) -> None:
+    """A reader behind its bus (a loaded laptop) holds frames that arrived before the stop: Ctrl-C
+    or --duration's end gives them all, from one bus read in this thread and from two read by
+    receive threads, then ends — and a bus that goes on sending after the stop ends it within
+    ``_DRAIN_S``, not never."""
+    channels = [f"backlog-{uuid.uuid4().hex}" for _ in range(buses)]
+    receivers = [can.Bus(interface="virtual", channel=c) for c in channels]
+    senders = [can.Bus(interface="virtual", channel=c) for c in channels]
+    try:
+        for i in range(3000):
+            senders[i % buses].send(can.Message(arbitration_id=0x100 + i % buses, data=i.to_bytes(2, "big")))
+        stop = threading.Event()
+        seen = []
+        for msg in BusSource(receivers, stop):
+            if msg is not None:
+                seen.append(int.from_bytes(msg.data, "big"))
+                stop.set()  # at the first frame: 2999 wait unread
+        assert sorted(seen) == list(range(3000))
+        flooding = threading.Event()
+
+        def flood() -> None:
+            while not flooding.is_set():
+                senders[0].send(can.Message(arbitration_id=0x200))
+
+        sender = threading.Thread(target=flood)
+        sender.start()
+        stop = threading.Event()
+        started = time.monotonic()
+        try:
+            for _ in BusSource(receivers, stop):
+                stop.set()
+        finally:
+            flooding.set()
+            sender.join()
+        assert time.monotonic() - started < _DRAIN_S + 2.0  # the receive threads' 1-s stop, slack
+    finally:
+        for bus in receivers + senders:
+            bus.shutdown()

@@ -122,12 +122,16 @@ class _Lost:
     failed_attempts: int = 0
 
 
+_DRAIN_S = 2.0  # at most this long reading what the buses hold after a stop
+
+
 class BusSource:
     """Frames from one or more live buses in arrival order.
 
     Iterating yields a message, or None after ``idle_s`` without one (so the caller can redraw
-    and flush the recording). It ends at once when ``stop`` is set, or once the buses fall quiet
-    after ``finished`` is set (a player that has sent everything).
+    and flush the recording). It ends when ``stop`` is set, once it has given the frames that
+    arrived before (``_drained``), or once the buses fall quiet after ``finished`` is set (a player
+    that has sent everything).
 
     A bus that fails ends it with BusError, unless ``reopen`` is given (index → a new bus for
     that channel): then the lost bus is closed, None is yielded at once, and reopening is tried
@@ -208,6 +212,8 @@ class BusSource:
                 if item.is_error_frame or health.troubled:
                     self._check_health(item)
                 yield item
+            self.close()  # the receive threads end; what they and the buses hold is the session's
+            yield from self._drained()
         finally:
             self.close()
 
@@ -251,9 +257,35 @@ class BusSource:
                         self._check_health(msg)
                     yield msg
                     if stop.is_set():
-                        return
+                        break
+            yield from self._drained()
         finally:
             self.close()
+
+    def _drained(self) -> Iterator[can.Message]:
+        """What is left when the session is stopped: the frames that arrived before the stop and
+        wait unread (a reader behind its bus holds seconds of them), from the receive threads'
+        queue and then each bus, until they are empty — for ``_DRAIN_S`` at most, where a bus
+        goes on sending after the stop."""
+        deadline = time.monotonic() + _DRAIN_S
+        while time.monotonic() < deadline:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if not isinstance(item, _Failure):
+                yield item
+        for index, bus in enumerate(self.buses):
+            while index not in self.lost and time.monotonic() < deadline:
+                try:
+                    msg = bus.recv(0.0)
+                except Exception:  # a bus that fails now: the session has ended anyway
+                    break
+                if msg is None:
+                    break
+                if msg.channel is None:
+                    msg.channel = bus.channel_info
+                yield msg
 
     def _listen(self, index: int) -> None:
         bus = self.buses[index]

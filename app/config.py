@@ -378,11 +378,12 @@ def load_config(path: Path | str = DEFAULT_CONFIG, dbc_dir: Path | None = None) 
     return _build(path, table, dbc_dir)
 
 
-def _own_load_transfer(path: Path, vehicle: Vehicle, priors: Priors) -> Priors:
-    """The priors with the car's own load transfer where its [vehicle] gives the figures; a car whose
-    figures put it beyond the priors' range (its rear axle would lift braking at 0.5 g) is refused."""
+def _own_load_transfer(path: Path, vehicle: Vehicle, priors: Priors, stated: Mapping[str, Any]) -> Priors:
+    """The priors with the car's own load transfer where its [vehicle] gives the figures and
+    [priors] (``stated``) gives none; a car whose figures put it beyond the priors' range (its rear
+    axle would lift braking at 0.5 g) is refused."""
     own = vehicle.load_transfer_per_g
-    if own is None:
+    if own is None or "load_transfer_per_g" in stated:
         return priors
     top = _RANGES[("priors", "load_transfer_per_g")][1]
     if not own <= top:
@@ -402,9 +403,8 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     filter_settings = _dataclass_from(path, "filter", FilterSettings, _section(path, table, "filter"))
     calibration = _dataclass_from(path, "calibration", Calibration, _section(path, table, "calibration"))
     gap = _dataclass_from(path, "gap", GapSettings, _section(path, table, "gap"))
-    priors = _dataclass_from(path, "priors", Priors, _section(path, table, "priors"))
-    if "load_transfer_per_g" not in _section(path, table, "priors"):
-        priors = _own_load_transfer(path, vehicle, priors)
+    stated = _section(path, table, "priors")
+    priors = _own_load_transfer(path, vehicle, _dataclass_from(path, "priors", Priors, stated), stated)
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(

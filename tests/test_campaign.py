@@ -4,6 +4,8 @@ import csv
 import io
 import json
 import math
+import subprocess
+import sys
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
@@ -462,3 +464,38 @@ def test_a_tag_named_like_a_result_column_is_refused_with_the_fix(tmp_path: Path
     assert code == 2 and err.count("\n") == 1
     assert f"the tag column '{tag}' has the name of a column c2n writes" in err and f"'tag_{tag}'" in err
     assert not (tmp_path / "manifest-campaign").exists()
+
+
+def test_a_second_campaign_on_the_same_out_is_refused_while_the_first_runs(tmp_path: Path) -> None:
+    """Two campaigns on one --out would each put their results in place, the set a mix of both:
+    while another process runs one there, a second is refused in one line and writes nothing;
+    once that process is killed outright, the folder is free again."""
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("log,tyre_set\na.blf,A\n")
+    out = tmp_path / "out"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", _HOLDS_A_CAMPAIGN, str(out)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+        code, _, err = run_cli(["campaign", str(manifest), "--out", str(out), "--workers", "1"])
+        assert code == 1 and err.count("\n") == 1
+        assert f"{out}: another c2n campaign is writing it" in err
+        assert sorted(p.name for p in out.iterdir()) == ["cache"] and not any((out / "cache").iterdir())
+    finally:
+        holder.kill()
+        holder.wait()
+    code, _, err = run_cli(["campaign", str(manifest), "--out", str(out), "--workers", "1"])
+    assert code == 0, err
+    assert (out / "results.csv").is_file()
+
+
+_HOLDS_A_CAMPAIGN = """
+import sys
+import time
+from pathlib import Path
+from app.campaign.work import claimed
+with claimed(Path(sys.argv[1])):
+    print("held", flush=True)
+    time.sleep(600)
+"""

@@ -8,6 +8,8 @@ new or changed and an interrupted run picks up where it stopped.
 
 import concurrent.futures as cf
 import contextlib
+import errno
+import fcntl
 import json
 import multiprocessing
 import os
@@ -138,6 +140,36 @@ def dask_workers(address: str) -> Iterator[cf.Executor]:
         stack.callback(client.close)
         with client.get_executor(pure=False) as executor:  # type: ignore[no-untyped-call]
             yield executor
+
+
+@contextmanager
+def claimed(out: Path) -> Iterator[Path]:
+    """``out``'s cache folder, made where missing and held by this run alone for the ``with``
+    body (flock(2) on the folder, let go however the run ends, a kill included): a second
+    campaign on the same ``--out`` meanwhile is refused in one line, where the two would each
+    put their results in place and leave a set of files mixed from both. The folders it made
+    go again if they are still empty (a run refused before any work)."""
+    cache = out / CACHE
+    try:
+        made = _make(cache)
+        held = os.open(cache, os.O_RDONLY)
+    except OSError as error:
+        raise C2nError(f"{cache}: cannot be made ({error.strerror}) — choose another --out") from None
+    try:
+        try:
+            fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise C2nError(
+                f"{out}: another c2n campaign is writing it — wait for that one to end, or choose "
+                "another --out"
+            ) from None
+        except OSError as error:  # a file system without locks (some network mounts): unguarded
+            if error.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOTSUP):
+                raise C2nError(f"{cache}: cannot be held ({error.strerror})") from None
+        yield cache
+    finally:
+        os.close(held)
+        _unmake(made)
 
 
 def run_campaign(

@@ -23,6 +23,7 @@ from app.output.paths import Output, check
 from app.user_text import shown
 
 if TYPE_CHECKING:
+    from app.campaign.manifest import Manifest
     from app.campaign.outputs import Comparison
     from app.campaign.row import SessionRow
 
@@ -108,33 +109,13 @@ def print_comparison(console: Console, comparison: "Comparison", by: str | None)
         )
 
 
-def run(args: argparse.Namespace, console: Console) -> int:
-    from app.campaign import outputs, work
-    from app.campaign.manifest import read_manifest
-    from app.campaign.repeats import counted_once
+def _analysed(
+    args: argparse.Namespace, manifest: "Manifest", config: Path | None, out: Path, console: Console
+) -> tuple[list["SessionRow"], int, float]:
+    """Every entry's row (``work.run_campaign``) with a progress bar; the frames analysed (not
+    known from an earlier run) and the seconds it took."""
+    from app.campaign import work
 
-    need("pyarrow", "c2n campaign (results.parquet)", "export")
-    need("matplotlib", "c2n campaign (report.html's plots)", "export")
-    if args.scheduler is not None:
-        need("distributed", "c2n campaign --scheduler", "dask")
-
-    manifest = read_manifest(args.manifest)
-    if args.config is not None:  # a missing or broken config fails once, before any work
-        load_config(args.config)
-    if args.by is not None and args.by not in manifest.tag_names:
-        tags = ", ".join(manifest.tag_names) or "none"
-        raise UsageError(f"--by {args.by}: not a column of {args.manifest} (tags: {tags})")
-    clashing = outputs.clashing_tags(manifest)
-    if clashing:
-        raise UsageError(
-            f"{args.manifest}: the tag column '{clashing[0]}' has the name of a column c2n writes in "
-            f"results.csv — rename it (e.g. 'tag_{clashing[0]}')"
-        )
-    out = args.out or args.manifest.with_name(f"{args.manifest.stem}-campaign")
-    inputs = [args.manifest, *(entry.log for entry in manifest.entries)]
-    inputs += [args.config] if args.config else []
-    check([Output("--out", out, outputs.ours, folder=True)], inputs)
-    config = args.config.resolve() if args.config else None
     started = time.perf_counter()
     frames = 0
     with Progress(
@@ -162,14 +143,45 @@ def run(args: argparse.Namespace, console: Console) -> int:
 
         with interrupted_by(signal.SIGINT, signal.SIGTERM):  # either stops it, keeping what is done
             rows = work.run_campaign(manifest, config, out, workers, arrived)
-    elapsed = time.perf_counter() - started
-    rows, repeats = counted_once(manifest, rows)
-    columns, table = outputs.table_rows(manifest, rows)
-    comparison = outputs.compare(manifest, rows, args.by)
-    with files_together(out, outputs.FILES) as staging:  # an interrupt: the old set or the new
-        outputs.write_tables(staging, *outputs.with_compared(columns, table, comparison))
-        outputs.write_comparison(staging, comparison)
-        outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
+    return rows, frames, time.perf_counter() - started
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    from app.campaign import outputs, work
+    from app.campaign.manifest import read_manifest
+    from app.campaign.repeats import counted_once
+
+    need("pyarrow", "c2n campaign (results.parquet)", "export")
+    need("matplotlib", "c2n campaign (report.html's plots)", "export")
+    if args.scheduler is not None:
+        need("distributed", "c2n campaign --scheduler", "dask")
+
+    manifest = read_manifest(args.manifest)
+    if args.config is not None:  # a missing or broken config fails once, before any work
+        load_config(args.config)
+    if args.by is not None and args.by not in manifest.tag_names:
+        tags = ", ".join(manifest.tag_names) or "none"
+        raise UsageError(f"--by {args.by}: not a column of {args.manifest} (tags: {tags})")
+    clashing = outputs.clashing_tags(manifest)
+    if clashing:
+        raise UsageError(
+            f"{args.manifest}: the tag column '{clashing[0]}' has the name of a column c2n writes in "
+            f"results.csv — rename it (e.g. 'tag_{clashing[0]}')"
+        )
+    out = args.out or args.manifest.with_name(f"{args.manifest.stem}-campaign")
+    inputs = [args.manifest, *(entry.log for entry in manifest.entries)]
+    inputs += [args.config] if args.config else []
+    check([Output("--out", out, outputs.ours, folder=True)], inputs)
+    config = args.config.resolve() if args.config else None
+    with work.claimed(out):  # alone on --out until its results are in place
+        rows, frames, elapsed = _analysed(args, manifest, config, out, console)
+        rows, repeats = counted_once(manifest, rows)
+        columns, table = outputs.table_rows(manifest, rows)
+        comparison = outputs.compare(manifest, rows, args.by)
+        with files_together(out, outputs.FILES) as staging:  # an interrupt: the old set or the new
+            outputs.write_tables(staging, *outputs.with_compared(columns, table, comparison))
+            outputs.write_comparison(staging, comparison)
+            outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
     cached = sum(1 for row in rows if row.cached)
     console.print(
         f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "

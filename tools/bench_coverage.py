@@ -215,7 +215,8 @@ def main() -> None:
     started = time.perf_counter()
     if args.summarise:
         rows = [json.loads(line) for path in args.summarise for line in path.read_text().splitlines() if line]
-        rows = [r for r in rows if r["seed"] < args.sessions and r["kind"] in kinds]  # --sessions 20: bench_accuracy's seeds
+        # --sessions 20: bench_accuracy's seeds
+        rows = [r for r in rows if r["seed"] < args.sessions and r["kind"] in kinds]
         kinds = [k for k in kinds if any(r["kind"] == k for r in rows)]
     elif args.refit:
         rows = []

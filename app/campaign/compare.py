@@ -65,7 +65,7 @@ class Trend:
     n_sessions: int
 
 
-SOFTENING_T = 2.0  # the bar a session's a_y³ term passes (app/results/regression.py), for z too
+SOFTENING_T = 2.0  # the bar a session's a_y³ term passes (app/results/cascade.py), for z too
 
 Model = Literal["linear", "softening"]
 

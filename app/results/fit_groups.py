@@ -113,3 +113,25 @@ class HeldOpen:
 
     by: str | None
     share: float  # of C2n's variance
+
+
+@dataclass(frozen=True)
+class RegressionFit:
+    """C2n with its interval, and the rest of the fit in groups (above): one
+    per effect, None where the fit has no such effect to report."""
+
+    c2n: float
+    c2n_se: float
+    c2n_ci95: tuple[float, float]
+    samples: FitSamples
+    d: DResult
+    psi0: Psi0Result | None  # None when the data cannot tell ψ0 from d (one direction, one radius)
+    models: ModelChoice
+    softening: SofteningResult | None = None  # where the a_y³ term is kept
+    slope: SlopeResult | None = None  # where the headings let it be fitted
+    turn_force: TurnForceResult | None = None  # where one was found
+    yaw_bias: YawBiasResult | None = None  # where it was fitted
+    held_open: HeldOpen | None = None  # the marginal fit's
+    scale_se: float = 0.0  # C2n's relative error from the sensors' scales, in its intervals
+    c2n_data_ci95: tuple[float, float] | None = None  # without the sensors' scales (None: c2n_ci95)
+    estimator: Literal["cascade", "marginal"] = "cascade"  # terms chosen by tests, or all with priors

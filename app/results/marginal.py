@@ -1,6 +1,6 @@
 """One model for every steady sample: each nuisance term enters with a Gaussian prior, none is chosen.
 
-The cascade in ``regression.py`` tries a term, keeps it where a test passes and then reports the
+The cascade (``cascade.py``) tries a term, keeps it where a test passes and then reports the
 chosen model's interval as if it had been fixed in advance. Here every term the physics allows is
 in the model at once, each with a prior from physics or a data sheet (``Priors``); the posterior is
 closed-form (a ridge regression whose penalties are the priors' precisions), so a term the drive

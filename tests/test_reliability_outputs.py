@@ -4,11 +4,24 @@ file c2n did not write unless --force, never standard output twice; outputs are 
 import json
 import os
 import shutil
+import stat
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
-from app.output.files import files_together, folder_atomically
+from app.campaign.analysis import Job
+from app.campaign.outputs import write_tables
+from app.campaign.work import HashMemo
+from app.errors import OutputError
+from app.output.files import (
+    files_together,
+    folder_atomically,
+    partial_path,
+    write_atomically,
+    write_text,
+)
 from app.output.paths import GENERATOR
 from tests.simulated import REPO
 from tests.test_reliability_inputs import MONDEO, run_cli
@@ -215,3 +228,158 @@ def test_every_output_option_of_every_command_runs_the_guard(day: Path) -> None:
             assert _snapshot(day) == snapshot, argv
             found += 1
     assert found >= 9  # analyze, gap ×2, export, simulate, live ×2, campaign, gap-check
+
+
+# -- round four (2026-11-28): outputs that are not plain files, or that change while c2n writes --
+
+
+def test_a_device_a_pipe_or_standard_output_as_an_output_is_refused_and_left_as_it_is(day: Path) -> None:
+    """A file output is renamed into place: over a pipe, a device or ``/dev/stdout`` that would
+    replace the special file itself (as root, the system's); reading a pipe to see whose file it
+    is would wait forever. Each is refused before any work, --force or not, in one line."""
+    drive = str(day / "d.blf")
+    os.mkfifo(day / "pipe.json")
+    os.symlink(day / "pipe.json", day / "to_pipe.json")
+    for path in ("pipe.json", "to_pipe.json"):
+        for force in ([], ["--force"]):
+            argv = [sys.executable, "-m", "app", "analyze", drive, "--json", str(day / path), *force]
+            done = subprocess.run(argv, capture_output=True, text=True, timeout=120, cwd=REPO)
+            assert done.returncode == 1 and "is a device or a pipe, not a file" in done.stderr, done.stderr
+            assert done.stderr.count("\n") == 1 and "or - for standard output" in done.stderr
+    assert stat.S_ISFIFO(os.lstat(day / "pipe.json").st_mode) and os.path.islink(day / "to_pipe.json")
+    # the command's own standard output, named through a link (as /dev/stdout is)
+    os.symlink("/proc/self/fd/1", day / "stdout.json")
+    with (day / "captured.txt").open("w") as captured:
+        argv = [sys.executable, "-m", "app", "analyze", drive, "--json", str(day / "stdout.json")]
+        done = subprocess.run(argv, stdout=captured, stderr=subprocess.PIPE, text=True, timeout=120, cwd=REPO)
+    assert done.returncode == 1 and "is this command's standard output — give - for it" in done.stderr
+    assert os.readlink(day / "stdout.json") == "/proc/self/fd/1" and (day / "captured.txt").read_text() == ""
+    assert not list(day.glob(".*partial*"))
+
+
+def test_a_read_only_result_is_replaced_only_with_force_and_a_link_keeps_pointing(day: Path) -> None:
+    drive = str(day / "d.blf")
+    kept = day / "kept.json"
+    assert run_cli(["analyze", drive, "--json", str(kept)])[0] == 0
+    kept.chmod(0o444)
+    before = kept.read_bytes()
+    code, _, err = run_cli(["analyze", drive, "--json", str(kept)])
+    assert code == 1 and "kept.json: is read-only" in err and "--force" in err and err.count("\n") == 1
+    assert kept.read_bytes() == before
+    assert run_cli(["analyze", drive, "--json", str(kept), "--force"])[0] == 0
+    # a symlink is written where it points: the link stays a link
+    (day / "results").mkdir()
+    os.symlink(day / "results" / "summary.json", day / "latest.json")
+    assert run_cli(["analyze", drive, "--json", str(day / "latest.json")])[0] == 0
+    assert os.path.islink(day / "latest.json") and "c2n_ci95" in json.loads(
+        (day / "results" / "summary.json").read_text()
+    )
+    assert run_cli(["analyze", drive, "--json", str(day / "latest.json")])[0] == 0
+    assert os.path.islink(day / "latest.json")
+
+
+def test_files_put_in_an_output_folder_while_c2n_writes_are_kept(tmp_path: Path) -> None:
+    """An export's folder is swapped in whole and the older one removed: a log another command
+    wrote there meanwhile (or a user's notes) was removed with it, exit 0. Now the older folder
+    stays as it was, with them, and the run says so."""
+    out = tmp_path / "exp"
+    out.mkdir()
+    (out / "summary.json").write_text('{"c2n": 1, "c2n_ci95": [0, 2], "c2n_method": "regression"}')
+
+    def ours(path: Path) -> bool:
+        return path.name == "summary.json"
+
+    put_in = r"notes.txt was put in it while c2n wrote — left as it is"
+    with pytest.raises(OutputError, match=put_in), folder_atomically(out, ours, "c2n export") as staging:
+        (staging / "summary.json").write_text("{}")
+        (out / "notes.txt").write_text("my notes")  # another terminal, meanwhile
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "summary.json"]
+    assert (out / "notes.txt").read_text() == "my notes" and "c2n_method" in (
+        out / "summary.json"
+    ).read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["exp"]  # no staging, no older folder left
+    with folder_atomically(out / "new", ours, "c2n export") as staging:  # undisturbed: as before
+        (staging / "summary.json").write_text("{}")
+    assert [p.name for p in (out / "new").iterdir()] == ["summary.json"]
+
+
+def test_an_output_folder_is_where_the_system_resolves_it(tmp_path: Path) -> None:
+    """``LINK/../exp`` is ``exp`` beside the link's target, as the system opens it — where the
+    guard looked — not the ``exp`` the text names, whose files were removed unasked."""
+    (tmp_path / "real" / "deep").mkdir(parents=True)
+    (tmp_path / "exp").mkdir()
+    (tmp_path / "exp" / "sheet.xlsx").write_text("a user's")
+    os.symlink(tmp_path / "real" / "deep", tmp_path / "lnk")
+    with folder_atomically(tmp_path / "lnk" / ".." / "exp", lambda path: False, "c2n export") as staging:
+        (staging / "summary.json").write_text("{}")
+    assert [p.name for p in (tmp_path / "real" / "exp").iterdir()] == ["summary.json"]
+    assert [p.name for p in (tmp_path / "exp").iterdir()] == ["sheet.xlsx"]
+
+
+def test_a_mount_point_as_an_output_folder_asks_for_a_folder_inside_it(
+    day: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A USB stick's mount point cannot be renamed away (EBUSY): a traceback after the whole
+    analysis. Refused before any work, naming a folder inside it."""
+    stick = day / "usb"
+    stick.mkdir()
+    real_ismount = os.path.ismount
+    monkeypatch.setattr(os.path, "ismount", lambda p: os.path.realpath(p) == str(stick) or real_ismount(p))
+    code, _, err = run_cli(["export", str(day / "d.blf"), "--out", str(stick), "--format", "csv"])
+    assert code == 1 and err.count("\n") == 1
+    assert "is a mount point, which c2n cannot put a folder in place of" in err
+    assert f"give a folder inside it (e.g. {stick / 'c2n'})" in err
+    assert list(stick.iterdir()) == []
+
+
+def test_a_folder_named_cache_is_a_campaign_s_only_by_its_content(tmp_path: Path) -> None:
+    """A campaign's --out may hold its own cache; a user's folder that is merely named ``cache``
+    (its hashes.json was written over) is not c2n's; a damaged hash memo is no memo."""
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("log,tyre_set\na.blf,A\n")
+    mine = tmp_path / "mine"
+    (mine / "cache").mkdir(parents=True)
+    (mine / "cache" / "hashes.json").write_text("my own list\n")
+    code, _, err = run_cli(["campaign", str(manifest), "--out", str(mine), "--workers", "1"])
+    assert code == 1 and "holds files c2n did not write (cache)" in err
+    assert (mine / "cache" / "hashes.json").read_text() == "my own list\n"
+    assert [p.name for p in mine.iterdir()] == ["cache"]
+    out = tmp_path / "out"
+    assert run_cli(["campaign", str(manifest), "--out", str(out), "--workers", "1"])[0] == 0
+    assert run_cli(["campaign", str(manifest), "--out", str(out), "--workers", "1"])[0] == 0  # its own
+    (out / "cache" / "hashes.json").write_text("[]")
+    assert HashMemo(out / "cache" / "hashes.json").key(Job(manifest, None)) is not None
+
+
+def test_an_interrupted_or_killed_write_leaves_no_temporary(tmp_path: Path) -> None:
+    target = tmp_path / "x.blf"
+    with pytest.raises(KeyboardInterrupt):
+        write_atomically(target, lambda tmp: (tmp.write_text("half"), _interrupt()), "the log")
+    assert list(tmp_path.iterdir()) == []
+    dead = partial_path(target).name.replace(str(os.getpid()), "999999999")
+    (tmp_path / dead).write_text("a killed run's")
+    alive = partial_path(target).name.replace(str(os.getpid()), str(os.getppid()))
+    (tmp_path / alive).write_text("a running one's")
+    write_atomically(target, lambda tmp: tmp.write_text("whole"), "the log")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive, "x.blf"])
+
+
+def _interrupt() -> None:
+    raise KeyboardInterrupt
+
+
+def test_an_undecodable_folder_name_is_written_as_text(tmp_path: Path) -> None:
+    """A folder named in Latin-1 on a UTF-8 system (``p\\xff``): its name reaches the results'
+    text as surrogate escapes, which UTF-8 and Parquet refused (a traceback after all the work)."""
+    folder = Path(os.fsdecode(bytes(tmp_path) + b"/p\xff"))
+    folder.mkdir()
+    name = os.fsdecode(b"logs/\xfe.blf")
+    write_tables(folder, ["log", "c2n"], [{"log": name, "c2n": 15.0}])
+    text = (folder / "results.csv").read_text(encoding="utf-8-sig")
+    assert text.splitlines()[1] == "logs/\ufffd.blf,15"
+    import pyarrow.parquet as pq
+
+    with (folder / "results.parquet").open("rb") as file:
+        assert pq.read_table(file).to_pylist() == [{"log": "logs/\ufffd.blf", "c2n": 15.0}]
+    write_text(folder / "page.html", f"<title>{name}</title>", "the report")
+    assert (folder / "page.html").read_text(encoding="utf-8") == "<title>logs/\ufffd.blf</title>"

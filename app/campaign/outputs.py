@@ -25,7 +25,7 @@ from app.campaign.compare import (
 from app.campaign.manifest import Entry, Manifest
 from app.campaign.row import OWN_COLUMNS, SessionResult, SessionRow
 from app.errors import OutputError
-from app.output.files import json_ready, write_atomically, write_json
+from app.output.files import as_text, json_ready, write_atomically, write_json
 from app.output.paths import HTML_REPORT, json_with
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
 from app.units import Z95
@@ -40,9 +40,11 @@ FILES = ("results.csv", "results.parquet", "comparison.json", "report.html")  # 
 def ours(entry: Path) -> bool:
     """What a campaign leaves in its folder, each known by its content: its results, its cache
     folder, a killed run's temporary folder (a user's ``results.csv`` there is not ours)."""
-    from app.campaign.work import CACHE
+    from app.campaign.work import CACHE, is_cache
 
-    if entry.name == CACHE or entry.name.startswith(".partial-"):
+    if entry.name == CACHE:
+        return entry.is_dir() and is_cache(entry)
+    if entry.name.startswith(".partial-"):
         return entry.is_dir()
     starts = {"results.csv": b"\xef\xbb\xbflog,", "results.parquet": b"PAR1"}
     if entry.name in starts:
@@ -98,8 +100,17 @@ def write_tables(folder: Path, columns: list[str], rows: list[dict[str, Any]]) -
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    table = pa.Table.from_pylist([{k: row.get(k) for k in columns} for row in rows])
-    write_atomically(folder / "results.parquet", lambda tmp: pq.write_table(table, tmp), "results.parquet")
+    table = pa.Table.from_pylist([{k: _text(row.get(k)) for k in columns} for row in rows])
+
+    def parquet(tmp: Path) -> None:
+        with tmp.open("wb") as file:  # a file, not its name: pyarrow cannot encode undecodable bytes
+            pq.write_table(table, file)
+
+    write_atomically(folder / "results.parquet", parquet, "results.parquet")
+
+
+def _text(value: Any) -> Any:
+    return as_text(value) if isinstance(value, str) else value
 
 
 def _cell(value: Any) -> Any:
@@ -107,7 +118,7 @@ def _cell(value: Any) -> Any:
         return ""
     if isinstance(value, float):
         return f"{value:.10g}"
-    return value
+    return as_text(value) if isinstance(value, str) else value
 
 
 @dataclass(frozen=True)

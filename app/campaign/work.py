@@ -13,6 +13,7 @@ import fcntl
 import json
 import multiprocessing
 import os
+import re
 import signal
 import socket
 import threading
@@ -30,6 +31,8 @@ from app.output.files import write_json
 
 CACHE = "cache"
 HASHES = "hashes.json"  # not a row: its stem is no key
+_ROW_NAME = re.compile(r"[0-9a-f]{32}-[0-9a-f]{32}\.json")  # a row's key: the log's and the config's hashes
+_TEMPORARY = re.compile(r"\..+\.[0-9]+\.partial\.json")  # files.partial_path's, left by a kill
 
 
 @dataclass(frozen=True)
@@ -277,6 +280,36 @@ def _take(
     on_row(i, row)
 
 
+def is_memo(data: object) -> bool:
+    """What ``HashMemo`` writes: each file's path to its size, time and content hash."""
+    return isinstance(data, dict) and all(
+        isinstance(entry, list)
+        and len(entry) == 3
+        and all(isinstance(x, int) for x in entry[:2])
+        and isinstance(entry[2], str)
+        for entry in data.values()
+    )
+
+
+def is_cache(folder: Path) -> bool:
+    """A campaign's cache folder, known by its content: rows named by their keys (two BLAKE2b
+    hashes), the hash memo, a killed write's temporaries — a user's own ``cache`` is not."""
+    try:
+        entries = list(folder.iterdir())
+    except OSError:
+        return False
+    for entry in entries:
+        if entry.name == HASHES:
+            try:
+                if not is_memo(json.loads(entry.read_text(encoding="utf-8"))):
+                    return False
+            except (OSError, ValueError):
+                return False
+        elif not (_ROW_NAME.fullmatch(entry.name) or _TEMPORARY.fullmatch(entry.name)):
+            return False
+    return True
+
+
 class HashMemo:
     """Content hashes of the files this machine sees, kept by (path, size, mtime): a re-run reads
     no log whose file is unchanged. A file it cannot see or read gets no key here (its worker
@@ -285,9 +318,10 @@ class HashMemo:
     def __init__(self, path: Path) -> None:
         self.path = path
         try:
-            self._known: dict[str, list[Any]] = json.loads(path.read_text(encoding="utf-8"))
+            known = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
-            self._known = {}
+            known = None
+        self._known: dict[str, list[Any]] = known if is_memo(known) else {}  # a damaged one: none
         self._configs: dict[tuple[Path, Path | None], str] = {}
 
     def key(self, job: Job) -> str | None:

@@ -137,7 +137,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     trace = trace_recorder.trace(t0)
     result = summary.build(snapshot, config, [str(log)], source.reports)
     written: list[Path] = []
-    with console.status("writing the exports…"), folder_atomically(out, _ours, "c2n export") as staging:
+    writing = folder_atomically(out, _ours_by_content, "c2n export")
+    with console.status("writing the exports…"), writing as staging:
         for fmt in formats:
             path = staging / f"channels.{fmt}"
             export.write(trace, fmt, path, args.csv_dialect)

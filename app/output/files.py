@@ -26,17 +26,43 @@ def partial_path(path: Path) -> Path:
 
 
 def write_atomically(path: Path, write: Callable[[Path], object], what: str) -> None:
-    """``write(tmp)`` writes the file's content to ``tmp``; it then replaces ``path``.
-    ``what`` names the file in the error ("the summary", "the report")."""
-    tmp = partial_path(path)
+    """``write(tmp)`` writes the file's content to ``tmp``; it then replaces ``path`` — where a
+    symlink points, the link kept. ``what`` names the file in the error ("the summary", "the
+    report"). Whatever stops the write (an error, Ctrl-C) takes the temporary with it; one a
+    killed run left (its process gone) goes at the next write of the same file."""
+    target = Path(os.path.realpath(path)) if os.path.islink(path) else path
+    tmp = partial_path(target)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if target.exists() and not (target.is_file() or target.is_dir()):  # never renamed over
+            raise OutputError(f"{path}: is a device or a pipe, not a file — cannot write {what} there")
+        _remove_stale_partials(target)
         write(tmp)
-        os.replace(tmp, path)
+        os.replace(tmp, target)
     except OSError as error:
         with contextlib.suppress(OSError):  # a file in the folder's place: there is no tmp either
             tmp.unlink(missing_ok=True)
         raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise
+
+
+def _remove_stale_partials(path: Path) -> None:
+    """The temporaries of ``path`` (``partial_path``) whose process is gone: a killed write's."""
+    prefix, suffix = f".{path.stem}.", f".partial{path.suffix}"
+    for stale in path.parent.glob(f"{glob.escape(prefix)}*{glob.escape(suffix)}"):
+        pid = stale.name[len(prefix) : -len(suffix)]
+        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) and stale.is_file():
+            with contextlib.suppress(OSError):
+                stale.unlink()
+
+
+def as_text(text: str) -> str:
+    """``text`` with a file name's undecodable bytes (Python's surrogate escapes) as U+FFFD: what
+    UTF-8, a CSV and Parquet can hold (a folder named in Latin-1 on a UTF-8 system)."""
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
 
 
 def json_ready(value: Any) -> Any:
@@ -63,7 +89,7 @@ def write_text(path: Path, text: str, what: str) -> None:
         except OSError as error:  # a closed pipe
             raise OutputError(f"standard output: cannot write {what} ({error.strerror or error})") from error
         return
-    write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"), what)
+    write_atomically(path, lambda tmp: tmp.write_text(as_text(text), encoding="utf-8"), what)
 
 
 def write_json(path: Path, data: Any, what: str) -> None:
@@ -72,7 +98,7 @@ def write_json(path: Path, data: Any, what: str) -> None:
 
 @contextlib.contextmanager
 def folder_atomically(
-    out: Path, ours: Callable[[str], bool], what: str, replace: bool = True
+    out: Path, ours: Callable[[Path], bool], what: str, replace: bool = True
 ) -> Iterator[Path]:
     """A folder written as one unit: the ``with`` body writes into a hidden sibling unique to
     this run, which then takes ``out``'s place whole (an older ``out`` removed after), so a
@@ -80,12 +106,17 @@ def folder_atomically(
     ``out`` holding anything ``ours`` does not recognise is refused: it is not ours to replace.
     ``replace`` False: ``out`` must be new or empty, and still be when the folder is put in
     place — one rename, which the system refuses if anything was put there meanwhile (a folder
-    that is there, empty, is filled instead: it may be a shell's working folder). A symlink
-    ``out`` is written where it points."""
-    place = Path(os.path.realpath(out) if out.is_symlink() else os.path.abspath(out))  # `.` too
+    that is there, empty, is filled instead: it may be a shell's working folder). ``out`` is where
+    the system resolves it: through a symlink, and a ``..`` after one. A mount point (a USB stick)
+    cannot be swapped whole: a folder inside it is asked for."""
+    place = Path(os.path.realpath(out))  # `.` too
+    if os.path.ismount(place):
+        raise OutputError(
+            f"{out}: is a mount point, which c2n cannot put a folder in place of — give a folder "
+            f"inside it (e.g. {out / 'c2n'})"
+        )
     if place.exists():
-        foreign = sorted(p.name for p in place.iterdir()) if place.is_dir() else [out.name]
-        foreign = [name for name in foreign if not ours(name)]
+        foreign = [p.name for p in sorted(place.iterdir()) if not ours(p)] if place.is_dir() else [out.name]
         if not place.is_dir() or foreign:
             shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
             raise OutputError(
@@ -100,7 +131,7 @@ def folder_atomically(
     try:
         yield staging
         if replace:
-            _swap_in(staging, place)
+            _swap_in(staging, place, out, ours)
         else:
             _put_in(staging, place, out)
     finally:
@@ -204,23 +235,48 @@ def _held() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
-def _swap_in(staging: Path, out: Path) -> None:
+def _swap_in(staging: Path, place: Path, out: Path, ours: Callable[[Path], bool]) -> None:
+    """``staging`` in ``place``'s stead, the older folder removed after — unless something put in
+    it while c2n wrote is not ``ours`` (a user's file, another command's log): then it is left as
+    it was and the new one not put in."""
     olds = []
     try:
         for _ in range(5):  # another run may swap its folder in between our two renames
-            old = out.with_name(f".{out.name}.old-{uuid.uuid4().hex[:8]}")
+            old = place.with_name(f".{place.name}.old-{uuid.uuid4().hex[:8]}")
             with contextlib.suppress(FileNotFoundError):
-                out.rename(old)
+                place.rename(old)
                 olds.append(old)
+                foreign = [p.name for p in sorted(old.iterdir()) if not ours(p)]
+                if foreign:
+                    olds.remove(old)
+                    _put_back(old, place, out, foreign)
             try:
-                staging.rename(out)
+                staging.rename(place)
                 return
             except OSError as error:
-                if not out.exists():
+                if not place.exists():
                     raise OutputError(
                         f"{out}: cannot put the output folder in place ({error.strerror})"
                     ) from error
         raise OutputError(f"{out}: other runs keep writing this folder — choose another --out")
+    except OSError as error:
+        raise OutputError(f"{out}: cannot put the output folder in place ({error.strerror})") from error
     finally:
         for old in olds:
             shutil.rmtree(old, ignore_errors=True)
+
+
+def _put_back(old: Path, place: Path, out: Path, foreign: list[str]) -> None:
+    """``old``, found holding ``foreign`` files once swapped away, renamed back (or, where
+    another run took the place meanwhile, left where it is and named); always an OutputError."""
+    shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+    try:
+        old.rename(place)
+    except OSError:
+        raise OutputError(
+            f"{out}: {shown} was put in it while c2n wrote; the folder is kept as {old}"
+        ) from None
+    raise OutputError(
+        f"{out}: {shown} was put in it while c2n wrote — left as it is, this run's output not put in; "
+        "run again with a new --out"
+    )

@@ -8,6 +8,7 @@ Writing itself goes through ``app.output.files`` (a temporary, swapped in whole)
 
 import json
 import os
+import stat
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -136,6 +137,11 @@ def _ours(out: Output, force: bool | None) -> None:
     if not os.path.lexists(path):
         return
     if out.folder:
+        if os.path.ismount(os.path.realpath(path)):
+            raise OutputError(
+                f"{out.option} {path}: is a mount point, which c2n cannot put a folder in place of — "
+                f"give a folder inside it (e.g. {path / 'c2n'})"
+            )
         if not path.is_dir():
             raise OutputError(
                 f"{out.option} {path}: is a file, not a folder c2n wrote — choose a new or empty folder"
@@ -147,12 +153,45 @@ def _ours(out: Output, force: bool | None) -> None:
                 f"{out.option} {path}: holds files c2n did not write ({shown}) — choose a new or empty folder"
             )
         return
+    if not os.path.exists(path):  # a symlink to nothing: written where it points
+        return
+    _a_plain_file(out, force)
     if force or (path.is_file() and path.stat().st_size == 0) or out.ours(path):
         return  # an empty file holds nothing to lose
     how = " or add --force to replace it" if force is not None and not path.is_dir() else ""
     raise OutputError(
         f"{out.option} {path}: exists and is not a file c2n wrote of this kind — choose another name{how}"
     )
+
+
+def _a_plain_file(out: Output, force: bool | None) -> None:
+    """An existing file output (through a symlink, where it points) that is a device, a pipe or
+    this command's own standard output is refused whatever ``--force`` says — its name would be
+    renamed over (``/dev/null``, ``/dev/stdout``), a pipe read to see whose file it is would wait
+    for a writer forever; a read-only file is replaced only with ``--force``."""
+    status = os.stat(out.path)
+    dash = ", or - for standard output" if out.stdout else ""
+    if _is_stdout(status):
+        raise OutputError(f"{out.option} {out.path}: is this command's standard output — give - for it")
+    if not (stat.S_ISREG(status.st_mode) or stat.S_ISDIR(status.st_mode)):
+        raise OutputError(
+            f"{out.option} {out.path}: is a device or a pipe, not a file — give a file name{dash}"
+        )
+    if stat.S_ISREG(status.st_mode) and not status.st_mode & 0o222 and not force:
+        how = (
+            "make it writable, choose another name, or add --force to replace it"
+            if force is not None
+            else "make it writable to replace it, or choose another name"
+        )
+        raise OutputError(f"{out.option} {out.path}: is read-only — {how}")
+
+
+def _is_stdout(status: os.stat_result) -> bool:
+    try:
+        own = os.fstat(1)
+    except OSError:
+        return False
+    return (own.st_dev, own.st_ino) == (status.st_dev, status.st_ino)
 
 
 def _same(a: Path, b: Path) -> bool:

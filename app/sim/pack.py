@@ -118,7 +118,7 @@ def write_pack(
     start = clock()
     # written in a hidden folder beside ``out``, renamed to it when whole: a Ctrl-C, a kill or a
     # full disk leaves no half pack under its name
-    with folder_atomically(out, lambda name: False, "c2n simulate", replace=False) as staging:
+    with folder_atomically(out, lambda path: False, "c2n simulate", replace=False) as staging:
         results = _write_cases(staging, specs, config_path, plan, config_text, model, workers, on_case)
         truth = {
             "pack_seed": pack_seed,

@@ -74,7 +74,7 @@ def write_campaign(
     specs = plan_campaign(n, seed)
     # written in a hidden folder beside ``out``, renamed to it when whole: a Ctrl-C, a kill or a
     # full disk leaves no half campaign under its name
-    with folder_atomically(out, lambda name: False, "c2n simulate", replace=False) as staging:
+    with folder_atomically(out, lambda path: False, "c2n simulate", replace=False) as staging:
         _write_sessions(staging, specs, config_path, workers, on_session, sensor or {})
         text = io.StringIO()
         writer = csv.writer(text, lineterminator="\n")

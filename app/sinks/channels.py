@@ -90,7 +90,8 @@ def write_parquet(trace: Trace, path: Path) -> None:
     """Column names without units; each field's metadata holds ``unit`` and ``description``."""
     import pyarrow.parquet
 
-    pyarrow.parquet.write_table(_table(trace, lambda name, unit: name), str(path), compression="zstd")
+    with path.open("wb") as file:  # a file, not its name: pyarrow cannot encode a name's undecodable bytes
+        pyarrow.parquet.write_table(_table(trace, lambda name, unit: name), file, compression="zstd")
 
 
 # Flags shown as words in an MF4 viewer (asammdf's value-to-text conversions); the raw values stay.

@@ -10,6 +10,7 @@ from app.errors import DbcError, one_line
 
 log = logging.getLogger(__name__)
 
+LARGEST_DBC = 64 * 2**20  # bytes: a whole vehicle's DBC is a few MB; cantools holds a file ~10× in RAM
 ChannelSpec = int | str
 """A channel as the config names it: a live channel name ("can1") or a log's channel number."""
 
@@ -32,8 +33,16 @@ def load_dbc(path: Path, channel: ChannelSpec | None = None) -> Dbc:
     """
     import cantools  # here, not at the top: it imports python-can, and `c2n --help` needs neither
 
-    if not path.is_file():
+    if not path.exists():
         raise DbcError(f"{path}: DBC file not found — check [dbc] files in the config")
+    if not path.is_file():
+        raise DbcError(f"{path}: is a folder or a device, not a DBC file — check [dbc] files in the config")
+    size = path.stat().st_size
+    if size > LARGEST_DBC:
+        raise DbcError(
+            f"{path}: {size / 2**20:.0f} MB is no DBC (the largest vehicle DBCs are a few MB) — check "
+            "[dbc] files in the config"
+        )
     try:
         return Dbc(path, cantools.database.load_file(path, strict=True), channel)
     except Exception as strict_error:

@@ -14,7 +14,8 @@ import cantools
 import numpy as np
 import pytest
 
-from app.dbc import load_dbc
+from app.dbc import LARGEST_DBC, load_dbc
+from app.errors import DbcError
 from tests.real_data import REPO_ROOT, needs_real_data, real_path
 
 OUR_KISTLER = REPO_ROOT / "dbc" / "kistler_smotion.dbc"
@@ -161,3 +162,17 @@ def test_ford_decodes_like_real(frame_id: int) -> None:
     rng = np.random.default_rng(frame_id)
     _assert_same_decode(ours, real, _valid_payloads(real, rng))
     _assert_same_decode(ours, real, _random_payloads(real, rng))
+
+
+def test_a_folder_or_a_huge_file_as_a_dbc_is_one_line_that_says_what_it_is(tmp_path: Path) -> None:
+    """A folder was "not found" though it is there; a 300 MB sparse file took 3.2 GB of RAM in
+    cantools before its one-line error."""
+    with pytest.raises(DbcError, match=r"is a folder or a device, not a DBC file — check \[dbc\] files"):
+        load_dbc(tmp_path)
+    huge = tmp_path / "huge.dbc"
+    with huge.open("wb") as file:
+        file.truncate(LARGEST_DBC + 1)  # sparse: no disk used
+    with pytest.raises(DbcError, match=r"huge.dbc: 64 MB is no DBC"):
+        load_dbc(huge)
+    with pytest.raises(DbcError, match=r"gone.dbc: DBC file not found"):
+        load_dbc(tmp_path / "gone.dbc")

@@ -172,7 +172,8 @@ def _a_plain_file(out: Output, force: bool | None) -> None:
     status = os.stat(out.path)
     dash = ", or - for standard output" if out.stdout else ""
     if _is_stdout(status):
-        raise OutputError(f"{out.option} {out.path}: is this command's standard output — give - for it")
+        fix = "give - for it" if out.stdout else "give a file name"
+        raise OutputError(f"{out.option} {out.path}: is this command's standard output — {fix}")
     if not (stat.S_ISREG(status.st_mode) or stat.S_ISDIR(status.st_mode)):
         raise OutputError(
             f"{out.option} {out.path}: is a device or a pipe, not a file — give a file name{dash}"

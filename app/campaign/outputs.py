@@ -118,7 +118,7 @@ def _cell(value: Any) -> Any:
         return ""
     if isinstance(value, float):
         return f"{value:.10g}"
-    return as_text(value) if isinstance(value, str) else value
+    return _text(value)
 
 
 @dataclass(frozen=True)

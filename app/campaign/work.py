@@ -27,12 +27,11 @@ from app.campaign.analysis import Job, analyse, config_hash, content_hash, where
 from app.campaign.manifest import Manifest
 from app.campaign.row import SessionRow
 from app.errors import C2nError, printable
-from app.output.files import write_json
+from app.output.files import partial_pid, write_json
 
 CACHE = "cache"
 HASHES = "hashes.json"  # not a row: its stem is no key
 _ROW_NAME = re.compile(r"[0-9a-f]{32}-[0-9a-f]{32}\.json")  # a row's key: the log's and the config's hashes
-_TEMPORARY = re.compile(r"\..+\.[0-9]+\.partial\.json")  # files.partial_path's, left by a kill
 
 
 @dataclass(frozen=True)
@@ -305,9 +304,17 @@ def is_cache(folder: Path) -> bool:
                     return False
             except (OSError, ValueError):
                 return False
-        elif not (_ROW_NAME.fullmatch(entry.name) or _TEMPORARY.fullmatch(entry.name)):
+        elif not _ROW_NAME.fullmatch(entry.name) and not _a_rows_temporary(entry.name, folder):
             return False
     return True
+
+
+def _a_rows_temporary(name: str, folder: Path) -> bool:
+    """A row's (or the memo's) temporary a killed write left: ``.<key>.<pid>.partial.json``."""
+    stem = name[1:].split(".", 1)[0] if name.startswith(".") else ""
+    return (_ROW_NAME.fullmatch(f"{stem}.json") is not None or f"{stem}.json" == HASHES) and (
+        partial_pid(name, folder / f"{stem}.json") is not None
+    )
 
 
 class HashMemo:

@@ -25,6 +25,15 @@ def partial_path(path: Path) -> Path:
     return path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
 
 
+def partial_pid(name: str, path: Path) -> int | None:
+    """The process whose temporary of ``path`` (``partial_path``) ``name`` is; None: it is not one."""
+    prefix, suffix = f".{path.stem}.", f".partial{path.suffix}"
+    if not (name.startswith(prefix) and name.endswith(suffix)):
+        return None
+    pid = name[len(prefix) : -len(suffix)]
+    return int(pid) if pid.isdigit() else None
+
+
 def write_atomically(path: Path, write: Callable[[Path], object], what: str) -> None:
     """``write(tmp)`` writes the file's content to ``tmp``; it then replaces ``path`` — where a
     symlink points, the link kept. ``what`` names the file in the error ("the summary", "the
@@ -51,10 +60,9 @@ def write_atomically(path: Path, write: Callable[[Path], object], what: str) -> 
 
 def _remove_stale_partials(path: Path) -> None:
     """The temporaries of ``path`` (``partial_path``) whose process is gone: a killed write's."""
-    prefix, suffix = f".{path.stem}.", f".partial{path.suffix}"
-    for stale in path.parent.glob(f"{glob.escape(prefix)}*{glob.escape(suffix)}"):
-        pid = stale.name[len(prefix) : -len(suffix)]
-        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)) and stale.is_file():
+    for stale in path.parent.glob(f"{glob.escape(f'.{path.stem}.')}*{glob.escape(f'.partial{path.suffix}')}"):
+        pid = partial_pid(stale.name, path)
+        if pid is not None and pid != os.getpid() and not _alive(pid) and stale.is_file():
             with contextlib.suppress(OSError):
                 stale.unlink()
 

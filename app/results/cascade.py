@@ -35,6 +35,7 @@ from app.results.least_squares import (
     K,
     Samples,
     Solution,
+    Statistics,
     bias_of,
     c2n_se_of,
     combined,
@@ -68,33 +69,20 @@ TIGHT_TERMS = (
 _TERM_LEFT = 0.01  # a term tried only where the others leave this share of it (u̇ never passed: 0)
 
 
-def fit_cascade(
-    model: Samples,
-    xtx: np.ndarray,
-    xty: np.ndarray,
-    yty: np.ndarray,
-    run: np.ndarray,
-    log: np.ndarray,
-) -> RegressionFit | None:
+def fit_cascade(model: Samples, statistics: Statistics) -> RegressionFit | None:
     """The cascade on ``model``'s statistics (``SampleRegression._statistics``)."""
-    cascade = _first_terms(model, xtx, xty, yty, run, log)
+    cascade = _first_terms(model, statistics)
     _hold_d(model, cascade)
     _with_turn_force(model, cascade)
     _with_yaw_bias(model, cascade)
     return _result(model, cascade)
 
 
-def _first_terms(
-    model: Samples,
-    xtx: np.ndarray,
-    xty: np.ndarray,
-    _yty: np.ndarray,
-    run: np.ndarray,
-    log: np.ndarray,
-) -> "_Cascade":
+def _first_terms(model: Samples, statistics: Statistics) -> "_Cascade":
     """The cascade's first terms: ψ0 where the curvature varies within the drives (else it is
     d·κ's double), d and a_y; a small pad's two terms where its sweeps show them; a slope's
     four where the headings and the Wald test find one; the quasi-steady samples' two."""
+    xtx, xty, _, run, log = statistics
     n, b = model.n_samples, len(run)
     drives = np.unique(log)
     spread_k = sum(_within(xtx[log == k]) for k in drives) if len(drives) > 1 else _within(xtx)

@@ -6,7 +6,7 @@ yaw rate's bias."""
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -22,6 +22,16 @@ WIDE_SPEEDS = 1.2  # the fastest sample this many times the slowest: speeds apar
 TURN_SPREAD = 0.02  # of sign(κ) beside the other terms beyond which it is tried: one radius each way
 # leaves 0; a small pad, every sample at a_y ≥ 1.2 m/s², 0.024 (at 0.05 it was not tried there, and
 # CommonRoad's car read 8–21 % high, the truth outside every interval)
+
+
+class Statistics(NamedTuple):
+    """The samples' statistics by block: XᵀX, Xᵀy, yᵀy, each block's run and drive."""
+
+    xtx: np.ndarray
+    xty: np.ndarray
+    yty: np.ndarray
+    run: np.ndarray
+    log: np.ndarray
 
 
 class Samples(Protocol):

@@ -31,6 +31,7 @@ from app.results.least_squares import (
     K,
     Samples,
     Solution,
+    Statistics,
     bias_of,
     combination_weights,
     per_log,
@@ -61,24 +62,16 @@ _SETTLED = 1e-4  # a_y's coefficient settled: a change under 0.01 % of C2n, far 
 _PASSES = 5  # at most: a_y's coefficient settles in three, a slope's load transfer takes one more
 
 
-def fit_marginal(
-    model: Samples,
-    priors: Priors,
-    xtx: np.ndarray,
-    xty: np.ndarray,
-    yty: np.ndarray,
-    run: np.ndarray,
-    log: np.ndarray,
-) -> RegressionFit | None:
+def fit_marginal(model: Samples, priors: Priors, statistics: Statistics) -> RegressionFit | None:
     """One model, every nuisance with its prior (``marginal.py``); C2n's interval carries what
     the drive cannot tell apart, and names the term that holds it open most. d's prior: the
     tape's, and with ``d_gross_share`` a wide one (the tape wrong), each weighed by its evidence
     (``wide_share``); without a tape, a flat one."""
-    made = _design(model, priors, xtx, xty, yty, run, log)
+    made = _design(model, priors, statistics)
     if made is None:
         return None
     design, b_ay, covered = made
-    blocks, logs = len(run), len(np.unique(log))
+    blocks, logs = len(statistics.run), len(np.unique(statistics.log))
     if model.d_tape_m is None:
         found = _posterior(model, priors, design, b_ay, math.inf)
         return None if found is None else _result(model, priors, [found], [1.0], blocks, logs, covered)
@@ -112,16 +105,11 @@ def fit_marginal(
 
 
 def _design(
-    model: Samples,
-    priors: Priors,
-    xtx: np.ndarray,
-    xty: np.ndarray,
-    yty: np.ndarray,
-    run: np.ndarray,
-    log: np.ndarray,
+    model: Samples, priors: Priors, statistics: Statistics
 ) -> tuple["_Design", float, frozenset[Term]] | None:
     """The marginal fit's terms (each drive its own ψ0 and gyro's bias), a_y's coefficient to
     scale the priors from (a least-squares start), and the terms the drive's layout covers."""
+    xtx, xty, yty, run, log = statistics
     n, logs = model.n_samples, len(np.unique(log))
     offsets: list[int] = [Term.PSI0]
     speeds: list[tuple[int, int]] = [(Term.U, Term.INV_U)]

@@ -95,7 +95,7 @@ import numpy as np
 from app.config import Priors
 from app.results.cascade import fit_cascade
 from app.results.fit_groups import FitSamples, RegressionFit
-from app.results.least_squares import WIDE_SPEEDS, K
+from app.results.least_squares import WIDE_SPEEDS, K, Statistics
 from app.results.marginal_fit import fit_marginal
 from app.units import Z95
 
@@ -277,8 +277,8 @@ class SampleRegression:
         if statistics is None:
             return None
         if self.priors is not None:
-            return fit_marginal(self, self.priors, *statistics)
-        return fit_cascade(self, *statistics)
+            return fit_marginal(self, self.priors, statistics)
+        return fit_cascade(self, statistics)
 
     def fit_samples(
         self, blocks: int, logs: int, transient_terms: bool, tight_terms: tuple[str, ...] = ()
@@ -306,7 +306,7 @@ class SampleRegression:
         """Most samples on radii under ``TIGHT_WHEELBASES``: a small pad."""
         return 2 * self._tight_n > self.n_samples
 
-    def _statistics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    def _statistics(self) -> Statistics | None:
         """The blocks' statistics (XᵀX, Xᵀy, yᵀy, run, drive), the open block's among them, in the
         slot closing it will fill (written again then); None while there are too few samples, blocks
         or a_y's range for a fit."""
@@ -319,4 +319,4 @@ class SampleRegression:
             b += 1
         if self.n_samples < self.min_samples or b < 10 or self._ay_max - self._ay_min < 0.5:
             return None
-        return self._xtx[:b], self._xty[:b], self._yty[:b], self._run[:b], self._log[:b]
+        return Statistics(self._xtx[:b], self._xty[:b], self._yty[:b], self._run[:b], self._log[:b])

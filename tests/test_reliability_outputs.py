@@ -1,6 +1,7 @@
 """Issue 39, third round: where c2n writes. An output is never an input (however spelt), never a
 file c2n did not write unless --force, never standard output twice; outputs are swapped in whole."""
 
+import errno
 import json
 import os
 import shutil
@@ -15,6 +16,7 @@ from app.campaign.analysis import Job
 from app.campaign.outputs import write_tables
 from app.campaign.work import HashMemo
 from app.errors import OutputError
+from app.output import files
 from app.output.files import (
     files_together,
     folder_atomically,
@@ -278,10 +280,16 @@ def test_a_read_only_result_is_replaced_only_with_force_and_a_link_keeps_pointin
     assert os.path.islink(day / "latest.json")
 
 
-def test_files_put_in_an_output_folder_while_c2n_writes_are_kept(tmp_path: Path) -> None:
+@pytest.mark.parametrize("one_step", [True, False], ids=["traded-in-one-step", "two-renames"])
+def test_files_put_in_an_output_folder_while_c2n_writes_are_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, one_step: bool
+) -> None:
     """An export's folder is swapped in whole and the older one removed: a log another command
     wrote there meanwhile (or a user's notes) was removed with it, exit 0. Now the older folder
-    stays as it was, with them, and the run says so."""
+    stays as it was, with them, and the run says so — also where the file system cannot trade
+    the two folders in one step (renameat2's exchange)."""
+    if not one_step:
+        monkeypatch.setattr(files, "exchange", lambda a, b: False)
     out = tmp_path / "exp"
     out.mkdir()
     (out / "summary.json").write_text('{"c2n": 1, "c2n_ci95": [0, 2], "c2n_method": "regression"}')
@@ -383,3 +391,112 @@ def test_an_undecodable_folder_name_is_written_as_text(tmp_path: Path) -> None:
         assert pq.read_table(file).to_pylist() == [{"log": "logs/\ufffd.blf", "c2n": 15.0}]
     write_text(folder / "page.html", f"<title>{name}</title>", "the report")
     assert (folder / "page.html").read_text(encoding="utf-8") == "<title>logs/\ufffd.blf</title>"
+
+
+def _a_dead_pid() -> int:
+    child = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True)
+    return int(child.stdout)
+
+
+def _summary_ours(path: Path) -> bool:
+    return path.name == "summary.json"
+
+
+def test_an_output_folder_is_never_missing_while_the_new_one_is_swapped_in(tmp_path: Path) -> None:
+    """The older folder was renamed away, then the new one renamed in: a kill between the two
+    (or a power cut) left no ``--out`` at all and the user's previous output hidden, which no
+    later run put back. The two now trade places in one step; here the run dies at the moment
+    the older folder is looked at after the swap."""
+    out = tmp_path / "exp"
+    out.mkdir()
+    (out / "summary.json").write_text("older")
+    swapped = False
+
+    def ours(path: Path) -> bool:
+        if swapped:
+            raise SystemExit("killed")
+        return _summary_ours(path)
+
+    with pytest.raises(SystemExit), folder_atomically(out, ours, "c2n export") as staging:
+        (staging / "summary.json").write_text("newer")
+        swapped = True
+    assert (out / "summary.json").read_text() == "newer"
+
+
+def test_an_older_folder_a_killed_run_left_swapped_away_is_put_back(tmp_path: Path) -> None:
+    """Where the folders cannot trade places in one step (a file system without it), a run
+    killed between its two renames leaves ``.exp.old-PID-…`` and no ``exp``: the next run puts
+    it back; one left beside a new ``exp`` goes, unless it holds a user's file."""
+    out = tmp_path / "exp"
+    orphan = tmp_path / f".exp.old-{_a_dead_pid()}-0123abcd"
+    orphan.mkdir()
+    (orphan / "summary.json").write_text("the previous export")
+    full = "channels.csv: cannot write the CSV channels (No space left on device)"
+
+    def no_space(tmp: Path) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with (
+        pytest.raises(OutputError) as refused,
+        folder_atomically(out, _summary_ours, "c2n export") as staging,
+    ):
+        write_atomically(staging / "channels.csv", no_space, "the CSV channels")
+    assert str(refused.value) == f"{out / full} — {out} is left as it was"  # not the hidden staging
+    assert [p.name for p in tmp_path.iterdir()] == ["exp"]
+    assert (out / "summary.json").read_text() == "the previous export"
+
+    orphan.mkdir()
+    (orphan / "summary.json").write_text("an older export")
+    running = tmp_path / f".exp.old-{os.getpid()}-4567cdef"  # a run between its renames now
+    running.mkdir()
+    with folder_atomically(out, _summary_ours, "c2n export") as staging:
+        (staging / "summary.json").write_text("newer")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["exp", running.name])
+    running.rmdir()
+
+    orphan.mkdir()
+    (orphan / "notes.txt").write_text("a user's")
+    with folder_atomically(out, _summary_ours, "c2n export") as staging:
+        (staging / "summary.json").write_text("newest")
+    assert (orphan / "notes.txt").read_text() == "a user's" and (out / "summary.json").read_text() == "newest"
+
+
+def test_a_folder_c2n_cannot_write_in_is_said_before_the_analysis(
+    day: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A read-only mount (or a folder without write permission) as where the output goes was
+    found only after the whole analysis. Root writes through permissions, so the system's
+    refusal is stood in for here as a read-only mount gives it (EROFS)."""
+    import tempfile
+
+    shelf = day / "shelf"
+    shelf.mkdir()
+    real = tempfile.TemporaryFile
+
+    def read_only(*args: object, dir: object = None, **kwargs: object) -> object:
+        if dir is not None and Path(str(dir)) == shelf:
+            raise OSError(errno.EROFS, "Read-only file system")
+        return real(*args, dir=dir, **kwargs)  # type: ignore[call-overload]
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", read_only)
+    drive, car = str(day / "d.blf"), ["--config", str(day / "car.toml")]
+    code, out, err = run_cli(["export", drive, *car, "--out", str(shelf / "sub" / "exp"), "--no-plots"])
+    said = f"--out {shelf / 'sub' / 'exp'}: cannot write in {shelf} (Read-only file system)"
+    assert code == 1 and err.strip().endswith(f"{said} — choose another place")
+    assert "C2n" not in out and list(shelf.iterdir()) == []  # said before the drive was read
+    code, _, err = run_cli(["analyze", drive, *car, "--json", str(shelf / "r.json")])
+    assert code == 1 and f"cannot write in {shelf} (Read-only file system)" in err
+
+
+def test_a_campaign_cache_whose_hash_memo_is_damaged_is_hashed_again(day: Path) -> None:
+    """A hash memo that does not read beside the cache's rows was taken for a user's file, and
+    the campaign's own folder refused as not c2n's."""
+    manifest = day / "manifest.csv"
+    manifest.write_text("log,tyre_set\nd.blf,A\n")
+    out = day / "campaign"
+    args = ["campaign", str(manifest), "--config", str(day / "car.toml"), "--out", str(out), "--workers", "1"]
+    assert run_cli(args)[0] == 0
+    (out / "cache" / "hashes.json").write_text('{"truncated": [1')
+    code, _, err = run_cli(args)
+    assert code == 0, err
+    assert json.loads((out / "cache" / "hashes.json").read_text())  # a memo again

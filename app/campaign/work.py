@@ -292,21 +292,28 @@ def is_memo(data: object) -> bool:
 
 def is_cache(folder: Path) -> bool:
     """A campaign's cache folder, known by its content: rows named by their keys (two BLAKE2b
-    hashes), the hash memo, a killed write's temporaries — a user's own ``cache`` is not."""
+    hashes), the hash memo, a killed write's temporaries — a user's own ``cache`` is not. A memo
+    that does not read (a disk's fault) beside rows is still the cache's: ``HashMemo`` takes it
+    for none, and hashes again."""
     try:
         entries = list(folder.iterdir())
     except OSError:
         return False
+    rows = any(_ROW_NAME.fullmatch(entry.name) for entry in entries)
     for entry in entries:
         if entry.name == HASHES:
-            try:
-                if not is_memo(json.loads(entry.read_text(encoding="utf-8"))):
-                    return False
-            except (OSError, ValueError):
+            if not rows and not _a_memo(entry):
                 return False
         elif not _ROW_NAME.fullmatch(entry.name) and not _a_rows_temporary(entry.name, folder):
             return False
     return True
+
+
+def _a_memo(path: Path) -> bool:
+    try:
+        return is_memo(json.loads(path.read_text(encoding="utf-8")))
+    except (OSError, ValueError):
+        return False
 
 
 def _a_rows_temporary(name: str, folder: Path) -> bool:

@@ -3,8 +3,10 @@ place, so a crash, a kill or a full disk leaves the old file or the new one, nev
 an OS error becomes one OutputError naming the file."""
 
 import contextlib
+import ctypes
 import dataclasses
 import errno
+import functools
 import glob
 import json
 import os
@@ -123,6 +125,7 @@ def folder_atomically(
             f"{out}: is a mount point, which c2n cannot put a folder in place of — give a folder "
             f"inside it (e.g. {out / 'c2n'})"
         )
+    recover_swapped_away(place, ours)
     if place.exists():
         foreign = [p.name for p in sorted(place.iterdir()) if not ours(p)] if place.is_dir() else [out.name]
         if not place.is_dir() or foreign:
@@ -136,14 +139,25 @@ def folder_atomically(
         )
     remove_stale(place.parent, f".{place.name}.partial-")  # a killed run's
     staging = _staging(place.parent, f".{place.name}.partial-", out)
+    kept = False
     try:
-        yield staging
+        try:
+            yield staging
+        except OutputError as error:  # a full disk: named as the user named the folder
+            if str(staging) not in str(error):
+                raise
+            said = str(error).replace(str(staging), str(out))
+            raise OutputError(f"{said} — {out} is left as it was") from error.__cause__
         if replace:
             _swap_in(staging, place, out, ours)
         else:
             _put_in(staging, place, out)
+    except _Kept:
+        kept = True
+        raise
     finally:
-        shutil.rmtree(staging, ignore_errors=True)  # gone already when it was swapped in
+        if not kept:
+            shutil.rmtree(staging, ignore_errors=True)  # gone already when it was swapped in
 
 
 @contextlib.contextmanager
@@ -246,11 +260,20 @@ def _held() -> Iterator[None]:
 def _swap_in(staging: Path, place: Path, out: Path, ours: Callable[[Path], bool]) -> None:
     """``staging`` in ``place``'s stead, the older folder removed after — unless something put in
     it while c2n wrote is not ``ours`` (a user's file, another command's log): then it is left as
-    it was and the new one not put in."""
+    it was and the new one not put in. Where the system can (Linux's renameat2), the two folders
+    trade places in one step, so no moment — a kill, a power cut — leaves ``place`` missing."""
+    try:
+        if exchange(staging, place):  # staging now holds the older folder: folder_atomically removes it
+            foreign = [p.name for p in sorted(staging.iterdir()) if not ours(p)]
+            if foreign:
+                _trade_back(staging, place, out, foreign)
+            return
+    except OSError as error:
+        raise OutputError(f"{out}: cannot put the output folder in place ({error.strerror})") from error
     olds = []
     try:
         for _ in range(5):  # another run may swap its folder in between our two renames
-            old = place.with_name(f".{place.name}.old-{uuid.uuid4().hex[:8]}")
+            old = place.with_name(f"{_old_prefix(place)}{os.getpid()}-{uuid.uuid4().hex[:8]}")
             with contextlib.suppress(FileNotFoundError):
                 place.rename(old)
                 olds.append(old)
@@ -272,6 +295,78 @@ def _swap_in(staging: Path, place: Path, out: Path, ours: Callable[[Path], bool]
     finally:
         for old in olds:
             shutil.rmtree(old, ignore_errors=True)
+
+
+_RENAME_EXCHANGE = 2  # <linux/fs.h>
+_AT_FDCWD = -100
+
+
+def exchange(a: Path, b: Path) -> bool:
+    """``a`` and ``b`` trade places atomically (renameat2 with RENAME_EXCHANGE: Linux 3.15, most
+    local file systems). False where the system or the file system cannot, or ``b`` is missing:
+    the caller renames instead. The standard library has no binding for it."""
+    renameat2 = getattr(_libc(), "renameat2", None)
+    if renameat2 is None:
+        return False
+    done = renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
+    if done == 0:
+        return True
+    code = ctypes.get_errno()
+    if code in (errno.ENOENT, errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EXDEV):
+        return False
+    raise OSError(code, os.strerror(code), str(b))
+
+
+@functools.cache
+def _libc() -> ctypes.CDLL:
+    return ctypes.CDLL(None, use_errno=True)
+
+
+def _trade_back(staging: Path, place: Path, out: Path, foreign: list[str]) -> None:
+    """The older folder (in ``staging`` once exchanged), found holding ``foreign`` files, traded
+    back into ``place``; always an OutputError. Where it cannot be, it is kept under a name of
+    its own, and named (``staging`` is removed after)."""
+    shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+    try:
+        if not exchange(staging, place):
+            raise OSError(errno.ENOTSUP, "cannot exchange")
+    except OSError:
+        kept = place.with_name(f".{place.name}.kept-{uuid.uuid4().hex[:8]}")
+        try:
+            staging.rename(kept)
+        except OSError:
+            kept = staging
+        raise _Kept(f"{out}: {shown} was put in it while c2n wrote; the folder is kept as {kept}") from None
+    raise OutputError(
+        f"{out}: {shown} was put in it while c2n wrote — left as it is, this run's output not put in; "
+        "run again with a new --out"
+    )
+
+
+class _Kept(OutputError):
+    """The folder where c2n staged its output holds a user's files now: it is not removed."""
+
+
+def _old_prefix(place: Path) -> str:
+    return f".{place.name}.old-"
+
+
+def recover_swapped_away(place: Path, ours: Callable[[Path], bool]) -> None:
+    """An older folder a killed run left swapped away (``.NAME.old-PID-…``, where the two folders
+    could not trade places in one step and the run died between its two renames): put back where
+    ``place`` is missing (the user's previous output, as it was), removed where ``place`` is there
+    and it holds only ``ours``; anything else is left as it is."""
+    prefix = _old_prefix(place)
+    found = [p for p in place.parent.glob(f"{glob.escape(prefix)}*") if p.is_dir()]
+    for old in sorted(found, key=lambda p: p.stat().st_mtime_ns, reverse=True):  # the newest first
+        pid = old.name[len(prefix) :].split("-", 1)[0]
+        if pid.isdigit() and _alive(int(pid)):
+            continue  # another run, between its renames now
+        with contextlib.suppress(OSError):
+            if not os.path.lexists(place):
+                old.rename(place)
+            elif all(ours(p) for p in old.iterdir()):
+                shutil.rmtree(old)
 
 
 def _put_back(old: Path, place: Path, out: Path, foreign: list[str]) -> None:

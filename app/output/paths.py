@@ -9,6 +9,7 @@ Writing itself goes through ``app.output.files`` (a temporary, swapped in whole)
 import json
 import os
 import stat
+import tempfile
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,6 +64,7 @@ def check(outputs: Sequence[Output | None], inputs: Iterable[Path], force: bool 
                 raise UsageError(f"{a.option} and {b.option}: both name {a.path} — give each its own file")
     for out in files:
         _ours(out, force)
+        _can_write(out)
 
 
 def config_files(config: object) -> list[Path]:
@@ -185,6 +187,23 @@ def _a_plain_file(out: Output, force: bool | None) -> None:
             else "make it writable to replace it, or choose another name"
         )
         raise OutputError(f"{out.option} {out.path}: is read-only — {how}")
+
+
+def _can_write(out: Output) -> None:
+    """The folder c2n will write in (where a file's temporary, a folder's staging sibling goes;
+    the nearest one there when it is to be made) takes a new file: tried, since permissions are
+    not all (a read-only mount refuses root too) — else found only after the analysis."""
+    folder = Path(os.path.realpath(out.path)).parent
+    while not folder.is_dir() and folder != folder.parent:
+        folder = folder.parent
+    try:
+        with tempfile.TemporaryFile(dir=folder):  # O_TMPFILE where it can: no name, nothing left
+            pass
+    except OSError as error:
+        raise OutputError(
+            f"{out.option} {out.path}: cannot write in {folder} ({error.strerror or error}) — "
+            "choose another place"
+        ) from None
 
 
 def _is_stdout(status: os.stat_result) -> bool:

@@ -186,6 +186,8 @@ _RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("priors", "slope_pct"): (0.0, 20.0, _OPEN),
     ("priors", "load_transfer_per_g"): (0.0, 2.0, _OPEN),
     ("priors", "softening_per_mps2_2"): (0.0, 0.1, _OPEN),
+    ("priors", "softening_ratio"): (0.0, 100.0, _CLOSED),
+    ("priors", "softening_ratio_sd"): (0.0, 100.0, _CLOSED),
     ("priors", "gyro_bias_degps"): (0.0, 10.0, _OPEN),
     ("priors", "yaw_inertia_wheelbases"): (0.0, 10.0, _OPEN),
     ("priors", "two_wheels_wheelbases2"): (0.0, 10.0, _OPEN),
@@ -298,6 +300,14 @@ class Priors:
     # the tyres' softening s in α = a_y/(g·C2n)·(1 + s·a_y²), (m/s²)⁻²: a Magic-Formula tyre loses
     # 3–4 % of its stiffness by 4 m/s² (s ≈ 0.002); 0.004 holds twice that within one σ
     softening_per_mps2_2: float = 0.004
+    # the softening's next term, α = a_y/(g·C2n)·(1 + s·a_y² + r·s²·a_y⁴), s the fit's own: r is 1
+    # where a tyre's stiffness falls with load (a soft, heavy car: the series of 1/(1 − s·a_y²)) and
+    # 1.5–8.5 for a Magic-Formula tyre's own curve (C 1.2–1.5, E −1…0.5); 4.75 and 3.75 hold that
+    # range within one σ. Off by default (0, 0): on an independent simulator's car and CommonRoad's
+    # it read C2n 0.3–0.8 % low, where the cubic alone was right; a soft heavy car whose softening
+    # is strong reads 1–2.5 % high without it, which the result says (``next_term_pct``)
+    softening_ratio: float = 0.0
+    softening_ratio_sd: float = 0.0
     # the yaw-rate gyro's bias after zeroing at standstill, °/s: a MEMS automotive yaw-rate sensor's
     # data sheet quotes ±0.3 °/s over temperature; a day's drift is within it
     gyro_bias_degps: float = 0.15

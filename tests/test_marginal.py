@@ -122,6 +122,88 @@ def test_linear_circles_read_c2n_within_the_interval_without_a_softening_warning
     assert inside >= 8 and level >= 8  # 95 %: 8 or more of 10 with probability 0.99
 
 
+def _soft_circles(regression: SampleRegression, c2n: float, d: float, s: float, seed: int) -> None:
+    """Steady circles of a soft, heavy car: its rear slip the series a_y/(g·C2n)/(1 − s·a_y²) of
+    a stiffness falling with the load moved, to 4 m/s²; each radius each way, 100 Hz."""
+    rng = np.random.default_rng(seed)
+    t, heading = 0.0, 0.0
+    for radius in (40.0, 80.0):
+        for side in (1.0, -1.0):
+            for u in (6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0):
+                if u * u / radius > 4.0:
+                    continue
+                r = side * u / radius
+                for _ in range(2000):
+                    ay = u * r
+                    beta = d * r / u - ay / (G * c2n) / (1.0 - s * ay * ay) + 0.002
+                    regression.add(t, u, r, u * (beta + rng.normal(scale=0.001)), heading)
+                    t, heading = t + 0.01, heading + 0.01 * r
+                t += 1.0
+
+
+def test_a_soft_heavy_cars_softening_series_is_carried_by_its_next_term() -> None:
+    """s = 0.012 (m/s²)⁻²: the slip 19 % above the linear at 4 m/s². A cubic alone (the default)
+    takes the series' a_y⁵ into a_y's coefficient and reads C2n 1.4–1.6 % high; with the next term
+    under its prior (r·s², r ~ N(4.75, 3.75²): ``[priors]
+    softening_ratio``, ``softening_ratio_sd``) the intervals hold it."""
+    series = replace(MARGINAL, softening_ratio=4.75, softening_ratio_sd=3.75)
+    for seed in range(5):
+        fits = {}
+        for name, priors in (("cubic", MARGINAL), ("series", series)):
+            regression = SampleRegression(G, d_tape_m=1.1, wheelbase_m=2.85, priors=priors)
+            _soft_circles(regression, 10.0, 1.1, 0.012, seed)
+            fits[name] = regression.fit()
+        assert fits["cubic"].c2n > 10.1  # its interval reaches down for the term (the next test)
+        low, high = fits["series"].c2n_ci95
+        assert low <= 10.0 <= high and abs(fits["series"].c2n - 10.0) < 0.05
+        assert fits["series"].models.chosen == "softening"
+
+
+def test_a_soft_heavy_car_is_told_how_high_the_left_out_term_reads_it() -> None:
+    """By default the model stops at a_y³ (on an independent simulator's car the a_y⁵ term read
+    C2n low). Where the softening is strong, the fit says how far the left-out term moves C2n —
+    from the statistics' a_y⁵ column at r = 1, the least the series has; the interval reaches that
+    much further down, and the advice says so where it is the most of the interval's lower side.
+    The series here is exactly r = 1 (1/(1 − s·a_y²)), so the figure is the fit's own error, to
+    within a quarter (the series goes on past a_y⁵); on linear tyres it is nothing, nothing said."""
+    from app.config import load_config
+    from app.results.advice import Findings, softening
+
+    config = load_config()
+    for seed in range(3):
+        regression = SampleRegression(G, d_tape_m=1.1, wheelbase_m=2.85, priors=MARGINAL)
+        _soft_circles(regression, 10.0, 1.1, 0.012, seed)
+        fit = regression.fit()
+        assert fit is not None and fit.softening is not None
+        error_pct = 100.0 * (fit.c2n / 10.0 - 1.0)
+        assert error_pct > 1.0 and fit.softening.next_term_pct == pytest.approx(error_pct, rel=0.25)
+        low, high = fit.c2n_ci95  # reaching further down by it: the truth inside
+        reach = fit.c2n * fit.softening.next_term_pct / 100.0
+        assert low <= 10.0 <= high and fit.c2n - low == pytest.approx(high - fit.c2n + reach, rel=1e-5)
+        said = softening(Findings(config=config, result_fit=fit, regression=fit))
+        assert isinstance(said, tuple) and "the tyres soften strongly" in said[1]
+        assert f"reads C2n about {fit.softening.next_term_pct:.1f} % high" in said[1]
+    linear = SampleRegression(G, d_tape_m=1.1, wheelbase_m=2.7, priors=MARGINAL)
+    _drive(linear, 14.0, 1.1, [8.0, 10.0, 12.0], 0)
+    fit = linear.fit()
+    assert fit is not None and fit.softening is None
+    assert softening(Findings(config=config, result_fit=fit, regression=fit)) is None
+
+
+def test_without_softening_the_next_term_changes_nothing() -> None:
+    """On linear tyres the a_y⁵ term's prior is the fit's own softening squared: C2n as the
+    cubic's to a part in 10⁴, and as wide."""
+    series = replace(MARGINAL, softening_ratio=4.75, softening_ratio_sd=3.75)
+    regression = SampleRegression(G, d_tape_m=1.1, wheelbase_m=2.7, priors=series)
+    _drive(regression, 14.0, 1.1, [8.0, 10.0, 12.0], 3)
+    cubic = SampleRegression(G, d_tape_m=1.1, wheelbase_m=2.7, priors=MARGINAL)
+    _drive(cubic, 14.0, 1.1, [8.0, 10.0, 12.0], 3)
+    with_term, without = regression.fit(), cubic.fit()
+    assert with_term is not None and without is not None
+    assert with_term.c2n == pytest.approx(without.c2n, rel=1e-4)
+    assert with_term.c2n_ci95 == pytest.approx(without.c2n_ci95, rel=1e-3)
+
+
 def test_the_result_reads_in_typed_groups() -> None:
     regression = SampleRegression(
         G, d_tape_m=1.1, wheelbase_m=2.7, priors=replace(MARGINAL, turn_force_pct=3.0)

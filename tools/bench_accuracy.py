@@ -68,6 +68,8 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "k": ("track laps on CommonRoad", {}),
     "l": ("radii 25–36 m, to 7 m/s²", {}),
     "m": ("as l, on CommonRoad", {}),
+    "n": ("soft heavy car, slope 0–3 %", {}),
+    "o": ("rear roll steer ±0.05–0.25°/°", {}),
 }
 SESSIONS = {
     "e": "standard",
@@ -78,6 +80,8 @@ SESSIONS = {
     "k": "track (CR)",
     "l": "tight radii",
     "m": "tight radii (CR)",
+    "n": "standard (SUV)",
+    "o": "standard",
 }
 
 
@@ -143,11 +147,58 @@ def simulated(
         # the car's rear axle, not its tyres' p_ky1 (app/sim/axle.py): read on the same car's sweeps
         sweeps = drive if case == "j" else simulate_standard(config, car)
         truth = float(sweeps.truth["c2n_axle"])
+    elif case in ("n", "o"):
+        rng = np.random.default_rng(60_000 + seed)
+        day = replace(
+            StandardOptions(seed, sensor=sensor | _head(seed) | _tape(seed, config, tape_mm)),
+            imperfections=draw_imperfections(np.random.default_rng(30_000 + seed)),
+        )
+        if case == "n":  # soft tyres: a low C2n, stiffness falling with load (the effect's range)
+            config = _suv(config)
+            grade = float(rng.uniform(0.0, 3.0))
+            day = replace(
+                day,
+                effect=Effect.of("road_cross_slope", grade),
+                downhill_deg=float(rng.uniform(-180.0, 180.0)),
+                c2n=float(rng.uniform(8.0, 13.0)),
+                car=SUV_CAR | {"load_sensitivity": float(rng.uniform(0.33, 1.31))},
+            )
+        else:
+            size = float(rng.uniform(0.05, 0.25)) * (1.0 if rng.random() < 0.5 else -1.0)
+            day = replace(day, effect=Effect.of("roll_steer", size), c2n=truth)
+        drive = simulate_standard(config, day)
+        # the car's rear axle (app/sim/axle.py): a roll steer changes it, a slope does not
+        truth = float(drive.truth["c2n_axle" if case == "o" else "c2n"])
     else:
         drive = simulate_drive(
             config, DriveOptions(scenario=scenario, seed=seed, c2n=truth, sensor=sensor, **options)
         )
     return config, drive, truth
+
+
+# a heavy SUV (case n): 2,355 kg, its CG 0.72 m high, a 1.62 m track, soft tyres (C2n 10.5 by the
+# rig; each drive's own 8–13) on a soft body (6.5°/g of roll)
+SUV_VEHICLE = {
+    "wheelbase_m": 2.85,
+    "front_axle_load_N": 12_300.0,
+    "rear_axle_load_N": 10_800.0,
+    "cg_height_m": 0.72,
+    "track_m": 1.62,
+}
+SUV_CAR = {"roll_gradient_deg_per_g": 6.5}
+
+
+def _suv(config: Config) -> Config:
+    """The Mondeo's config with the SUV's figures, its load transfer's prior its own."""
+    vehicle = replace(config.vehicle, **SUV_VEHICLE)
+    own = vehicle.load_transfer_per_g
+    assert own is not None
+    return replace(
+        config,
+        vehicle=vehicle,
+        tyres=replace(config.tyres, c1n_per_rad=9.5, c2n_per_rad=10.5),
+        priors=replace(config.priors, load_transfer_per_g=own),
+    )
 
 
 def session(job: tuple[str, str, int, float, float | None]) -> dict[str, Any]:

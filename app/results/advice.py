@@ -260,8 +260,9 @@ def d_from_tape(f: Findings) -> str | None:
     return None
 
 
-def softening(f: Findings) -> str | None:
-    """The tyres soften with slip: C2n is the fit's extrapolation to zero a_y."""
+def softening(f: Findings) -> str | tuple[str, ...] | None:
+    """The tyres soften with slip: C2n is the fit's extrapolation to zero a_y; where they soften so
+    much that the series' next term, left out, moves C2n beyond its interval, that too."""
     fit = f.fit
     if fit is None or fit.models.chosen != "softening":
         return None
@@ -270,9 +271,24 @@ def softening(f: Findings) -> str | None:
         if fit.estimator == "marginal"
         else f"a straight-line fit would give {fit.models.linear.c2n:.3f}"
     )
-    return (
+    said = (
         f"the tyres soften with slip (t = {fit.models.softening_t:.1f}): C2n is extrapolated to zero "
         f"lateral acceleration ({fit.c2n:.3f}; {beside})"
+    )
+    strong = fit.softening.next_term_pct if fit.softening else 0.0
+    upper_pct = 100.0 * (fit.c2n_ci95[1] - fit.c2n) / fit.c2n
+    if strong <= upper_pct:  # the lesser part of the interval's lower side
+        return said
+    top = fit.samples.ay_range_mps2[1]
+    assert fit.softening is not None
+    more = 100.0 * fit.softening.per_mps2_2 * top * top
+    return (
+        said,
+        f"the tyres soften strongly (the rear slip {more:.0f} % above the linear at {top:.1f} m/s²): "
+        f"the softening's next term, which the model leaves out, reads C2n about {strong:.1f} % high "
+        "(r = 1, a stiffness falling with load), so the interval reaches that much further down; set "
+        "[priors] softening_ratio = 4.75 and softening_ratio_sd = 3.75 to fit it, or keep the "
+        "steady samples to a lower a_y ([detector] ay_max_mps2)",
     )
 
 

@@ -76,6 +76,9 @@ class SofteningResult:
 
     per_mps2_2: float  # s in α2 = a_y/(g·C2n)·(1 + s·a_y²)
     se_per_mps2_2: float
+    # how far C2n reads high, %, with the series' next term (r·s²·a_y⁴, r = 1 at the least: a
+    # stiffness falling with load) left out; 0 where the model has it ([priors] softening_ratio)
+    next_term_pct: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -34,20 +34,32 @@ from enum import IntEnum
 import numpy as np
 
 
-def well_conditioned_inverse(a: np.ndarray) -> np.ndarray | None:
+def well_conditioned_inverse(a: np.ndarray, equilibrated: bool = False) -> np.ndarray | None:
     """``a``'s inverse, or None where ``a`` is singular or too ill-conditioned for its inverse to
     carry digits (condition number over 1e14: fewer than two of a double's sixteen left). The
     condition number in the 1-norm, ‖a‖₁·‖a⁻¹‖₁, from the inverse at hand (the 2-norm's, an SVD,
-    cost a third of the marginal fit; the two differ by at most the matrix's size)."""
+    cost a third of the marginal fit; the two differ by at most the matrix's size).
+    ``equilibrated`` (a symmetric ``a`` with a positive diagonal): inverted and judged with its
+    rows and columns scaled to a unit diagonal, so that a column's units (a_y⁵ reaches 10³ where
+    κ is 10⁻²) set no condition a rescaling would remove — the marginal posterior's, whose priors
+    keep every column's scale in hand; the cascade's least squares keep the raw test, which also
+    turns away a broken signal's column of 10⁹."""
+    scale = np.ones(len(a))
+    if equilibrated:
+        diagonal = np.diag(a)
+        if not np.all(np.isfinite(diagonal)) or not np.all(diagonal > 0.0):
+            return None
+        scale = 1.0 / np.sqrt(diagonal)
+    scaled = a * np.outer(scale, scale)
     try:
-        inverse = np.linalg.inv(a)
+        inverse = np.linalg.inv(scaled)
     except np.linalg.LinAlgError:
         return None
     if not np.all(np.isfinite(inverse)):
         return None
-    if np.abs(a).sum(axis=0).max() * np.abs(inverse).sum(axis=0).max() > 1e14:
+    if np.abs(scaled).sum(axis=0).max() * np.abs(inverse).sum(axis=0).max() > 1e14:
         return None
-    return inverse
+    return inverse * np.outer(scale, scale)
 
 
 class Term(IntEnum):
@@ -67,6 +79,7 @@ class Term(IntEnum):
     U = 11  # u and 1/u: a yaw-rate bias combines them
     INV_U = 12
     K2_AY = 13  # κ²·a_y: the axle's two wheels on a tight turn
+    AY5 = 14  # a_y⁵: the softening's next term (its size follows a_y³'s)
 
 
 @dataclass(frozen=True)
@@ -158,7 +171,7 @@ def posterior(
     precision = np.where(finite, 1.0 / np.square(np.where(finite, prior_sd, 1.0)), 0.0)
     sigma2 = max(yy / n, 1e-30) if sigma2 is None else sigma2
     for _ in range(3):  # σ² from the residuals, then its autocorrelation, then once more
-        found = well_conditioned_inverse(data + sigma2 * np.diag(precision))
+        found = well_conditioned_inverse(data + sigma2 * np.diag(precision), equilibrated=True)
         if found is None:
             return None
         inverse = found

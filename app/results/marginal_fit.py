@@ -127,7 +127,8 @@ def _design(
     planar = logs == 1 and not model.transient
     slope_terms = [Term.SIN, Term.COS, Term.AY_SIN, Term.AY_COS] if planar else []
     turn = [Term.TURN] if priors.turn_force_pct > 0 else []
-    own = [Term.D, Term.AY, Term.AY3, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
+    fifth = [Term.AY5] if priors.softening_ratio or priors.softening_ratio_sd else []
+    own = [Term.D, Term.AY, Term.AY3, *fifth, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
     design = _Design(Blocks(xtx, xty, yty, run, n), offsets, speeds, [int(t) for t in own])
     # a slope is reported (and its pull taken out of the crossings) where the headings cover it,
     # as the cascade tries one: one direction on one circle holds a 2 % "slope" at Wald's 95 %
@@ -181,19 +182,21 @@ def _posterior(
     b_ay: float,
     d_sd: float,
     start: Posterior | None = None,
-) -> tuple[Posterior, list[int]] | None:
+) -> tuple[Posterior, list[int], float] | None:
     """The posterior with d's prior N(tape, d_sd²) (flat without a tape), and the yaw-rate
     bias's columns; the priors' scale follows a_y's coefficient until it settles, each pass
     from the noise and the pull the one before found (the first from ``start``'s, a fit under
     the other prior on d)."""
     post: Posterior | None = start
     bias_terms: list[int] = []
+    used: tuple[np.ndarray, np.ndarray] | None = None  # the last pass's weights and priors' spread
     pull = None if start is None else _Pull.of(start)
+    softening = None if start is None else _softening2(start)
     own_terms = [*design.offsets, *design.own]
     own_weights = design.blocks.columns(own_terms)
     k = len(own_weights)
     for _ in range(_PASSES):  # the priors follow a_y's coefficient and the slope's pull
-        prior = _priors(priors, model.g, b_ay, model.wheelbase_m, pull)
+        prior = _priors(priors, model.g, b_ay, model.wheelbase_m, pull, softening)
         terms, weights = own_terms, own_weights
         if model.d_tape_m is not None:  # a yaw-rate bias b moves β by b·(k·u − d/u), k = −b_ay
             combos = [{u: -b_ay, inv_u: -model.d_tape_m} for u, inv_u in design.speeds]
@@ -216,21 +219,38 @@ def _posterior(
         post = posterior(design.blocks, weights, [int(t) for t in terms], mean, spread, sigma2)
         if post is None:
             return None
+        used = (weights, spread)
         # settled: the priors' scale was a_y's coefficient's own, and the load transfer's
         # prior the pull's this pass found
         settled = abs(post.value(Term.AY) - b_ay) <= _SETTLED * abs(b_ay)
         settled = settled and (pull is not None or Term.SIN not in post.terms)
-        b_ay, pull = post.value(Term.AY), _Pull.of(post)
+        settled = settled and (softening is not None or Term.AY5 not in post.terms)
+        b_ay, pull, softening = post.value(Term.AY), _Pull.of(post), _softening2(post)
         if settled:
             break
-    assert post is not None
-    return post, bias_terms
+    assert post is not None and used is not None
+    return post, bias_terms, _next_term(design, post, *used)
+
+
+def _next_term(design: "_Design", post: Posterior, weights: np.ndarray, spread: np.ndarray) -> float:
+    """How far a_y's coefficient moves, as a share of itself, per unit of a_y⁵'s coefficient (as
+    a share of a_y's) left out of the model: λ in Δb/b = λ·c5/b, from the statistics' a_y⁵
+    column — 0 where the term is in the model (it carries itself) or cannot be told."""
+    if Term.AY5 in post.terms:
+        return 0.0
+    finite = np.isfinite(spread)
+    precision = np.where(finite, 1.0 / np.square(np.where(finite, spread, 1.0)), 0.0)
+    total = design.blocks.total
+    inverse = well_conditioned_inverse(weights.T @ total @ weights + post.sigma2 * np.diag(precision))
+    if inverse is None:
+        return 0.0
+    return float((inverse @ (weights.T @ total[:, Term.AY5]))[post.index(Term.AY)])
 
 
 def _result(
     model: Samples,
     priors: Priors,
-    found: list[tuple[Posterior, list[int]]],
+    found: list[tuple[Posterior, list[int], float]],
     weights: list[float],
     blocks: int,
     logs: int,
@@ -244,7 +264,7 @@ def _result(
     kept = [(f, w) for f, w in zip(found, weights, strict=True) if f[0].value(Term.AY) != 0]
     if not kept:
         return None
-    post, bias_terms = max(kept, key=lambda fw: fw[1])[0]
+    post, bias_terms, next_term = max(kept, key=lambda fw: fw[1])[0]
     from scipy.special import stdtrit
 
     dof = max(blocks - len(post.terms), 1)
@@ -258,6 +278,11 @@ def _result(
     if model.scale_se:  # the sensors' scales widen the interval; the value is the data's mixture's,
         # which a stated tolerance does not move (its median would: the widths weigh it)
         c2n, data_ci = mixture(c2ns, data_ses, shares, dof, priors.confidence)
+    # the softening's next term, where the model leaves it out, reads C2n high by at least
+    # next_pct (its series at r = 1): the interval reaches that much further down
+    b_ay = post.value(Term.AY)
+    next_pct = max(-100.0 * next_term * (post.value(Term.AY3) / b_ay) ** 2, 0.0)
+    c2n_ci, data_ci = ((low - c2n * next_pct / 100.0, high) for low, high in (c2n_ci, data_ci))
     c2n_se = (c2n_ci[1] - c2n_ci[0]) / (2.0 * q)
     d_m, d_ci = mixture(
         [f[0].value(Term.D) for f, _ in kept],
@@ -266,7 +291,6 @@ def _result(
         dof,
         priors.confidence,
     )
-    b_ay = post.value(Term.AY)
     fit = Solution(post.terms, post.coef, post.cov)
 
     def ci(term: int) -> tuple[float, float]:
@@ -295,6 +319,7 @@ def _result(
         softening=SofteningResult(
             per_mps2_2=-post.value(Term.AY3) * model.g * c2n,
             se_per_mps2_2=post.se(Term.AY3) * model.g * abs(c2n),
+            next_term_pct=next_pct,
         )
         if softens
         else None,
@@ -334,11 +359,28 @@ def _least_squares_ay(total: np.ndarray, rhs: np.ndarray, terms: list[int]) -> f
     return None if inverse is None else float((inverse @ rhs[terms])[terms.index(Term.AY)])
 
 
+def _softening2(post: Posterior) -> float:
+    """The softening's s² as a fit found it, its variance counted (never 0 where the data are):
+    s is a_y³'s coefficient over a_y's."""
+    b_ay = post.value(Term.AY)
+    if b_ay == 0.0:
+        return 0.0
+    return (post.value(Term.AY3) ** 2 + post.se(Term.AY3) ** 2) / b_ay**2
+
+
 def _priors(
-    priors: Priors, g: float, b_ay: float, wheelbase_m: float, pull: "_Pull | None"
+    priors: Priors,
+    g: float,
+    b_ay: float,
+    wheelbase_m: float,
+    pull: "_Pull | None",
+    softening2: float | None = None,
 ) -> dict[int, tuple[float, float]]:
     """Each term's prior (mean, standard deviation) in its coefficient's units; ratios to a_y's
     coefficient scaled with ``b_ay`` (−1/(g·C2n)) from the fit before.
+
+    The softening's next term, a_y⁵'s, is b_ay·r·s²: r under its prior, s² the fit before's
+    (``softening2``; before a fit, the softening prior's own scale).
 
     A slope's load transfer follows its pull: the grade s falling towards D pulls β by
     −b·g·s·sin(D − ψ) (sin ψ's and cos ψ's coefficients c_s = b·g·s·cos D, c_c = −b·g·s·sin D)
@@ -348,6 +390,7 @@ def _priors(
     (N(L, L²)) times the pull's size; before a pull is found, the grade's prior times L."""
     k = abs(b_ay)
     grade = priors.slope_pct / 100.0
+    s2 = priors.softening_per_mps2_2**2 if softening2 is None else softening2
     transfer = priors.load_transfer_per_g
     if pull is None:
         ay_sin = ay_cos = (0.0, grade * k * transfer)
@@ -358,6 +401,7 @@ def _priors(
         Term.PSI0: (0.0, math.radians(priors.head_yaw_deg)),
         Term.AY: (0.0, math.inf),
         Term.AY3: (0.0, k * priors.softening_per_mps2_2),
+        Term.AY5: (b_ay * priors.softening_ratio * s2, k * priors.softening_ratio_sd * s2),
         Term.SIN: (0.0, grade * k * g),  # g_y/(g·C2n) = g·s·sin(D − ψ)·|b_ay|
         Term.COS: (0.0, grade * k * g),
         Term.AY_SIN: ay_sin,

@@ -116,6 +116,7 @@ _TERMS = (  # the columns each block keeps (``Term``'s names); a fit takes a sub
     "u",  # u and 1/u: a yaw-rate bias combines them (quasi-steady)
     "inv_u",
     "k2_ay",  # κ²·a_y: the axle's two wheels on a tight turn (small pad)
+    "ay5",  # a_y⁵: the softening's next term
 )
 _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrelation across it)
 D_TAPE_SE_M = 0.01 / Z95  # the tape's d to ±1 cm at 95 % (the config's default): in C2n's interval
@@ -225,7 +226,7 @@ class SampleRegression:
         kappa, ay, beta, heading, r_dot, u_dot, u = np.array(self._open).T
         sin, cos = np.sin(heading), np.cos(heading)
         columns = [np.ones_like(ay), kappa, ay, ay**3, sin, cos, ay * sin, ay * cos]
-        columns += [r_dot, ay * u_dot, np.sign(kappa), u, 1.0 / u, kappa * kappa * ay]
+        columns += [r_dot, ay * u_dot, np.sign(kappa), u, 1.0 / u, kappa * kappa * ay, ay**5]
         x = np.column_stack(columns)
         return x.T @ x, x.T @ beta, float(beta @ beta)
 

@@ -161,6 +161,8 @@ class StandardOptions:
     # plan, track_plan or circles_plan)
     track_plan: TrackPlan = TRACK_PLAN
     circles_plan: CirclesPlan = CIRCLES_PLAN
+    car: Mapping[str, float] = field(default_factory=dict)  # the two-track car's own figures
+    # (TwoTrackParams' fields: a roll gradient, the tyres' load sensitivity), over the config's
 
     @property
     def session_plan(self) -> StandardPlan | TrackPlan | CirclesPlan:
@@ -182,10 +184,13 @@ def simulate_standard(config: Config, options: StandardOptions = StandardOptions
     imperfect = options.imperfections
     c2n = options.c2n if options.c2n is not None else config.tyres.c2n_per_rad
     c1n = options.c1n if options.c1n is not None else config.tyres.c1n_per_rad
-    nominal = TwoTrackParams.from_config(
-        config,
-        c2n * (1.0 + imperfect.c2n_error) if c2n is not None else None,
-        c1n * (1.0 + imperfect.c1n_error) if c1n is not None else None,
+    nominal = replace(
+        TwoTrackParams.from_config(
+            config,
+            c2n * (1.0 + imperfect.c2n_error) if c2n is not None else None,
+            c1n * (1.0 + imperfect.c1n_error) if c1n is not None else None,
+        ),
+        **options.car,
     )
     params = apply_to_vehicle(options.effect, nominal)
     if options.downhill_deg is not None:

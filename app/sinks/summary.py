@@ -65,6 +65,7 @@ class RegressionRow:
     model: Literal["linear", "softening"]
     softening_t: float | None
     softening_per_mps2_2: float | None
+    softening_next_term_pct: float | None  # C2n read high by the series' next term, left out
     c2n_linear_model: float | None
     c2n_softening_model: float | None
     c2n_linear_ci95: Interval | None  # each model's own interval, whichever was chosen
@@ -369,6 +370,7 @@ def _regression(fit: RegressionFit | None) -> RegressionRow | None:
         model=models.chosen,
         softening_t=_round(models.softening_t, 2),
         softening_per_mps2_2=_maybe(fit.softening.per_mps2_2 if fit.softening else None, 6),
+        softening_next_term_pct=_maybe(fit.softening.next_term_pct if fit.softening else None, 3),
         c2n_linear_model=_round(models.linear.c2n),
         c2n_softening_model=_maybe(softening.c2n if softening else None),
         c2n_linear_ci95=_pair(models.linear.ci95) if models.linear.ci95 else None,

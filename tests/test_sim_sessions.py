@@ -175,3 +175,16 @@ def test_the_rear_axle_s_own_c2n_is_read_from_sweeps_only(config: Config, track:
     standard = simulate_standard(config, StandardOptions(seed=5))
     assert standard.truth["c2n_axle"] == pytest.approx(standard.truth["c2n"], rel=0.005)
     assert track.truth["c2n_axle"] is None
+
+
+def test_the_cars_own_figures_are_the_simulated_cars(config: Config) -> None:
+    """StandardOptions.car sets the two-track car's own figures over the config's (bench case n's
+    soft body): its roll per g is that car's, as the drive's truth and its trace show."""
+    from app.sim.two_track import DEFAULT_ROLL_GRADIENT_DEG_PER_G
+
+    soft = simulate_standard(config, StandardOptions(seed=3, car={"roll_gradient_deg_per_g": 6.5}))
+    assert soft.truth["vehicle"]["roll_gradient_deg_per_g"] == 6.5
+    ay, roll = np.abs(soft.trace.ay), np.degrees(np.abs(soft.trace.roll))
+    steady = (ay > 2.0) & (ay < 4.0)
+    per_g = np.median(roll[steady] / ay[steady]) * config.vehicle.gravity_mps2
+    assert per_g == pytest.approx(6.5, rel=0.05) and abs(per_g - DEFAULT_ROLL_GRADIENT_DEG_PER_G) > 1.0

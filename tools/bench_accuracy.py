@@ -21,7 +21,11 @@ the sessions: the intervals, which count that tolerance where C2n rests on d, ar
 they claim; `--tape-mm 0` for the tape exact); (l)
 the standard session on a small pad (two-track, radii on which u0 takes 6.5, 5.4 and 4.5 m/s²:
 25, 30 and 36 m, each swept to 7 m/s², the steady gate keeping 1.3–4 m/s²) and (m) the same on
-CommonRoad's car (37, 44 and 53 m for its u0), both with a test day's nuisances as h–k. Each
+CommonRoad's car (37, 44 and 53 m for its u0), both with a test day's nuisances as h–k; (n) a
+soft heavy car (an SUV: 2,355 kg, its CG 0.72 m high, 6.5°/g of roll, C2n 8–13 and a stiffness
+falling with load, k 0.33–1.31) on the standard session on a pad of 0–3 % falling any way, and
+(o) the two-track with rear roll steer of 0.05–0.25°/° either way (its truth the car's rear axle,
+app/sim/axle.py), both with a test day's nuisances too. Each
 session of a–d: a bicycle-model drive with a random true C2n (10–19 1/rad, also for e–i),
 S-Motion-like noise (σ = 0.02 m/s per axis at 100 Hz) and the DBCs' resolution (0.01 m/s, 0.01°),
 written as CAN frames and run through the `c2n analyze` pipeline. Each row also says the headline's
@@ -34,6 +38,7 @@ than a coverage count of 20).
     python tools/bench_accuracy.py --cases e,f --sessions 10      # sloping pads, and level
     python tools/bench_accuracy.py --cases h,i,j,k --sessions 10  # circles, track laps, CommonRoad
     python tools/bench_accuracy.py --cases l,m --sessions 10      # a small pad
+    python tools/bench_accuracy.py --cases n,o --sessions 10      # a soft heavy car, roll steer
 """
 
 import argparse

@@ -3,7 +3,7 @@
 Each drive runs once through the pipeline; the regression its result rests on (the steady samples',
 or where no sweep crossed zero the quasi-steady samples') is then fitted both ways on the same
 samples: the cascade of tests (the default before 2026-11-27) and the marginal model (every nuisance with its
-prior, ``[priors]``). Kinds: tools/bench_accuracy.py's cases a–m (our simulator's bicycle and
+prior, ``[priors]``). Kinds: tools/bench_accuracy.py's cases a–o (our simulator's bicycle and
 two-track models, CommonRoad's multi-body car) and the dev pack's nine drives (an independent
 generator's car; its truth ``c2n.rear_axle_effective_linear``). Printed per kind and estimator: the
 drives, the median and worst |error| %, the coverage and the intervals' median half width %, the
@@ -191,7 +191,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--sessions", type=int, default=23, help="drives per simulated kind")
-    parser.add_argument("--kinds", default=",".join([*CASES, "dev"]), help="bench_accuracy's cases a–m, dev")
+    parser.add_argument("--kinds", default=",".join([*CASES, "dev"]), help="bench_accuracy's cases a–o, dev")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--first-seed", type=int, default=0, help="start here (a run continued)")
     parser.add_argument("--tape-mm", type=float, default=None, help="as tools/bench_accuracy.py's")

@@ -35,7 +35,7 @@ import numpy as np
 from bench_accuracy import CASES, simulated
 from scipy.stats import beta
 
-from app.config import Config, load_config
+from app.config import Config, Priors, load_config
 from app.pipeline import Pipeline
 from app.results.regression import RegressionFit, SampleRegression
 from app.sources.logs import LogReport, read_log
@@ -127,6 +127,14 @@ def _todays(config: Config) -> Config:
     if path is not None and not path.exists():
         path = Path(__file__).resolve().parent.parent / "config" / path.name
     return load_config(path)
+
+
+def _todays_priors(config: Config) -> Priors:
+    """Today's priors' defaults for a kept drive, the load transfer's its own car's (case n's SUV
+    is the Mondeo's file with its own figures)."""
+    priors = _todays(config).priors
+    own = config.vehicle.load_transfer_per_g
+    return priors if own is None else replace(priors, load_transfer_per_g=own)
 
 
 def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
@@ -222,7 +230,7 @@ def main() -> None:
         rows = []
         for path in sorted(args.refit.glob("*.pickle")):
             kept = pickle.loads(path.read_bytes())
-            config = replace(kept["config"], priors=_todays(kept["config"]).priors)
+            config = replace(kept["config"], priors=_todays_priors(kept["config"]))
             rows.append(
                 fitted(kept["kind"], kept["seed"], kept["regression"], kept["truth"], config, args.tape_drawn)
             )

@@ -129,7 +129,7 @@ def folder_atomically(
     if place.exists():
         foreign = [p.name for p in sorted(place.iterdir()) if not ours(p)] if place.is_dir() else [out.name]
         if not place.is_dir() or foreign:
-            shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+            shown = _listed(foreign)
             raise OutputError(
                 f"{out}: holds files {what} did not write ({shown}) — choose a new or empty --out"
             )
@@ -326,7 +326,7 @@ def _trade_back(staging: Path, place: Path, out: Path, foreign: list[str]) -> No
     """The older folder (in ``staging`` once exchanged), found holding ``foreign`` files, traded
     back into ``place``; always an OutputError. Where it cannot be, it is kept under a name of
     its own, and named (``staging`` is removed after)."""
-    shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+    shown = _listed(foreign)
     try:
         if not exchange(staging, place):
             raise OSError(errno.ENOTSUP, "cannot exchange")
@@ -345,6 +345,11 @@ def _trade_back(staging: Path, place: Path, out: Path, foreign: list[str]) -> No
 
 class _Kept(OutputError):
     """The folder where c2n staged its output holds a user's files now: it is not removed."""
+
+
+def _listed(names: list[str]) -> str:
+    """The first three of ``names``, an ellipsis for the rest."""
+    return ", ".join(names[:3]) + (" …" if len(names) > 3 else "")
 
 
 def _old_prefix(place: Path) -> str:
@@ -372,7 +377,7 @@ def recover_swapped_away(place: Path, ours: Callable[[Path], bool]) -> None:
 def _put_back(old: Path, place: Path, out: Path, foreign: list[str]) -> None:
     """``old``, found holding ``foreign`` files once swapped away, renamed back (or, where
     another run took the place meanwhile, left where it is and named); always an OutputError."""
-    shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+    shown = _listed(foreign)
     try:
         old.rename(place)
     except OSError:

@@ -167,8 +167,7 @@ def posterior(
     n = blocks.n
     data, block_xty = weights.T @ blocks.total @ weights, blocks.xty @ weights
     rhs, yy = block_xty.sum(axis=0), float(blocks.yty.sum())
-    finite = np.isfinite(prior_sd)
-    precision = np.where(finite, 1.0 / np.square(np.where(finite, prior_sd, 1.0)), 0.0)
+    precision = _precision(prior_sd)
     sigma2 = max(yy / n, 1e-30) if sigma2 is None else sigma2
     for _ in range(3):  # σ² from the residuals, then its autocorrelation, then once more
         found = well_conditioned_inverse(data + sigma2 * np.diag(precision), equilibrated=True)
@@ -189,6 +188,25 @@ def posterior(
 
 
 _SIGMA_SETTLED = 1e-3  # σ² settled: the standard errors move by 0.05 % of themselves
+
+
+def _precision(prior_sd: np.ndarray) -> np.ndarray:
+    """Each prior's precision, 0 for a flat one (``prior_sd`` inf)."""
+    finite = np.isfinite(prior_sd)
+    return np.where(finite, 1.0 / np.square(np.where(finite, prior_sd, 1.0)), 0.0)
+
+
+def left_out(
+    blocks: Blocks, weights: np.ndarray, prior_sd: np.ndarray, sigma2: float, column: int
+) -> np.ndarray | None:
+    """How each coefficient of ``posterior``'s fit (its ``weights``, priors' ``prior_sd`` and
+    noise ``sigma2``) moves per unit of a statistics' ``column`` left out of it: the posterior
+    mean's matrix applied to that column's cross-products. None where it cannot be told."""
+    total = blocks.total
+    inverse = well_conditioned_inverse(
+        weights.T @ total @ weights + sigma2 * np.diag(_precision(prior_sd)), equilibrated=True
+    )
+    return None if inverse is None else inverse @ (weights.T @ total[:, column])
 
 
 def data_alone(post: Posterior, term: int, prior_mean: float, prior_sd: float) -> tuple[float, float] | None:

@@ -47,6 +47,7 @@ from app.results.marginal import (
     Posterior,
     Term,
     data_alone,
+    left_out,
     mixture,
     posterior,
     well_conditioned_inverse,
@@ -238,13 +239,8 @@ def _next_term(design: "_Design", post: Posterior, weights: np.ndarray, spread: 
     column — 0 where the term is in the model (it carries itself) or cannot be told."""
     if Term.AY5 in post.terms:
         return 0.0
-    finite = np.isfinite(spread)
-    precision = np.where(finite, 1.0 / np.square(np.where(finite, spread, 1.0)), 0.0)
-    total = design.blocks.total
-    inverse = well_conditioned_inverse(weights.T @ total @ weights + post.sigma2 * np.diag(precision))
-    if inverse is None:
-        return 0.0
-    return float((inverse @ (weights.T @ total[:, Term.AY5]))[post.index(Term.AY)])
+    moved = left_out(design.blocks, weights, spread, post.sigma2, Term.AY5)
+    return 0.0 if moved is None else float(moved[post.index(Term.AY)])
 
 
 def _result(

@@ -500,3 +500,15 @@ def test_a_campaign_cache_whose_hash_memo_is_damaged_is_hashed_again(day: Path) 
     code, _, err = run_cli(args)
     assert code == 0, err
     assert json.loads((out / "cache" / "hashes.json").read_text())  # a memo again
+
+
+def test_a_file_given_as_live_s_record_folder_is_named_a_file_and_kept(tmp_path: Path) -> None:
+    """``--record`` is a folder c2n makes a session in, never replaces: a file there was told
+    ``add --force to replace it``, which did not (and must not) replace it."""
+    notes = tmp_path / "notes"
+    notes.write_text("a user's")
+    for force in ([], ["--force"]):
+        argv = ["live", "-i", "virtual", "-c", "c2n-record-file", "--record", str(notes), "--duration", "0.1"]
+        code, _, err = run_cli([*argv, *force])
+        assert code == 1 and "is a file, not a folder" in err and "--force" not in err, err
+        assert notes.read_text() == "a user's"

@@ -164,7 +164,7 @@ def run(
         [
             Output("--json", args.json, SUMMARY_JSON, stdout=True) if args.json else None,
             # a session gets a new folder of its own in --record: any folder there will do
-            None if args.no_record else Output("--record", args.record, lambda path: path.is_dir()),
+            None if args.no_record else Output("--record", args.record, lambda path: False, parent=True),
         ],
         config_files(config),
         args.force,

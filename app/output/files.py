@@ -1,6 +1,7 @@
-"""Every result file is written the same way: into a temporary file beside it, then renamed into
-place, so a crash, a kill or a full disk leaves the old file or the new one, never half of one;
-an OS error becomes one OutputError naming the file."""
+"""Every result file is written the same way: into a temporary file beside it, synced to the
+disk, then renamed into place, so a crash, a kill, a power cut or a full disk leaves the old file
+or the new one, never half of one (``durable.py``); an OS error becomes one OutputError naming
+the file."""
 
 import contextlib
 import ctypes
@@ -19,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from app.errors import OutputError
+from app.output.durable import synced, synced_tree
 
 
 def partial_path(path: Path) -> Path:
@@ -40,7 +42,8 @@ def write_atomically(path: Path, write: Callable[[Path], object], what: str) -> 
     """``write(tmp)`` writes the file's content to ``tmp``; it then replaces ``path`` — where a
     symlink points, the link kept. ``what`` names the file in the error ("the summary", "the
     report"). Whatever stops the write (an error, Ctrl-C) takes the temporary with it; one a
-    killed run left (its process gone) goes at the next write of the same file."""
+    killed run left (its process gone) goes at the next write of the same file. The content is
+    on the disk before the rename, the rename before this returns: a power cut too leaves one."""
     target = Path(os.path.realpath(path)) if os.path.islink(path) else path
     tmp = partial_path(target)
     try:
@@ -49,7 +52,9 @@ def write_atomically(path: Path, write: Callable[[Path], object], what: str) -> 
             raise OutputError(f"{path}: is a device or a pipe, not a file — cannot write {what} there")
         _remove_stale_partials(target)
         write(tmp)
+        synced(tmp)
         os.replace(tmp, target)
+        synced(target.parent)
     except OSError as error:
         with contextlib.suppress(OSError):  # a file in the folder's place: there is no tmp either
             tmp.unlink(missing_ok=True)
@@ -148,10 +153,13 @@ def folder_atomically(
                 raise
             said = str(error).replace(str(staging), str(out))
             raise OutputError(f"{said} — {out} is left as it was") from error.__cause__
+        _synced(staging, out, synced_tree)  # on the disk before it takes the older one's place
         if replace:
             _swap_in(staging, place, out, ours)
         else:
             _put_in(staging, place, out)
+        for folder in (place, place.parent):  # the entries moved in; the folder's new name
+            _synced(folder, out, synced)
     except _Kept:
         kept = True
         raise
@@ -174,14 +182,26 @@ def files_together(folder: Path, names: Sequence[str]) -> Iterator[Path]:
         missing = [name for name in names if not (staging / name).is_file()]
         if missing:
             raise OutputError(f"{folder}: {', '.join(missing)} not written")
+        _synced(staging, folder, synced_tree)
         try:
             with _held():  # a held Ctrl-C arrives after
                 for name in names:
                     os.replace(staging / name, folder / name)
         except OSError as error:
             raise OutputError(f"{folder}: cannot put the results in place ({error.strerror})") from error
+        _synced(folder, folder, synced)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _synced(path: Path, out: Path, sync: Callable[[Path], None]) -> None:
+    """``sync(path)``, a disk's refusal an OutputError naming ``out``."""
+    try:
+        sync(path)
+    except OSError as error:
+        raise OutputError(
+            f"{out}: cannot write the output to the disk ({error.strerror or error})"
+        ) from error
 
 
 def _staging(parent: Path, prefix: str, out: Path) -> Path:

@@ -37,6 +37,7 @@ class Output:
     ours: Callable[[Path], bool]
     folder: bool = False
     stdout: bool = False  # ``-`` means standard output
+    parent: bool = False  # a folder c2n makes new entries in (``live --record``), never replaces
 
 
 def check(outputs: Sequence[Output | None], inputs: Iterable[Path], force: bool | None = None) -> None:
@@ -137,6 +138,10 @@ def _name_max(folder: Path) -> int:
 def _ours(out: Output, force: bool | None) -> None:
     path = out.path
     if not os.path.lexists(path):
+        return
+    if out.parent:
+        if not path.is_dir():
+            raise OutputError(f"{out.option} {path}: is a file, not a folder — give a folder (new or not)")
         return
     if out.folder:
         if os.path.ismount(os.path.realpath(path)):

@@ -158,6 +158,23 @@ def test_a_file_system_without_sync_is_written_as_before(
     assert (tmp_path / "summary.json").read_text() == "new"
 
 
+def test_a_folder_c2n_may_write_in_but_not_list_takes_the_result(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A drop folder (mode 0300: write, no read) cannot be opened to sync its entries: the file
+    put in place there is a success, not an error after the fact."""
+    opened = os.open
+
+    def no_listing(path: object, flags: int, *args: int) -> int:
+        if os.path.isdir(str(path)):
+            raise PermissionError(errno.EACCES, "Permission denied")
+        return opened(path, flags, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "open", no_listing)
+    write_atomically(tmp_path / "summary.json", lambda tmp: tmp.write_text("new"), "the summary")
+    assert (tmp_path / "summary.json").read_text() == "new"
+
+
 def _frames(n: int) -> list[can.Message]:
     return cached_drive("constant_radius", 41, 15.1).messages[:n]
 

@@ -21,11 +21,17 @@ _CANNOT_SYNC = frozenset({errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP, errno.E
 
 def synced(path: Path) -> None:
     """``path``'s content on the disk: a file's data, a folder's entries (names made, renamed or
-    removed in it). Windows opens no folder to sync it (NTFS journals its entries itself)."""
+    removed in it). A folder c2n may write in but not list (mode 0300) cannot be opened to sync:
+    its entries are left to the system, as Windows's are (NTFS journals them itself)."""
     folder = path.is_dir()
     if folder and os.name == "nt":
         return
-    fd = os.open(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if folder else 0))
+    try:
+        fd = os.open(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if folder else 0))
+    except PermissionError:
+        if folder:
+            return
+        raise
     try:
         _sync(fd)
     finally:

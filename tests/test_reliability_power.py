@@ -9,6 +9,8 @@ folder can come back missing."""
 import errno
 import os
 import stat
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -255,3 +257,44 @@ def test_a_disk_that_refuses_a_recording_s_sync_is_said_once_and_the_session_goe
     recorder.close()
     assert len(said) == 1 and "did not confirm the frames written (Input/output error)" in said[0]
     assert len(list(can.LogReader(recorder.raw_path))) == 1000
+
+
+def test_when_a_process_started_is_read_from_the_system(tmp_path: Path) -> None:
+    before = time.time()
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        after = time.time()
+        started = files._started_s(child.pid)
+        assert started is not None and before - 1.5 <= started <= after + 0.5
+    finally:
+        child.kill()
+        child.wait()
+
+
+def test_leftovers_named_after_a_number_another_process_has_after_a_reboot_are_cleared(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A power cut between a run's two renames (where the folders cannot trade places in one
+    step) leaves ``.exp.old-PID-…`` and no ``exp``; after the reboot that number is some other
+    process's, started after. Taken for a run still writing, the older folder was never put back
+    and a staging folder never removed. The leftover's own process, still running, keeps them."""
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        out = tmp_path / "exp"
+        older = tmp_path / f".exp.old-{child.pid}-0123abcd"
+        older.mkdir()
+        (older / "summary.json").write_text("the previous export")
+        staging = tmp_path / f".exp.partial-{child.pid}-4567cdef"
+        staging.mkdir()
+        # the process running now started before its leftovers: they are kept
+        files.recover_swapped_away(out, lambda path: True)
+        assert files.remove_stale(tmp_path, ".exp.partial-") == [] and older.is_dir()
+        assert not out.exists()
+        # after a reboot: the same number, a process started after its leftovers last changed
+        monkeypatch.setattr(files, "_started_s", lambda pid: time.time() + 60.0)
+        files.recover_swapped_away(out, lambda path: True)
+        assert (out / "summary.json").read_text() == "the previous export" and not older.exists()
+        assert files.remove_stale(tmp_path, ".exp.partial-") == [staging] and not staging.exists()
+    finally:
+        child.kill()
+        child.wait()

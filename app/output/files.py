@@ -69,7 +69,7 @@ def _remove_stale_partials(path: Path) -> None:
     """The temporaries of ``path`` (``partial_path``) whose process is gone: a killed write's."""
     for stale in path.parent.glob(f"{glob.escape(f'.{path.stem}.')}*{glob.escape(f'.partial{path.suffix}')}"):
         pid = partial_pid(stale.name, path)
-        if pid is not None and pid != os.getpid() and not _alive(pid) and stale.is_file():
+        if pid is not None and pid != os.getpid() and not _alive(pid, stale) and stale.is_file():
             with contextlib.suppress(OSError):
                 stale.unlink()
 
@@ -224,20 +224,48 @@ def remove_stale(folder: Path, prefix: str) -> list[Path]:
     removed = []
     for path in folder.glob(f"{glob.escape(prefix)}*-*"):
         pid = path.name[len(prefix) :].split("-", 1)[0]
-        if path.is_dir() and pid.isdigit() and not _alive(int(pid)):
+        if path.is_dir() and pid.isdigit() and not _alive(int(pid), path):
             shutil.rmtree(path, ignore_errors=True)
             removed.append(path)
     return removed
 
 
-def _alive(pid: int) -> bool:
+def _alive(pid: int, left: Path) -> bool:
+    """Whether process ``pid``, which named ``left`` after itself, may still be writing it: a
+    process of that number is there and — where the system says when it started (Linux's /proc)
+    — it started before ``left`` last changed (its mtime or ctime: made, written, renamed). After
+    a power cut and a reboot the number is another process's, started after; its leftover would
+    otherwise stay for good (a swapped-away older folder never put back)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:  # someone else's
+        pass
+    started = _started_s(pid)
+    if started is None:
         return True
-    return True
+    try:
+        status = left.lstat()
+    except OSError:
+        return True
+    return started <= max(status.st_mtime, status.st_ctime) + _START_SLACK_S
+
+
+# the boot time /proc gives is in whole seconds: a process is taken for the writer of what
+# changed up to this long before it started
+_START_SLACK_S = 2.0
+
+
+def _started_s(pid: int) -> float | None:
+    """When process ``pid`` started, in seconds of the epoch (Linux's /proc); None elsewhere."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        lines = Path("/proc/stat").read_text().splitlines()
+        boot = next(int(line.split()[1]) for line in lines if line.startswith("btime "))
+        return boot + int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22, starttime, in ticks
+    except (OSError, ValueError, IndexError, StopIteration):
+        return None
 
 
 def inside(path: Path, folder: Path) -> bool:
@@ -385,7 +413,7 @@ def recover_swapped_away(place: Path, ours: Callable[[Path], bool]) -> None:
     found = [p for p in place.parent.glob(f"{glob.escape(prefix)}*") if p.is_dir()]
     for old in sorted(found, key=lambda p: p.stat().st_mtime_ns, reverse=True):  # the newest first
         pid = old.name[len(prefix) :].split("-", 1)[0]
-        if pid.isdigit() and _alive(int(pid)):
+        if pid.isdigit() and _alive(int(pid), old):
             continue  # another run, between its renames now
         with contextlib.suppress(OSError):
             if not os.path.lexists(place):

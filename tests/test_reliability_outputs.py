@@ -512,3 +512,15 @@ def test_a_file_given_as_live_s_record_folder_is_named_a_file_and_kept(tmp_path:
         code, _, err = run_cli([*argv, *force])
         assert code == 1 and "is a file, not a folder" in err and "--force" not in err, err
         assert notes.read_text() == "a user's"
+
+
+def test_a_pack_written_again_into_its_own_folder_is_told_the_folder_is_not_empty(tmp_path: Path) -> None:
+    """A pack is never written over; refusing c2n's own earlier pack as "files c2n did not write"
+    was untrue."""
+    pack = tmp_path / "pack"
+    (pack / "case_001").mkdir(parents=True)
+    (pack / "sealed").mkdir()
+    code, _, err = run_cli(["simulate", "--pack", "1", "--quick", "--out", str(pack)])
+    assert code == 1 and err.strip() == (
+        f"c2n: error: --out {pack}: is not empty (case_001, sealed) — choose a new or empty folder"
+    )

@@ -156,9 +156,8 @@ def _ours(out: Output, force: bool | None) -> None:
         foreign = sorted(entry.name for entry in path.iterdir() if not out.ours(entry))
         if foreign:
             shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
-            raise OutputError(
-                f"{out.option} {path}: holds files c2n did not write ({shown}) — choose a new or empty folder"
-            )
+            what = "is not empty" if out.ours is never else "holds files c2n did not write"
+            raise OutputError(f"{out.option} {path}: {what} ({shown}) — choose a new or empty folder")
         return
     if not os.path.exists(path):  # a symlink to nothing: written where it points
         return

@@ -205,18 +205,11 @@ class SessionRecorder(Sink):
             self._writer: Any = (
                 _TEXT_WRITERS[raw_format](self._spool) if self._spool else _BLFWriter(self.raw_path)
             )
-        except OSError as error:
-            raise OutputError(
-                f"{folder}: cannot record the session ({error.strerror}) — use --record DIR"
-            ) from error
-        self._events = EventsTable(folder / "events.csv")
-        try:
+            self._events = EventsTable(folder / "events.csv")
             synced_tree(folder)
             synced(folder.parent)  # the session folder's own name
             self._sync = PeriodicSync([self.raw_path, self._events.path], sync_every_s)
         except OSError as error:
-            self._writer.stop()
-            self._events.close()
             raise OutputError(
                 f"{folder}: cannot record the session ({error.strerror}) — use --record DIR"
             ) from error

@@ -130,6 +130,18 @@ def test_no_sign_change_found(config: Config) -> None:
     assert advice.no_crossing(_findings(config, None)) is None  # no frame at all
 
 
+def test_a_quasi_steady_estimate_says_it_is_extrapolated_and_what_its_interval_counts(config: Config) -> None:
+    quasi = Headline(14.0, (13.8, 14.2), Method.QUASI_STEADY)
+    marginal = replace(FIT, estimator="marginal")
+    said = advice.no_crossing(_findings(config, marginal, headline=quasi))
+    assert said is not None
+    assert "the corners' curve from 1.0 m/s² extrapolated to zero lateral acceleration" in said
+    assert "its interval counts the samples' noise and the softening's spread under its prior" in said
+    assert advice.TRACK_LAPS in said
+    cascade = advice.no_crossing(_findings(config, replace(FIT, estimator="cascade"), headline=quasi))
+    assert cascade is not None and "the samples' noise, not the model's reach" in cascade
+
+
 def test_multi_line_advice_and_the_registry_order(config: Config) -> None:
     both = replace(
         FIT,

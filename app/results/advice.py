@@ -24,6 +24,11 @@ from app.units import Z95
 REQUIRED_ROLES = (("vx",), ("vy", "beta"))
 SLOPE_WARN_PCT = 1.0  # a pad slope this steep, and beyond its noise, is worth a word
 NOMINAL_OFF = 0.3  # C2n this far from the config's nominal: not the tyres of a test day
+# the quasi-steady estimate's extrapolation to zero a_y, as simulated track laps show it (23 drives on
+# each car model, tools/bench_coverage.py; docs/accuracy.md, 2026-11-28)
+TRACK_LAPS = (
+    "simulated track laps: within 1.0 % on one car model, 1.8 % on another, 3 in 23 outside their intervals"
+)
 
 
 @dataclass(frozen=True)
@@ -421,11 +426,18 @@ def no_crossing(f: Findings) -> str | None:
     the method's own way; or, without even that, that no sign change was found."""
     beyond = crossing_beyond_gate(f)
     if f.headline is not None and f.headline.method is Method.QUASI_STEADY:
+        fit = f.fit
+        low = f" from {fit.samples.ay_range_mps2[0]:.1f} m/s²" if fit is not None else ""
+        counts = (
+            "the samples' noise and the softening's spread under its prior"
+            if fit is not None and fit.estimator == "marginal"
+            else "the samples' noise, not the model's reach"
+        )
         return (
             "no sweep crossed the sideslip's sign change: C2n is the quasi-steady estimate from cornering "
-            "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force); its "
-            "interval counts the samples' noise, not the model's reach (simulated track laps: within 0.9 % "
-            "on one car model, 1.3 % on another)"
+            "as driven (its model adds the yaw inertia's and braking's share of the rear tyres' force), "
+            f"the corners' curve{low} extrapolated to zero lateral acceleration; its interval counts "
+            f"{counts} ({TRACK_LAPS})"
             + (
                 " — sweep the speed through u0 on a circle to measure it the method's own way"
                 if beyond is None

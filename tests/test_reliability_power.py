@@ -22,7 +22,7 @@ import pytest
 
 from app.config import load_config
 from app.errors import OutputError
-from app.output import files
+from app.output import durable, files
 from app.output.files import files_together, write_atomically
 from app.sinks.recorder import SessionRecorder
 from tests.simulated import cached_drive
@@ -158,6 +158,66 @@ def test_a_file_system_without_sync_is_written_as_before(
     monkeypatch.setattr(os, "fsync", unsupported)
     write_atomically(tmp_path / "summary.json", lambda tmp: tmp.write_text("new"), "the summary")
     assert (tmp_path / "summary.json").read_text() == "new"
+
+
+FULL_SYNC = 51  # macOS's F_FULLFSYNC, set where these tests run on Linux
+
+
+def test_on_macos_a_file_is_synced_through_the_drive_s_cache_before_the_rename(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """macOS's fsync leaves the data in the drive's own cache, which a cut loses: there the sync
+    is fcntl's F_FULLFSYNC, asked for on the temporary before it takes the older file's place."""
+    import fcntl
+
+    events: list[tuple[str, object]] = []
+    fsync, replace = os.fsync, os.replace
+
+    def full_sync(fd: int, command: int, *args: object) -> int:
+        assert command == FULL_SYNC
+        fsync(fd)
+        events.append(("full", os.fstat(fd).st_size))
+        return 0
+
+    monkeypatch.setattr(durable, "_FULL_SYNC", FULL_SYNC)
+    monkeypatch.setattr(fcntl, "fcntl", full_sync)
+    monkeypatch.setattr(os, "fsync", lambda fd: events.append(("fsync", fd)))
+    monkeypatch.setattr(os, "replace", lambda a, b: (replace(a, b), events.append(("rename", b)))[0])
+    out = tmp_path / "summary.json"
+    out.write_text('{"c2n": 14.0}\n')
+    write_atomically(out, lambda tmp: tmp.write_text('{"c2n": 15.1}\n'), "the summary")
+    assert out.read_text() == '{"c2n": 15.1}\n'
+    kinds = [kind for kind, _ in events]
+    assert "fsync" not in kinds, (
+        "fsync alone was asked for where the full sync is the one that reaches the disk"
+    )
+    assert events[kinds.index("rename") - 1] == ("full", out.stat().st_size)  # the new content, then in place
+    assert kinds[kinds.index("rename") + 1 :] == ["full"]  # and the folder's new name
+
+
+def test_on_macos_a_file_system_without_the_full_sync_gets_fsync(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SMB shares and some FAT drivers refuse F_FULLFSYNC: those are synced as elsewhere."""
+    import fcntl
+
+    synced: list[int] = []
+    fsync = os.fsync
+
+    def refused(fd: int, command: int, *args: object) -> int:
+        raise OSError(errno.ENOTSUP, "Operation not supported")
+
+    def watched(fd: int) -> None:
+        fsync(fd)
+        synced.append(os.fstat(fd).st_size)
+
+    monkeypatch.setattr(durable, "_FULL_SYNC", FULL_SYNC)
+    monkeypatch.setattr(fcntl, "fcntl", refused)
+    monkeypatch.setattr(os, "fsync", watched)
+    out = tmp_path / "summary.json"
+    write_atomically(out, lambda tmp: tmp.write_text('{"c2n": 15.1}\n'), "the summary")
+    assert out.read_text() == '{"c2n": 15.1}\n'
+    assert out.stat().st_size in synced
 
 
 def test_a_folder_c2n_may_write_in_but_not_list_takes_the_result(

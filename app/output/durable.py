@@ -7,13 +7,26 @@ already gone. So a temporary is synced before the rename that puts it in place, 
 after it (the new name is an entry of the folder); a growing recording is synced every second
 (``PeriodicSync``). A file system that cannot sync (``EINVAL``: some network and FUSE mounts)
 keeps what it keeps; a disk that fails to (``EIO``, a full disk's ``ENOSPC`` on NFS) is an error.
+On macOS ``fsync`` leaves the data in the drive's own cache, which a cut loses too: there a sync is
+``F_FULLFSYNC`` (fcntl(2): the drive is asked to write its cache out), ``fsync`` where the file
+system has no such call.
 """
 
 import errno
 import os
+import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+
+# fcntl(2)'s F_FULLFSYNC: macOS's sync through the drive's cache (Linux's fsync already asks the
+# drive to write its cache out; Windows's FlushFileBuffers does)
+if sys.platform == "darwin":
+    import fcntl
+
+    _FULL_SYNC: int | None = fcntl.F_FULLFSYNC
+else:
+    _FULL_SYNC = None
 
 # fsync(2) on a file system or an object that has no sync: nothing more can be done there
 _CANNOT_SYNC = frozenset({errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EROFS, errno.EBADF})
@@ -53,10 +66,24 @@ def synced_tree(folder: Path) -> None:
 
 def _sync(fd: int) -> None:
     try:
-        os.fsync(fd)
+        _to_the_disk(fd)
     except OSError as error:
         if error.errno not in _CANNOT_SYNC:
             raise
+
+
+def _to_the_disk(fd: int) -> None:
+    """fsync(2); on macOS F_FULLFSYNC (SQLite's ``fullfsync``), and fsync where a file system
+    refuses that (SMB, some FAT drivers)."""
+    if _FULL_SYNC is not None:
+        import fcntl
+
+        try:
+            fcntl.fcntl(fd, _FULL_SYNC)
+            return
+        except OSError:
+            pass
+    os.fsync(fd)
 
 
 class PeriodicSync:

@@ -49,6 +49,13 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="send the log's channel LOG to the bus channel BUS (repeatable); "
         "default: in order of appearance",
     )
+    parser.add_argument(
+        "--real-bus",
+        action="store_true",
+        help="send onto a bus that is not virtual (a car's, a bench's): every node on it gets the "
+        "drive's frames, the vehicle speed's among them; without it a replay goes only onto "
+        "-i virtual or a SocketCAN vcan",
+    )
     parser.set_defaults(run=run)
     return parser
 
@@ -109,6 +116,28 @@ def log_channel(given: str, log_channels: list[str], item: str) -> str:
 _NUMBERED = re.compile(r"[A-Za-z_]+(\d+)")  # can1, vcan1, slcan_1
 
 
+def _virtual_only(interface: str | None, channel: str | int | None) -> None:
+    """Refuse a bus that is not virtual (``bus_kind``): a replay's frames, with the recorded ids
+    of the car's own, would reach every node on it."""
+    from app.sources import bus_kind
+
+    interface, channel = bus_kind.resolved(interface, channel)
+    found = bus_kind.kind(interface, channel)
+    if found in ("virtual", "missing"):  # a missing bus: opening it says why
+        return
+    if channel in (None, ""):
+        where, why = f"{interface}", "with no channel each frame goes to the device its log names (can0…)"
+    elif found == "real":
+        where, why = f"{interface} {channel}", "is not a virtual bus"
+    else:
+        where, why = f"{interface} {channel}", f"is not known to be virtual (ip -details link show {channel})"
+    raise UsageError(
+        f"{printable(where)}: {why} — a replay sends the drive's frames, the vehicle speed's among "
+        "them, to every node on the bus (a car's ECUs): replay onto -i virtual or -i socketcan -c vcan0, "
+        "or add --real-bus to send there"
+    )
+
+
 def channels_of(path: Path) -> list[str]:
     """The log's channels in order of appearance (one pass over the file)."""
     from app.sources.logs import LogReport, read_log
@@ -131,6 +160,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     getattr(reader, "stop", lambda: None)()
     names = channels(args)
     options = bus_kwargs(args)
+    if not args.real_bus:
+        for name in names:
+            _virtual_only(args.interface, name)
     log_channels = channels_of(args.log) if args.map else None  # a map must name the log's channels
     buses = open_buses(args.interface, names, args.bitrate, **options)
     try:

@@ -201,6 +201,7 @@ def run(
         recorder.on_problem = lambda text: console.print(
             Text(f"c2n: {printable(text)}", style="bold red"), soft_wrap=True
         )
+        recorder.on_note = bus_changed
         sinks.append(recorder)
     try:
         if timer is not None:
@@ -216,7 +217,8 @@ def run(
             bus.shutdown()
         snapshot = pipeline.snapshot()
         stopped = [recorder.problem] if recorder is not None and recorder.problem else []
-        result = summary.build(snapshot, config, [title]).warned([*stopped, *source.losses])
+        parts = recorder.notes if recorder is not None else []
+        result = summary.build(snapshot, config, [title]).warned([*stopped, *parts, *source.losses])
         unwritten = []  # a full disk: the numbers are still shown
         for write, where in (
             (recorder.write_summary if recorder is not None else None, "the session's summary"),
@@ -232,5 +234,6 @@ def run(
     for warning in [*result.warnings, *unwritten]:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     if recorder is not None:
-        console.print(f"session saved in {shown(recorder.folder)}", style="dim")
+        saved = ", ".join(shown(folder) for folder in recorder.folders)
+        console.print(f"session saved in {saved}", style="dim")
     return 1 if stopped or unwritten else 0

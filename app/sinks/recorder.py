@@ -9,6 +9,7 @@ cut they read back to at most a second before it.
 
 import contextlib
 import copy
+import errno
 import json
 import os
 import shutil
@@ -39,14 +40,18 @@ SYNC_S = 1.0
 class _Spool:
     """A text file for python-can's text writers that holds what they write in memory until
     ``drain`` hands it to the file in one unbuffered write: the file on disk always ends at a
-    frame boundary, even after ``kill -9``, and never with half a line."""
+    frame boundary, even after ``kill -9``, and never with half a line. ``parts``: where the file
+    reaches the largest its disk holds (``EFBIG``: FAT32's 4 GiB), the lines that did not fit are
+    kept (``full``) for a next file (``restart``) — a format with no header (candump's)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, parts: bool = False) -> None:
         self._file = path.open("wb", buffering=0)
         self._pending: list[str] = []
         self.write = self._pending.append  # a frame's line: the hot path
         self.closed = False
         self.error: OSError | None = None  # the write that failed (a full disk): nothing more is kept
+        self.parts = parts
+        self.full: bytes | None = None  # the file is as large as its disk holds: what did not fit
 
     def flush(self) -> None:
         """Nothing: what is written reaches the file at ``drain``."""
@@ -55,14 +60,39 @@ class _Spool:
         if not self._pending or self.error is not None:
             self._pending.clear()
             return
-        data = memoryview("".join(self._pending).encode())
+        text = "".join(self._pending).encode()
         self._pending.clear()
+        if self.full is not None:  # waiting for its next file
+            self.full += text
+            return
+        data = memoryview(text)
         try:
             while data:
                 written = self._file.write(data)
                 data = data[written or 0 :]
         except OSError as error:  # from now on each drain drops what came since the last one
-            self.error = error
+            if error.errno == errno.EFBIG and self.parts:
+                self.full = self._cut(text, len(text) - len(data))
+            else:
+                self.error = error
+
+    def _cut(self, text: bytes, written: int) -> bytes:
+        """The file back to its last whole line (the write that filled it ended mid-line); the
+        lines of ``text`` it does not hold."""
+        whole = text.rfind(b"\n", 0, written) + 1
+        with contextlib.suppress(OSError):  # else the reader skips a cut last line
+            os.ftruncate(self._file.fileno(), os.fstat(self._file.fileno()).st_size - (written - whole))
+        return text[whole:]
+
+    def restart(self, path: Path) -> None:
+        """Go on in a new file, ``path``, first with the lines the last one did not hold."""
+        file = path.open("wb", buffering=0)
+        with contextlib.suppress(OSError):
+            self._file.close()
+        self._file, self.closed = file, False
+        rest, self.full = self.full or b"", None
+        self._pending.insert(0, rest.decode())
+        self.drain()
 
     def close(self) -> None:  # the writer's stop(): keep what it wrote last
         if not self.closed:
@@ -183,7 +213,10 @@ class SessionRecorder(Sink):
     summary beside them. ``folder`` must be new — or ``claimed``: made empty by the caller for
     this session alone (``app.cli.live.session_folder``). The folder, its files' names and the
     config's copy are on the disk before the first frame; the two growing files every
-    ``sync_every_s`` after (``PeriodicSync``)."""
+    ``sync_every_s`` after (``PeriodicSync``). A candump log (``.log``) that reaches the largest
+    file its disk holds (FAT32's 4 GiB: a busy bus's seven hours) goes on in a session folder of its
+    own beside the first, ``<first>-part2``…: each a session folder as any, the config's copy,
+    its frames, the events from then on, at the end the whole run's summary (``folders``)."""
 
     def __init__(
         self,
@@ -195,13 +228,17 @@ class SessionRecorder(Sink):
     ) -> None:
         if raw_format not in RAW_FORMATS:
             raise C2nError(f"raw format '{raw_format}' — use one of {', '.join(RAW_FORMATS)}")
-        self.folder = folder
+        self.folder = folder  # the one recording now
+        self.folders = [folder]  # the session's, in order: the first, then each part
+        self._config = config
         try:
             if not claimed:
                 folder.mkdir(parents=True, exist_ok=False)
             copy_config(config, folder / CONFIG_FOLDER)
             self.raw_path = folder / f"frames{raw_format}"
-            self._spool = _Spool(self.raw_path) if raw_format in _TEXT_WRITERS else None
+            self._spool = (
+                _Spool(self.raw_path, parts=raw_format == ".log") if raw_format in _TEXT_WRITERS else None
+            )
             self._writer: Any = (
                 _TEXT_WRITERS[raw_format](self._spool) if self._spool else _BLFWriter(self.raw_path)
             )
@@ -216,6 +253,8 @@ class SessionRecorder(Sink):
         self._closed = False
         self.problem: str | None = None  # why the recording stopped before the session did
         self.on_problem: Callable[[str], None] = lambda text: None
+        self.notes: list[str] = []  # where the recording went on (a part folder)
+        self.on_note: Callable[[str], None] = lambda text: None
         # each frame as it arrives, straight to the writer: it runs for every frame on the bus
         self.on_frame = self._writer.on_message_received  # type: ignore[method-assign]
 
@@ -231,6 +270,8 @@ class SessionRecorder(Sink):
         """Hand everything received so far to the operating system."""
         if self._spool is not None:
             self._spool.drain()
+            if self._spool.full is not None:
+                self._next_part()
         else:
             # BLF buffers frames into compressed containers of 128 KiB; python-can has no public
             # call that writes a partial one, and its reader needs whole containers.
@@ -249,10 +290,15 @@ class SessionRecorder(Sink):
         error = (self._spool or self._writer).error
         if error is not None:
             kept = self.raw_path.stat().st_size if self.raw_path.exists() else 0
+            mount = _mount_of(self.folder)
+            why = f"{error.strerror or error} on the disk of {mount}"
+            fix = "free space and start a new session"
+            if error.errno == errno.EFBIG:  # the largest file the disk holds (an .asc or .blf: no parts)
+                why = f"the file is as large as the disk of {mount} holds (FAT32: 4 GiB)"
+                fix = "record as .log (it goes on in a new folder), or onto an exFAT, NTFS or ext4 disk"
             self.problem = (
-                f"{self.raw_path}: the recording stopped — {error.strerror or error} on the disk of "
-                f"{_mount_of(self.folder)}; {kept / 1e6:.1f} MB of frames up to then are kept, the "
-                "live numbers go on — free space and start a new session"
+                f"{self.raw_path}: the recording stopped — {why}; {kept / 1e6:.1f} MB of frames up to "
+                f"then are kept, the live numbers go on — {fix}"
             )
         elif self._sync.error is not None:
             self.problem = (
@@ -264,13 +310,53 @@ class SessionRecorder(Sink):
             return
         self.on_problem(self.problem)
 
+    def _next_part(self) -> None:
+        """The raw log is as large as its disk holds: the session goes on in a folder of its own
+        beside the first (made new, never entered), with the config's copy, the lines that did
+        not fit, and the events from now on. A part that cannot be made stops the recording."""
+        assert self._spool is not None
+        full, folder, events = self.raw_path, None, None
+        try:
+            folder = _new_beside(self.folders[0], len(self.folders) + 1)
+            copy_config(self._config, folder / CONFIG_FOLDER)
+            events = EventsTable(folder / "events.csv")
+            raw = folder / full.name
+            self._spool.restart(raw)
+        except (OSError, C2nError) as error:  # the part is this run's alone: nothing in it to keep
+            if events is not None:
+                events.close()
+            if folder is not None:
+                shutil.rmtree(folder, ignore_errors=True)
+            self._spool.error = error if isinstance(error, OSError) else OSError(errno.EIO, str(error))
+            self._spool.full = None
+            return
+        with contextlib.suppress(OSError):  # its names on the disk; its frames at the next sync
+            synced_tree(folder)
+            synced(folder.parent)
+        self._events.close()
+        self._sync.close()  # the full part's last lines on the disk
+        self._events, self.folder, self.raw_path = events, folder, raw
+        self._sync = PeriodicSync([raw, events.path], self._sync.every_s)
+        self.folders.append(folder)
+        size = full.stat().st_size
+        held = f"{size / 1e9:.2f} GB" if size >= 1e9 else f"{size / 1e6:.1f} MB"
+        note = (
+            f"{full}: {held}, the largest file the disk of {_mount_of(folder)} holds — the recording "
+            f"goes on in {folder}"
+        )
+        self.notes.append(note)
+        self.on_note(note)
+
     def close(self) -> None:
         """Finish the raw log and the events table (once; again is nothing)."""
         if self._closed:
             return
         self._closed = True
         try:
-            self._writer.stop()
+            self._writer.stop()  # a candump log's last lines: a part to go on in, where they need one
+            if self._spool is not None and self._spool.full is not None:
+                self._next_part()
+                self._spool.close()
         finally:
             self._events.close()
             self._sync.close()  # the files' last bytes (a BLF's header) on the disk
@@ -279,7 +365,25 @@ class SessionRecorder(Sink):
         self._check()
 
     def write_summary(self, summary: Summary) -> None:
-        write_summary(self.folder / "summary.json", summary)
+        """The whole run's summary in each of the session's folders."""
+        for folder in self.folders:
+            write_summary(folder / "summary.json", summary)
+
+
+_MOST_PARTS = 10_000  # a folder c2n cannot make beside the first this many times: stop trying
+
+
+def _new_beside(first: Path, number: int) -> Path:
+    """A new folder beside ``first`` for its part ``number`` (``<first>-part2``…), claimed by
+    making it: a folder or file already there is never entered."""
+    for n in range(number, number + _MOST_PARTS):
+        folder = first.with_name(f"{first.name}-part{n}")
+        try:
+            folder.mkdir()
+            return folder
+        except FileExistsError:
+            continue
+    raise OSError(errno.EEXIST, f"{_MOST_PARTS} folders named {first.name}-part… are taken")
 
 
 def _mount_of(path: Path) -> Path:

@@ -1,0 +1,180 @@
+"""A recording that reaches the largest file its disk holds (FAT32's 4 GiB, a USB stick's usual
+format: a busy bus's seven hours) goes on in a session folder of its own beside the first — not
+a frame lost, none twice, each part a session folder any command reads."""
+
+import errno
+import itertools
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+from typing import Any
+
+import can
+import pytest
+
+from app.config import Config
+from app.pipeline import Pipeline
+from app.sinks.recorder import SessionRecorder
+from app.sinks.summary import build
+from tests.simulated import cached_drive
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+class Capped:
+    """A file that holds at most ``cap`` bytes, as FAT32 holds 4 GiB: a write that crosses the
+    cap writes up to it, the next one fails with EFBIG."""
+
+    def __init__(self, file: Any, cap: int) -> None:
+        self.file, self.cap = file, cap
+
+    def write(self, data: memoryview) -> int:
+        room = self.cap - os.fstat(self.file.fileno()).st_size
+        if room <= 0:
+            raise OSError(errno.EFBIG, "File too large")
+        return int(self.file.write(data[:room]))
+
+    def fileno(self) -> int:
+        return int(self.file.fileno())
+
+    def close(self) -> None:
+        self.file.close()
+
+
+def _frames(count: int) -> list[can.Message]:
+    return cached_drive("constant_radius", 41, 15.1).messages[:count]
+
+
+def _same(got: list[can.Message], sent: list[can.Message], times: bool = True) -> None:
+    """The same frames in the same order; ``times``: with the times sent (a live bus gives its
+    own: then in order of arrival)."""
+    assert len(got) == len(sent)
+    for a, b in zip(got, sent, strict=True):
+        assert (a.arbitration_id, bytes(a.data)) == (b.arbitration_id, bytes(b.data))
+        if times:
+            assert a.timestamp == pytest.approx(b.timestamp, abs=1e-6)
+    if not times:
+        assert all(a.timestamp <= b.timestamp for a, b in itertools.pairwise(got))
+
+
+def test_a_log_as_large_as_its_disk_holds_goes_on_in_a_folder_beside_it(
+    tmp_path: Path, config: Config
+) -> None:
+    sent = _frames(3000)
+    recorder = SessionRecorder(tmp_path / "s", config)
+    noted: list[str] = []
+    recorder.on_note = noted.append
+    assert recorder._spool is not None
+    cap = 40_001  # not a line's end: the write that fills it ends mid-line
+    recorder._spool._file = Capped(recorder._spool._file, cap)  # type: ignore[assignment]
+    for i, msg in enumerate(sent):
+        recorder.on_frame(msg)
+        if i % 100 == 99:
+            recorder.flush()
+    recorder.close()
+    recorder.write_summary(build(Pipeline(config).snapshot(), config, ["virtual"]).warned(recorder.notes))
+    first, part = tmp_path / "s", tmp_path / "s-part2"
+    assert recorder.folders == [first, part] and recorder.problem is None
+    full = (first / "frames.log").read_bytes()
+    assert len(full) <= cap and full.endswith(b"\n")  # back to its last whole line
+    got = [*can.LogReader(first / "frames.log"), *can.LogReader(part / "frames.log")]
+    _same(got, sent)
+    for folder in (first, part):  # each a session folder
+        assert sorted(p.name for p in (folder / "config").iterdir()) == sorted(
+            p.name for p in (first / "config").iterdir()
+        )
+        assert (folder / "events.csv").read_text().startswith("t,event,")
+        warnings = json.loads((folder / "summary.json").read_text())["warnings"]
+        assert any(f"the recording goes on in {part}" in w for w in warnings)
+    assert noted == [
+        f"{first / 'frames.log'}: {len(full) / 1e6:.1f} MB, the largest file the disk of "
+        f"{noted[0].split('the disk of ')[1].split(' holds')[0]} holds — the recording goes on in {part}"
+    ]
+
+
+def test_a_part_folder_never_enters_one_already_there(tmp_path: Path, config: Config) -> None:
+    (tmp_path / "s-part2").mkdir()
+    (tmp_path / "s-part2" / "notes.txt").write_text("mine")
+    recorder = SessionRecorder(tmp_path / "s", config)
+    assert recorder._spool is not None
+    recorder._spool._file = Capped(recorder._spool._file, 5_000)  # type: ignore[assignment]
+    sent = _frames(500)
+    for msg in sent:
+        recorder.on_frame(msg)
+        recorder.flush()
+    recorder.close()
+    assert recorder.folders == [tmp_path / "s", tmp_path / "s-part3"]
+    assert [p.name for p in (tmp_path / "s-part2").iterdir()] == ["notes.txt"]
+    parts = [tmp_path / "s" / "frames.log", tmp_path / "s-part3" / "frames.log"]
+    _same([msg for part in parts for msg in can.LogReader(part)], sent)
+
+
+def test_an_asc_as_large_as_its_disk_holds_stops_and_says_why(tmp_path: Path, config: Config) -> None:
+    """An ASC file has a header a part would need again: it stops, and says what to do."""
+    recorder = SessionRecorder(tmp_path / "s", config, ".asc")
+    problems: list[str] = []
+    recorder.on_problem = problems.append
+    assert recorder._spool is not None
+    recorder._spool._file = Capped(recorder._spool._file, 20_000)  # type: ignore[assignment]
+    for msg in _frames(2000):
+        recorder.on_frame(msg)
+        recorder.flush()
+    recorder.close()
+    assert recorder.folders == [tmp_path / "s"]
+    assert len(problems) == 1
+    assert "the recording stopped — the file is as large as the disk of" in problems[0]
+    assert problems[0].endswith(
+        "the live numbers go on — record as .log (it goes on in a new folder), or onto an exFAT, "
+        "NTFS or ext4 disk"
+    )
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_FSIZE caps a file's size as FAT32 does")
+def test_live_on_a_disk_that_holds_small_files_records_every_frame_in_parts(tmp_path: Path) -> None:
+    """``c2n live`` itself, its files capped by the kernel (RLIMIT_FSIZE, as FAT32's 4 GiB) at
+    150 kB: every frame sent is in the parts, in order, and the run says where it went on."""
+    record, count = tmp_path / "sessions", 12_000
+    child = textwrap.dedent(
+        f"""
+        import os, resource, signal, sys, threading, time
+        sys.path.insert(0, {str(REPO)!r})
+        import can
+        from app.cli import main
+        from tests.simulated import cached_drive
+
+        RECORD = {str(record)!r}
+
+        def send():
+            while not (os.path.isdir(RECORD) and os.listdir(RECORD)):
+                time.sleep(0.01)
+            with can.Bus(interface="virtual", channel="parts") as bus:
+                for i, msg in enumerate(cached_drive("constant_radius", 41, 15.1).messages[:{count}]):
+                    bus.send(msg)
+                    if i % 8 == 7:
+                        time.sleep(0.002)
+            time.sleep(0.5)
+            os.kill(os.getpid(), signal.SIGINT)
+
+        resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, resource.RLIM_INFINITY))
+        threading.Thread(target=send, daemon=True).start()
+        sys.exit(main(["live", "-i", "virtual", "-c", "parts", "--record", RECORD]))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", child], capture_output=True, text=True, timeout=300, cwd=REPO
+    )
+    assert done.returncode == 0, done.stderr
+    folders = sorted(record.iterdir(), key=lambda p: (len(p.name), p.name))
+    assert len(folders) >= 4  # 12,000 frames of about 45 bytes in parts of 150 kB
+    assert [f.name for f in folders[1:]] == [f"{folders[0].name}-part{n}" for n in range(2, len(folders) + 1)]
+    got = [msg for folder in folders for msg in can.LogReader(folder / "frames.log")]
+    _same(got, _frames(count), times=False)
+    for folder in folders:
+        assert (folder / "frames.log").stat().st_size <= 150_000
+        assert (folder / "summary.json").exists() and list((folder / "config").glob("*.toml"))
+    said = " ".join(done.stdout.split())
+    assert f"the recording goes on in {folders[1]}" in said
+    assert "session saved in " + ", ".join(str(f) for f in folders) in said

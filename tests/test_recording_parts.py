@@ -20,6 +20,7 @@ from app.pipeline import Pipeline
 from app.sinks.recorder import SessionRecorder
 from app.sinks.summary import build
 from tests.simulated import cached_drive
+from tests.test_reliability_inputs import run_cli
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -95,6 +96,33 @@ def test_a_log_as_large_as_its_disk_holds_goes_on_in_a_folder_beside_it(
     ]
 
 
+def test_the_parts_read_as_the_one_drive_they_are(tmp_path: Path, config: Config) -> None:
+    """``c2n analyze A/frames.log A-part2/frames.log --config A/config/…`` gives what the whole
+    recording gives."""
+    whole = SessionRecorder(tmp_path / "whole", config)
+    split = SessionRecorder(tmp_path / "split", config)
+    assert split._spool is not None
+    split._spool._file = Capped(split._spool._file, 2_000_000)  # type: ignore[assignment]
+    for i, msg in enumerate(cached_drive("constant_radius", 41, 15.1).messages):
+        whole.on_frame(msg)
+        split.on_frame(msg)
+        if i % 500 == 499:
+            whole.flush()
+            split.flush()
+    whole.close()
+    split.close()
+    assert len(split.folders) >= 2
+    copy = str(tmp_path / "split" / "config" / config.path.name)
+    results = []
+    for logs in ([tmp_path / "whole" / "frames.log"], [f / "frames.log" for f in split.folders]):
+        out = tmp_path / f"{len(logs)}.json"
+        code, _, err = run_cli(["analyze", *map(str, logs), "--config", copy, "--json", str(out)])
+        assert code == 0, err
+        results.append(json.loads(out.read_text()))
+    assert results[1]["c2n"] == results[0]["c2n"] and results[1]["c2n_ci95"] == results[0]["c2n_ci95"]
+    assert results[1]["frames"]["total"] == results[0]["frames"]["total"]
+
+
 def test_a_part_folder_never_enters_one_already_there(tmp_path: Path, config: Config) -> None:
     (tmp_path / "s-part2").mkdir()
     (tmp_path / "s-part2" / "notes.txt").write_text("mine")
@@ -144,6 +172,7 @@ def test_live_on_a_disk_that_holds_small_files_records_every_frame_in_parts(tmp_
         import can
         from app.cli import main
         from tests.simulated import cached_drive
+from tests.test_reliability_inputs import run_cli
 
         RECORD = {str(record)!r}
 

@@ -161,10 +161,31 @@ def test_two_dbcs_of_one_name_are_both_kept_in_a_session_and_it_exports(tmp_path
     assert sorted(p.name for p in (session / "config").iterdir()) == ["car-2.dbc", "car.dbc", "car.toml"]
     copy = load_config(session / "config" / "car.toml", dbc_dir=session / "config")
     assert [d.path.read_bytes() for d in copy.dbcs] == [d.path.read_bytes() for d in config.dbcs]
+    alone = load_config(session / "config" / "car.toml")  # the copy names the DBCs beside it
+    assert [d.path for d in alone.dbcs] == [session / "config" / "car.dbc", session / "config" / "car-2.dbc"]
+    assert [d.path.read_bytes() for d in alone.dbcs] == [d.path.read_bytes() for d in config.dbcs]
     code, _, err = run_cli(["export", str(session), "--no-plots", "--format", "csv"])
     assert code == 0 and "Traceback" not in err
     summary = json.loads((session / "export" / "summary.json").read_text())
     assert summary["frames"]["total"] == len(frames) and summary["c2n"] == pytest.approx(15.1, rel=0.02)
+
+
+def test_a_session_s_config_copy_reads_the_session_by_itself(tmp_path: Path) -> None:
+    """The shipped config names its DBCs as ``../dbc/…``; its copy in a session names them beside
+    it, so ``--config SESSION/config/mondeo.toml`` reads the session as recorded (was: DBC file
+    not found — only ``c2n export SESSION`` could use it)."""
+    from app.config import load_config
+    from app.sinks.recorder import SessionRecorder
+
+    session = tmp_path / "session"
+    recorder = SessionRecorder(session, load_config(REPO / "config" / "mondeo.toml"))
+    for m in cached_drive("constant_radius", 41, 15.1).messages:
+        recorder.on_frame(m)
+    recorder.close()
+    argv = ["analyze", str(session / "frames.log"), "--config", str(session / "config" / "mondeo.toml")]
+    code, _, err = run_cli([*argv, "--json", str(tmp_path / "s.json")])
+    assert code == 0, err
+    assert json.loads((tmp_path / "s.json").read_text())["c2n"] == pytest.approx(15.1, rel=0.02)
 
 
 def _export(log: Path, out: Path, *options: str) -> tuple[int, str]:

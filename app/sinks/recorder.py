@@ -187,9 +187,10 @@ _TEXT_WRITERS: dict[str, Any] = {".log": _CandumpWriter, ".asc": can.ASCWriter}
 
 
 def copy_config(config: Config, copies: Path) -> None:
-    """The config and its DBCs side by side in ``copies`` (a new folder). Two DBCs of one name
-    (from different folders) are both kept, the second as ``name-2.dbc``, and the config copy
-    names them so."""
+    """The config and its DBCs side by side in ``copies`` (a new folder), the copy naming each
+    DBC by its name beside it: ``--config SESSION/config/car.toml`` reads the session as it was
+    recorded. Two DBCs of one name (from different folders) are both kept, the second as
+    ``name-2.dbc``."""
     copies.mkdir()
     names: dict[Path, str] = {}
     for dbc in config.dbcs:
@@ -202,8 +203,10 @@ def copy_config(config: Config, copies: Path) -> None:
     files = tomllib.loads(text).get("dbc", {}).get("files", [])
     for given in files:
         renamed = names.get((config.path.parent / given).resolve())
-        if renamed is not None and renamed != Path(given).name:  # the copy's config says so
-            text = text.replace(f'"{given}"', json.dumps(renamed)).replace(f"'{given}'", json.dumps(renamed))
+        if renamed is not None and renamed != given:  # the copy's config names the copy beside it
+            # as the file spells it: a literal string, a basic one (backslashes escaped)
+            for spelt in (f"'{given}'", f'"{given}"', json.dumps(given, ensure_ascii=False)):
+                text = text.replace(spelt, json.dumps(renamed, ensure_ascii=False))
     (copies / config.path.name).write_text(text, encoding="utf-8")
 
 

@@ -240,3 +240,29 @@ def test_files_open_in_their_tools_without_loss(exported: Path, tmp_path: Path) 
     assert rows[0] == header
     again = np.array([[float(v.replace(",", ".")) if v else math.nan for v in row] for row in rows[1:]])
     np.testing.assert_array_equal(again, values)
+
+
+def test_a_csv_longer_than_a_spreadsheet_s_sheet_says_so(
+    exported: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A long session's channels.csv opened in Excel or LibreOffice shows its first 1,048,575
+    rows: the export says so, where it is longer (the sheet's size lowered to this drive's)."""
+    import app.cli.export
+
+    assert app.cli.export.SPREADSHEET_ROWS == 1_048_575  # a 1,048,576-row sheet, its header one
+    rows = len((exported / "channels.csv").read_bytes().splitlines()) - 1
+    log = exported.parent / "drive.blf"
+
+    def warned(sheet: int, fmt: str) -> str:
+        monkeypatch.setattr(app.cli.export, "SPREADSHEET_ROWS", sheet)
+        err = io.StringIO()
+        out = tmp_path / f"{sheet}-{fmt}"
+        with redirect_stdout(io.StringIO()), redirect_stderr(err):
+            assert main(["export", str(log), "--out", str(out), "--no-plots", "--format", fmt]) == 0
+        return err.getvalue()
+
+    said = warned(rows - 1, "csv")
+    assert f"channels.csv holds {rows:,} rows: a spreadsheet opens the first {rows - 1:,}" in said
+    assert "use channels.parquet or channels.mf4" in said
+    assert "spreadsheet" not in warned(rows, "csv")
+    assert "spreadsheet" not in warned(rows - 1, "parquet")

@@ -63,6 +63,9 @@ def _inputs(args: argparse.Namespace) -> tuple[Path, Config, Path]:
     return path, config, args.out or path.with_name(f"{path.stem}-export")
 
 
+# the rows of data a spreadsheet's sheet holds below the header (Excel's and LibreOffice's 2²⁰)
+SPREADSHEET_ROWS = 2**20 - 1
+
 # The plots' names (app.sinks.plots.PLOTS; named here so that --no-plots does not import matplotlib)
 PLOT_NAMES = ("sideslip_vs_speed.png", "vr_vs_u2.png", "c2n_per_crossing.png", "timeseries.png")
 
@@ -160,6 +163,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
     errors = error_console()
     for warning in result.warnings:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
+    if "csv" in formats and len(trace) > SPREADSHEET_ROWS:
+        errors.print(
+            f"c2n: warning: channels.csv holds {len(trace):,} rows: a spreadsheet opens the first "
+            f"{SPREADSHEET_ROWS:,} (Excel's and LibreOffice's sheet) — read it with pandas or "
+            "polars, or use channels.parquet or channels.mf4",
+            markup=False,
+        )
     console.print(f"{len(trace):,} rows × {len(trace.channels)} channels → {shown(out)}", style="dim")
     for path in written:
         console.print(f"  {shown(path.name)}", style="dim")

@@ -172,7 +172,6 @@ def test_live_on_a_disk_that_holds_small_files_records_every_frame_in_parts(tmp_
         import can
         from app.cli import main
         from tests.simulated import cached_drive
-from tests.test_reliability_inputs import run_cli
 
         RECORD = {str(record)!r}
 

@@ -302,8 +302,8 @@ def test_live_on_a_full_disk_says_what_was_kept_and_the_numbers_go_on(
     if raw_format == ".log":
         opened = rec._Spool.__init__
 
-        def spool(self: rec._Spool, path: Path) -> None:
-            opened(self, path)
+        def spool(self: rec._Spool, path: Path, **options: bool) -> None:
+            opened(self, path, **options)
             self._file = _FullDisk(self._file, room)  # type: ignore[assignment]
 
         monkeypatch.setattr(rec._Spool, "__init__", spool)

@@ -27,6 +27,7 @@ from app.cli.common import (
 )
 from app.config import load_config
 from app.errors import C2nError, OutputError, printable
+from app.output.files import new_folder
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
 from app.user_text import shown
 
@@ -109,13 +110,10 @@ def session_folder(parent: Path, now: Callable[[], datetime.datetime] = datetime
     stamp = now().strftime("%Y-%m-%d_%H%M%S")
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        for n in range(1, _MOST_IN_ONE_SECOND + 1):
-            folder = parent / (stamp if n == 1 else f"{stamp}-{n}")
-            try:
-                folder.mkdir()
-                return folder
-            except FileExistsError:  # another session's, or anything else: the next name
-                continue
+        names = (stamp if n == 1 else f"{stamp}-{n}" for n in range(1, _MOST_IN_ONE_SECOND + 1))
+        folder = new_folder(parent / name for name in names)
+        if folder is not None:
+            return folder
     except OSError as error:
         raise OutputError(
             f"{parent}: cannot record the session ({error.strerror}) — use --record DIR"

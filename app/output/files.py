@@ -15,12 +15,24 @@ import shutil
 import signal
 import sys
 import uuid
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from app.errors import OutputError
 from app.output.durable import synced, synced_tree
+
+
+def new_folder(candidates: Iterable[Path]) -> Path | None:
+    """The first of ``candidates`` made new, claimed by making it (two runs never share one); a
+    folder or file already there is never entered. None where every one is taken."""
+    for folder in candidates:
+        try:
+            folder.mkdir()
+            return folder
+        except FileExistsError:
+            continue
+    return None
 
 
 def partial_path(path: Path) -> Path:

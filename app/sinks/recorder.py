@@ -24,6 +24,7 @@ from can.util import channel2int
 from app.config import Config
 from app.errors import C2nError, OutputError
 from app.output.durable import PeriodicSync, synced, synced_tree
+from app.output.files import new_folder
 from app.records import Crossing, CrossingRejected, Event
 from app.sinks.events_csv import EventsTable
 from app.sinks.sink import Sink
@@ -379,14 +380,10 @@ _MOST_PARTS = 10_000  # a folder c2n cannot make beside the first this many time
 def _new_beside(first: Path, number: int) -> Path:
     """A new folder beside ``first`` for its part ``number`` (``<first>-part2``…), claimed by
     making it: a folder or file already there is never entered."""
-    for n in range(number, number + _MOST_PARTS):
-        folder = first.with_name(f"{first.name}-part{n}")
-        try:
-            folder.mkdir()
-            return folder
-        except FileExistsError:
-            continue
-    raise OSError(errno.EEXIST, f"{_MOST_PARTS} folders named {first.name}-part… are taken")
+    folder = new_folder(first.with_name(f"{first.name}-part{n}") for n in range(number, number + _MOST_PARTS))
+    if folder is None:
+        raise OSError(errno.EEXIST, f"{_MOST_PARTS} folders named {first.name}-part… are taken")
+    return folder
 
 
 def _mount_of(path: Path) -> Path:

@@ -500,7 +500,12 @@ def _load_dbcs(path: Path, table: dict[str, Any], dbc_dir: Path | None) -> tuple
     channels = _section(path, table, "channels")
 
     def locate(name: str) -> Path:
-        return (dbc_dir / Path(name).name).resolve() if dbc_dir else (path.parent / name).resolve()
+        where = dbc_dir / Path(name).name if dbc_dir else path.parent / name
+        try:
+            return where.resolve()
+        except (OSError, RuntimeError) as error:  # a link that leads to itself (RuntimeError to 3.12)
+            why = error.strerror if isinstance(error, OSError) and error.strerror else "a symbolic link loop"
+            raise ConfigError(f"{path}: [dbc] files: {where} cannot be read ({why})") from error
 
     resolved = {name: locate(name) for name in files}
     for key, channel in channels.items():

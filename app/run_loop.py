@@ -91,6 +91,11 @@ def run(
         for sink in reversed(sinks):  # closed in order, each even when one before it failed
             if overrides(sink, "close"):
                 closing.callback(sink.close)
+        if isinstance(live, Live) and console is not None and console.soft_wrap:
+            # the display is laid out to the terminal's width, its long lines wrapped: under a
+            # console's soft wrap (the command's lines are one line each) rich cut them instead
+            closing.callback(setattr, console, "soft_wrap", True)
+            console.soft_wrap = False
         with live:
             next_refresh = next_flush = clock()
             try:

@@ -15,7 +15,7 @@ from app.estimate.motion_model import FilterCounts
 from app.paper import crossing_speed
 from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.combine import Combined
-from app.results.headline import Headline
+from app.results.headline import Headline, Method
 from app.results.pairing import Paired
 from app.results.refusal import (
     d_witnessed,
@@ -30,6 +30,8 @@ from app.results.refusal import (
 from app.results.regression import RegressionFit
 from app.results.sideslip_profile import ProfileView
 from app.results.support import unsteady_crossings
+
+_FITTED = (Method.REGRESSION, Method.QUASI_STEADY)  # headlines that are a regression's C2n
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,8 +154,12 @@ class Snapshot:
 
     @property
     def u0_mps(self) -> float | None:
-        """The crossing speed the headline C2n stands for (paper eq. 7: u0 = √(C2n·g·d))."""
-        headline = self.headline
-        if headline is None or headline.c2n * self.g_mps2 * self.d_m < 0:
+        """The crossing speed the headline C2n stands for (paper eq. 7: u0 = √(C2n·g·d)), with the d
+        it rests on: a fit's own (a sensor 1.5 m ahead where the config says 1.11: the sideslip
+        changes sign at √(C2n·g·1.5), not at the config's speed), else the config's."""
+        headline, fit = self.headline, self.fit
+        on_fit = fit is not None and headline is not None and headline.method in _FITTED
+        d_m = fit.d.m if on_fit and fit is not None else self.d_m
+        if headline is None or headline.c2n * self.g_mps2 * d_m < 0:
             return None
-        return crossing_speed(headline.c2n, self.d_m, self.g_mps2)
+        return crossing_speed(headline.c2n, d_m, self.g_mps2)

@@ -121,6 +121,17 @@ def test_d_disagrees_with_the_config(config: Config) -> None:
     assert advice.d_disagrees(_findings(config, near)) is None
 
 
+def test_a_d_apart_from_the_tape_is_not_said_to_rest_on_it(config: Config) -> None:
+    """A fit whose d lies apart from the config's (the warning above says so) does not rest on
+    the tape, whatever its information: the two warnings said opposite things of one drive."""
+    weak = DResult(m=config.d_m, ci95_m=(config.d_m - 0.01, config.d_m + 0.01), information=0.7)
+    said = advice.d_from_tape(_findings(config, replace(FIT, d=weak)))
+    assert said is not None and "rests on the config's" in said
+    apart = replace(weak, m=config.d_m + 0.39, ci95_m=(config.d_m + 0.38, config.d_m + 0.40))
+    assert advice.d_from_tape(_findings(config, replace(FIT, d=apart))) is None
+    assert advice.d_disagrees(_findings(config, replace(FIT, d=apart))) is not None
+
+
 def test_no_sign_change_found(config: Config) -> None:
     said = advice.no_crossing(_findings(config, None, started=True))
     assert said == (

@@ -67,6 +67,11 @@ def test_analyze_prints_each_crossing_then_the_result_and_writes_json(
         (["analyze", "{log}", "--config", "{tmp}/none.toml"], "none.toml: config file not found"),
         (["simulate", "--out", "{tmp}/x.txt"], "unknown log format '.txt'"),
         (["live", "-i", "nosuchinterface", "-c", "x", "--no-record"], "cannot open"),
+        # was: "sent 0 frames", exit 0
+        (
+            ["replay", "{tmp}/garbage.log", "-i", "virtual", "-c", "g"],
+            "not a readable log, damaged from the start",
+        ),
     ],
 )
 def test_user_errors_are_one_line_and_exit_1(
@@ -74,6 +79,7 @@ def test_user_errors_are_one_line_and_exit_1(
 ) -> None:
     (tmp_path / "x.json").write_text("{}")
     (tmp_path / "empty.log").write_text("")
+    (tmp_path / "garbage.log").write_text("garbage\n")
     argv = [a.replace("{tmp}", str(tmp_path)).replace("{log}", str(drive_log)) for a in args]
     assert main(argv, console()) == 1
     assert message in one_error_line(capsys.readouterr().err)
@@ -86,6 +92,12 @@ def test_bad_usage_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert "usage" in capsys.readouterr().err
     assert main(["live", "-i", "virtual", "-c", "x", "--no-record", "--bus-arg", "foo"]) == 2
     assert one_error_line(capsys.readouterr().err) == "c2n: error: --bus-arg wants KEY=VALUE, got 'foo'"
+    # one channel twice: every frame read, recorded and decoded twice, the sweeps lost to the
+    # times going back and forth (it ran so)
+    assert main(["live", "-i", "virtual", "-c", "x", "-c", "y", "-c", "x", "--no-record"]) == 2
+    assert (
+        one_error_line(capsys.readouterr().err) == "c2n: error: -c x is given twice — name each channel once"
+    )
 
 
 def test_an_output_error_names_the_file_and_debug_shows_its_cause(

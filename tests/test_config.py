@@ -153,6 +153,16 @@ def test_channels_must_name_a_listed_dbc(write_config: Callable[[str], Path]) ->
         load_config(write_config(GOOD + '\n[channels]\n"other.dbc" = 1\n'))
 
 
+def test_a_dbc_that_is_a_link_loop_is_one_line(write_config: Callable[[str], Path], tmp_path: Path) -> None:
+    """A DBC entry that is a symbolic link leading to itself: a config error naming it (it was a
+    RuntimeError's traceback from the path's resolution)."""
+    (tmp_path / "a.dbc").symlink_to(tmp_path / "b.dbc")
+    (tmp_path / "b.dbc").symlink_to(tmp_path / "a.dbc")
+    text = GOOD.replace("{dbc}/kistler_smotion.dbc", str(tmp_path / "a.dbc"))
+    with pytest.raises(ConfigError, match=re.escape("[dbc] files: ") + ".*a.dbc cannot be read"):
+        load_config(write_config(text))
+
+
 def test_settings_sections_are_typed(write_config: Callable[[str], Path]) -> None:
     config = load_config(
         write_config(GOOD + '\n[detector]\nay_max_mps2 = 3\n[filter]\nsideslip_source = "vy"\n')

@@ -4,8 +4,10 @@ from dataclasses import replace
 
 from rich.console import Console
 
+from app.config import Config
 from app.pipeline import Pipeline
 from app.records import Reason, SteadyState
+from app.sim.simulated_drive import SimulatedDrive
 from app.sinks.dashboard import Dashboard, guidance
 
 
@@ -170,3 +172,24 @@ def test_the_sideslip_plot_draws_eq_6_with_its_zero_crossing_at_u0() -> None:
             if abs(u - u0) > 0.3:
                 assert (k < zero) == (u < u0), (k, u)
     assert math.isclose(float(lines[-1].split()[0]), u_lo, abs_tol=0.05)
+
+
+def test_a_live_dashboard_wraps_its_long_lines_on_the_commands_console(
+    config: Config, drive: SimulatedDrive
+) -> None:
+    """The run loop draws the dashboard on the command's own console, which soft-wraps (a line of
+    words is one line): the compact layout's C2n line, longer than 80 columns, is wrapped there —
+    u0 and the paired crossings shown — not cut after "steady samples" (it was)."""
+    import io
+
+    from app.run_loop import run
+    from tests.simulated import run_pipeline
+
+    analysed = run_pipeline(config, drive)  # its own: the loop finishes it again
+    console = Console(
+        file=io.StringIO(), force_terminal=True, width=80, height=24, soft_wrap=True, record=True
+    )
+    run(iter(()), analysed, display=Dashboard("t"), console=console)
+    text = console.export_text()
+    assert "u0 = " in text and "paired crossings" in text
+    assert console.soft_wrap  # the command's lines after it are soft-wrapped again

@@ -17,7 +17,7 @@ from app.pipeline import Pipeline
 from app.run_loop import run
 from app.sim.simulated_drive import write_drive
 from app.sinks import summary
-from app.sources.buses import _DRAIN_S, BusSource
+from app.sources.buses import BusSource
 from app.sources.logs import LogSource
 from tests.simulated import EventLog, cached_drive
 
@@ -209,12 +209,48 @@ def test_a_drive_taken_ten_times_too_fast_is_said_to_be_a_replay(tmp_path: Path)
     assert "--rate" in hint
 
 
+class _Endless(can.BusABC):
+    """A bus that always holds one more frame: faster than any reader."""
+
+    def __init__(self, channel: str) -> None:
+        super().__init__(channel=channel)
+        self.channel_info = channel
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message, bool]:
+        return can.Message(arbitration_id=0x300, timestamp=time.time()), False
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        pass
+
+
 @pytest.mark.parametrize("buses", [1, 2])
-def test_a_stop_keeps_the_frames_that_arrived_before_it(buses: int) -> None:
+def test_a_bus_faster_than_the_reader_ends_the_stop_and_says_what_is_unread(
+    buses: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A stop reads what waits until the buses are empty; a bus that never is (it sends faster
+    than c2n reads) ends it after ``_DRAIN_S``, and the session's losses say the frames it still
+    held are not in it (they were dropped without a word)."""
+    monkeypatch.setattr("app.sources.buses._DRAIN_S", 0.5)
+    stop = threading.Event()
+    source = BusSource([_Endless(f"endless-{i}") for i in range(buses)], stop)
+    started = time.monotonic()
+    read = 0
+    for msg in source:
+        read += msg is not None
+        stop.set()
+    assert time.monotonic() - started < 0.5 + 2.0  # the receive threads' 1-s stop, slack
+    assert read > 100  # it read on after the stop
+    [lost] = source.losses
+    assert "faster than c2n reads" in lost and "not in the session" in lost
+
+
+@pytest.mark.parametrize("buses", [1, 2])
+def test_a_stop_keeps_the_frames_that_arrived_before_it(buses: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """A reader behind its bus (a loaded laptop) holds frames that arrived before the stop: Ctrl-C
     or --duration's end gives them all, from one bus read in this thread and from two read by
     receive threads, then ends — and a bus that goes on sending after the stop ends it within
-    ``_DRAIN_S``, not never."""
+    ``_DRAIN_S`` (shortened here), not never."""
+    monkeypatch.setattr("app.sources.buses._DRAIN_S", 1.0)
     channels = [f"backlog-{uuid.uuid4().hex}" for _ in range(buses)]
     receivers = [can.Bus(interface="virtual", channel=c) for c in channels]
     senders = [can.Bus(interface="virtual", channel=c) for c in channels]
@@ -244,7 +280,7 @@ def test_a_stop_keeps_the_frames_that_arrived_before_it(buses: int) -> None:
         finally:
             flooding.set()
             sender.join()
-        assert time.monotonic() - started < _DRAIN_S + 2.0  # the receive threads' 1-s stop, slack
+        assert time.monotonic() - started < 1.0 + 2.0  # the receive threads' 1-s stop, slack
     finally:
         for bus in receivers + senders:
             bus.shutdown()

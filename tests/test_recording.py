@@ -3,11 +3,9 @@
 import io
 import json
 import os
+import shutil
 import signal
-import subprocess
-import sys
 import time
-import uuid
 from pathlib import Path
 
 import can
@@ -16,37 +14,10 @@ import pytest
 from app.cli import main
 from app.config import load_config
 from app.sinks.recorder import SessionRecorder
-from tests.simulated import REPO, cached_drive
+from tests.live_process import start_live, wait_for_lines
+from tests.simulated import cached_drive
 
 FLUSH_DEADLINE_S = 0.1  # every frame sent this long before a crash must be on disk
-
-
-def start_live(tmp_path: Path, raw_format: str) -> tuple[subprocess.Popen[bytes], Path, Path]:
-    record, sent = tmp_path / "sessions", tmp_path / "sent.txt"
-    child = subprocess.Popen(
-        [
-            sys.executable,
-            str(REPO / "tests" / "live_child.py"),
-            f"kill-{uuid.uuid4().hex}",
-            str(record),
-            str(sent),
-            raw_format,
-        ],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
-    return child, record, sent
-
-
-def wait_for_lines(path: Path, n: int, child: subprocess.Popen[bytes], timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if path.exists() and path.read_bytes().count(b"\n") >= n:
-            return
-        assert child.poll() is None, child.stderr.read().decode() if child.stderr else ""
-        time.sleep(0.02)
-    pytest.fail(f"the live process sent fewer than {n} frames in {timeout_s} s")
 
 
 @pytest.mark.parametrize("raw_format", [".log", ".asc", ".blf"])
@@ -118,10 +89,15 @@ def test_sigterm_finishes_every_file(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("raw_format", [".log", ".asc", ".blf"])
-@pytest.mark.parametrize("channel", ["can0", "vcan70000", "kill-3f9a1234567890", 3, None])
+@pytest.mark.parametrize(
+    "channel",
+    ["can0", "vcan70000", "kill-3f9a1234567890", 3, None, "Serial interface: loop://", "my chan", "", " "],
+)
 def test_any_channel_name_records_every_frame(tmp_path: Path, raw_format: str, channel: object) -> None:
     """A bus's channel name ends up in the log; one whose number does not fit the format's channel
-    field (BLF's is 16 bits) must not stop the recording."""
+    field (BLF's is 16 bits) must not stop the recording, and one with spaces (python-can's serial
+    interface names its frames' channel by its description) must not make a candump log
+    unreadable."""
     config = load_config()
     recorder = SessionRecorder(tmp_path / "session", config, raw_format)
     sent = cached_drive("constant_radius", 41, 15.1).messages[:500]
@@ -167,3 +143,33 @@ def test_candump_lines_are_python_cans_own_bytes(tmp_path: Path) -> None:
         writer.on_message_received(message)
     assert recorder.raw_path.read_text() == reference.getvalue()
     assert reference.getvalue().count("\n") == 27
+
+
+@pytest.mark.parametrize("raw_format", [".log", ".blf"])
+def test_a_session_folder_deleted_while_recording_is_said_and_not_made_again(
+    tmp_path: Path, raw_format: str
+) -> None:
+    """`rm -rf c2n-sessions/*` while a session records: the recorder says its log was deleted (the
+    session said "saved in" it, and its summary made the folder again, holding nothing but a
+    summary of frames that were gone)."""
+    from app.sinks.summary import build
+    from tests.simulated import run_pipeline
+
+    config = load_config()
+    drive = cached_drive("constant_radius", 41, 15.1)
+    recorder = SessionRecorder(tmp_path / "session", config, raw_format)
+    said: list[str] = []
+    recorder.on_problem = said.append
+    for msg in drive.messages[:200]:
+        recorder.on_frame(msg)
+    recorder.flush()
+    assert said == []
+    shutil.rmtree(tmp_path / "session")
+    for msg in drive.messages[200:400]:
+        recorder.on_frame(msg)
+    recorder.flush()
+    recorder.close()
+    [problem] = said
+    assert "deleted while the session recorded it" in problem and recorder.problem == problem
+    recorder.write_summary(build(run_pipeline(config, drive).snapshot(), config, ["drive"]))
+    assert not (tmp_path / "session").exists()

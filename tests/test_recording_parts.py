@@ -15,9 +15,10 @@ from typing import Any
 import can
 import pytest
 
+from app.campaign.analysis import Job, where
 from app.config import Config
 from app.pipeline import Pipeline
-from app.sinks.recorder import SessionRecorder
+from app.sinks.recorder import SessionRecorder, read_session
 from app.sinks.summary import build
 from tests.simulated import cached_drive
 from tests.test_reliability_inputs import run_cli
@@ -121,6 +122,16 @@ def test_the_parts_read_as_the_one_drive_they_are(tmp_path: Path, config: Config
         results.append(json.loads(out.read_text()))
     assert results[1]["c2n"] == results[0]["c2n"] and results[1]["c2n_ci95"] == results[0]["c2n_ci95"]
     assert results[1]["frames"]["total"] == results[0]["frames"]["total"]
+    # the session folder alone is the whole session: `c2n export` and a campaign read every part
+    # (they read the first alone: 43,115 of 119,522 frames, another C2n, without a word)
+    code, _, err = run_cli(["export", str(tmp_path / "split"), "--no-plots", "--format", "csv"])
+    assert code == 0, err
+    exported = json.loads((tmp_path / "split" / "export" / "summary.json").read_text())
+    assert (
+        exported["c2n"] == results[0]["c2n"] and exported["frames"]["total"] == results[0]["frames"]["total"]
+    )
+    raws, _, _ = where(Job(tmp_path / "split", None))
+    assert raws == [f / "frames.log" for f in split.folders]
 
 
 def test_a_part_folder_never_enters_one_already_there(tmp_path: Path, config: Config) -> None:
@@ -138,6 +149,9 @@ def test_a_part_folder_never_enters_one_already_there(tmp_path: Path, config: Co
     assert [p.name for p in (tmp_path / "s-part2").iterdir()] == ["notes.txt"]
     parts = [tmp_path / "s" / "frames.log", tmp_path / "s-part3" / "frames.log"]
     _same([msg for part in parts for msg in can.LogReader(part)], sent)
+    # a session of the user's own named so, frames and all, is not taken for a part of it
+    (tmp_path / "s-part2" / "frames.log").write_text("(1.000000) can0 123#00 R\n")
+    assert read_session(tmp_path / "s")[0] == parts
 
 
 def test_an_asc_as_large_as_its_disk_holds_stops_and_says_why(tmp_path: Path, config: Config) -> None:

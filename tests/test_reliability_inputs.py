@@ -153,6 +153,7 @@ def test_a_config_that_is_not_utf8_is_one_line(drive_log: Path, tmp_path: Path) 
         ["simulate", "--pack", "0"],
         ["live", "-i", "virtual", "-c", "nobody", "--no-record", "--duration", "-1"],
         ["replay", str(REPO / "README.md"), "-i", "virtual", "--rate", "0"],
+        ["replay", str(REPO / "README.md"), "-i", "virtual", "--rate", "1e-300"],  # was: OverflowError
         ["demo", "--speedup", "nan"],
         ["gap-check", str(REPO), "--workers", "0"],
     ],

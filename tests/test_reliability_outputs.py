@@ -154,6 +154,24 @@ def test_an_output_folder_takes_the_umask_s_mode(tmp_path: Path) -> None:
     assert (tmp_path / "out").stat().st_mode & 0o777 == 0o755
 
 
+def test_a_users_folder_filled_keeps_who_may_use_it(tmp_path: Path) -> None:
+    """`export --out shared` where `shared` is a user's empty folder, private to a group (setgid,
+    0770) and of that group: the folder an export puts in its place has its mode and group (it
+    had the umask's 0755 and the user's own group: a group's folder opened to all, closed to the
+    group)."""
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    group = next((g for g in os.getgroups() if g != os.getegid()), None) if os.geteuid() else 1
+    if group is not None:
+        os.chown(shared, -1, group)
+    os.chmod(shared, 0o2770)
+    with folder_atomically(shared, lambda name: True, "c2n export") as staging:
+        (staging / "a").write_text("x")
+    after = shared.stat()
+    assert after.st_mode & 0o7777 == 0o2770 and (shared / "a").read_text() == "x"
+    assert after.st_gid == (group if group is not None else os.getegid())
+
+
 def test_every_html_page_carries_c2n_s_marker(day: Path) -> None:
     from app.sinks.html import page
 

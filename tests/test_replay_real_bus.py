@@ -55,7 +55,7 @@ def test_a_replay_onto_a_real_interface_is_refused_before_any_bus_opens(
     assert code == 2
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith("c2n: error: pcan PCAN_USBBUS1: is not a virtual bus")
-    assert "replay onto -i virtual or -i socketcan -c vcan0, or add --real-bus to send there" in err
+    assert "replay onto -i socketcan -c vcan0 (a virtual SocketCAN bus), or add --real-bus" in err
     assert opened == []
 
 

@@ -43,23 +43,31 @@ class Job:
     config: Path | None  # --config; None: a session folder's own copy, else the default
 
 
-def where(job: Job) -> tuple[Path, Path, Path | None]:
-    """The log file, the config file and the folder its DBCs are taken from (a session's copy)."""
+def where(job: Job) -> tuple[list[Path], Path, Path | None]:
+    """The log files (a session's: its own, then its parts'), the config file and the folder its
+    DBCs are taken from (a session's copy)."""
     if job.log.is_dir():
-        raw, copy = read_session(job.log)
+        raws, copy = read_session(job.log)
         if job.config is not None:
-            return raw, job.config, None
-        return raw, copy, copy.parent
-    return job.log, job.config or DEFAULT_CONFIG, None
+            return raws, job.config, None
+        return raws, copy, copy.parent
+    return [job.log], job.config or DEFAULT_CONFIG, None
+
+
+def logs_hash(raws: list[Path], hash_one: Callable[[Path], str]) -> str:
+    """A drive's logs' hash: its one log's, or a session's parts' in order, each hashed alone (a
+    part's hash is remembered as a log's is)."""
+    return "+".join(hash_one(raw) for raw in raws)
 
 
 def content_hash(paths: list[Path]) -> str:
     """BLAKE2b over the files' bytes, in order (a log, or a config and its DBCs). Only regular
     files, and only the bytes they held when opened: a device (``/dev/zero``) or a pipe would
-    never end, a log still being written would never be the same twice."""
+    never end, a log still being written would never be the same twice. Opened without waiting
+    (O_NONBLOCK): opening a pipe to read waits for a writer, which would never come."""
     digest = hashlib.blake2b(digest_size=16)
     for path in paths:
-        with path.open("rb") as file:
+        with os.fdopen(os.open(path, os.O_RDONLY | os.O_NONBLOCK), "rb") as file:
             status = os.fstat(file.fileno())
             if not stat.S_ISREG(status.st_mode):
                 raise C2nError(f"{path}: not a regular file (a device or a pipe) — name a log file")
@@ -84,9 +92,9 @@ def analyse(job: Job) -> SessionRow:
     the ``seconds`` it took and the worker's peak memory."""
     started = time.perf_counter()
     try:
-        raw, config_path, dbc_dir = where(job)
+        raws, config_path, dbc_dir = where(job)
         config = load_config(config_path, dbc_dir=dbc_dir)
-        row = _analysed(raw, config)
+        row = _analysed(raws, config)
     except C2nError as error:
         row = SessionRow(error=printable(str(error)))
     except Exception as error:  # a worker's boundary: the row carries it, the campaign goes on
@@ -97,17 +105,18 @@ def analyse(job: Job) -> SessionRow:
     return replace(row, seconds=round(time.perf_counter() - started, 3), worker_peak_mib=peak)
 
 
-def _analysed(raw: Path, config: Config) -> SessionRow:
+def _analysed(raws: list[Path], config: Config) -> SessionRow:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
     from app.sources.logs import LogSource, drive_identity
 
     pipeline = Pipeline(config)
-    source = LogSource([raw], triage=pipeline.decoder)
+    raw = raws[0]  # the drive's name in its errors: the log, or a session's first part
+    source = LogSource(raws, triage=pipeline.decoder)
     run_pipeline(source.items(blocks=True), pipeline, [], blocks=True)
     snapshot = pipeline.snapshot()
-    written = summary.build(snapshot, config, [str(raw)], source.notes)
+    written = summary.build(snapshot, config, [str(r) for r in raws], source.notes)
     missing = summary.missing_required(snapshot, config)
     error = printable(f"{raw}: {missing}") if missing else None
     if not missing and written.c2n is None:

@@ -167,15 +167,39 @@ def difference(a: str, pa: Pooled, b: str, pb: Pooled) -> Difference:
     return Difference(a, b, d, (d - q * se, d + q * se))
 
 
+# A tag's value as a spreadsheet holds it: Excel keeps 15 significant digits ("Excel
+# specifications and limits", Microsoft: number precision, 15 digits), and 15 is what a double
+# carries through decimal text and back (DBL_DIG). Digits past them are its rounding's (2.3 and
+# 2.3000000000000003 are one tag value), and a line fitted through them alone had a slope of 1e14.
+SIGNIFICANT_DIGITS = 15
+
+
+def as_kept(x: float) -> float:
+    """``x`` to ``SIGNIFICANT_DIGITS`` (as it is where rounding it to them would overflow)."""
+    kept = float(f"{x:.{SIGNIFICANT_DIGITS}g}")
+    return kept if math.isfinite(kept) else x
+
+
+def no_trend(x: Sequence[float]) -> str:
+    """Why ``trend`` fits no line against a tag whose values are x: said where it fits none."""
+    if len({as_kept(v) for v in x}) < 2:
+        return "takes one value: no trend"
+    if len(x) < 3:
+        return f"{len(x)} sessions with a C2n: a trend needs three"
+    return "the fit overflows: no trend"
+
+
 def trend(x: Sequence[float], c2n: Sequence[float], se: Sequence[float]) -> Trend | None:
     """C2n = intercept + slope·x over the sessions, random effects (None where x has fewer than
-    two distinct values, there are fewer than three sessions, or x spans more than a float holds).
+    two distinct values to 15 significant digits, there are fewer than three sessions, or the
+    fit overflows).
 
     The line is fitted on x centred on its middle and scaled by its half range, u = (x − c)/h in
     [−1, 1]: on raw x the normal equations of a date tag (20261124 … 20261126) lose every digit
     the slope needs, and a tag near 1e200 overflows. Slope and intercept are taken back to x
     exactly: slope = b/h, intercept = a − slope·c."""
-    xs, y, s2 = np.asarray(x, float), np.asarray(c2n, float), np.asarray(se, float) ** 2
+    xs = np.array([as_kept(v) for v in x], float)
+    y, s2 = np.asarray(c2n, float), np.asarray(se, float) ** 2
     k = len(y)
     if k < 3 or len(np.unique(xs)) < 2:
         return None

@@ -5,16 +5,19 @@
     sessions/2026-11-24_101500,B,240,1
 
 ``log`` is a log file or a session folder of ``c2n live``, relative to the manifest. Tags are
-kept as text; a tag whose every value is a number is numeric (``numeric_tags``), for trends.
+kept as text; a tag whose every value is a number is numeric (``numeric_tags``), for trends. A
+manifest not separated by commas may write its numbers with a decimal comma (Excel's ``;`` CSV
+where that is the decimal mark): such a column's values are kept with a decimal point.
 """
 
 import csv
 import io
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from app.errors import C2nError
+from app.sinks.recorder import RAW_FORMATS
 
 LOG = "log"
 
@@ -31,6 +34,7 @@ class Manifest:
     path: Path
     tag_names: tuple[str, ...]
     entries: tuple[Entry, ...]
+    warnings: tuple[str, ...] = ()  # a column not read as its values suggest, one line each
 
     def numeric_tags(self) -> list[str]:
         """The tags whose every value is a finite number (pressure, load, temperature …)."""
@@ -61,7 +65,8 @@ def read_manifest(path: Path) -> Manifest:
     try:
         with path.open(newline="", encoding="utf-8-sig") as file:  # a BOM from Excel is no column
             text = file.read()
-        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=_delimiter(text)))
+        delimiter = _delimiter(text)
+        rows = list(csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
     except FileNotFoundError:
         raise C2nError(f"{path}: no such manifest — give a CSV with a '{LOG}' column") from None
     except (UnicodeDecodeError, csv.Error) as error:
@@ -88,12 +93,7 @@ def read_manifest(path: Path) -> Manifest:
         cells = [cell.strip() for cell in row]
         if not cells[where]:
             raise C2nError(f"{path}: line {line} names no log")
-        log = (path.parent / cells[where]).resolve()
-        if log.exists() and not (log.is_file() or log.is_dir()):
-            raise C2nError(
-                f"{path}: line {line} names {cells[where]}, which is no file (a device or a pipe) — "
-                "name a log file or a session folder"
-            )
+        log = _log(path, line, cells[where])
         if log in seen:
             raise C2nError(f"{path}: line {line} names {cells[where]} again (line {seen[log]}) — once each")
         seen[log] = line
@@ -101,4 +101,70 @@ def read_manifest(path: Path) -> Manifest:
         entries.append(Entry(line, log, tags))
     if not entries:
         raise C2nError(f"{path}: no logs listed under the header")
-    return Manifest(path, tuple(name for name in header if name != LOG), tuple(entries))
+    tag_names = tuple(name for name in header if name != LOG)
+    warnings: list[str] = []
+    if delimiter != ",":  # a comma in a cell may then be a decimal mark
+        for name in tag_names:
+            entries, unread = _decimal_commas(entries, name)
+            warnings += [f"{path}: {said}" for said in unread]
+    return Manifest(path, tag_names, tuple(entries), tuple(warnings))
+
+
+def _log(path: Path, line: int, named: str) -> Path:
+    """The log a line names, resolved; a C2nError where it, or a session folder's frames file, is
+    no file (a device, a pipe): opening a pipe to hash it would wait for a writer never to come."""
+    try:
+        return _checked_log(path, line, named)
+    except OSError as error:  # a name the system cannot look up (over 255 bytes): the user's to fix
+        shown = named if len(named) <= 60 else f"{named[:40]}…"
+        raise C2nError(
+            f"{path}: line {line} names {shown}, which cannot be looked up ({error.strerror or error}) "
+            "— check the name"
+        ) from error
+
+
+def _checked_log(path: Path, line: int, named: str) -> Path:
+    log = (path.parent / named).resolve()
+    if log.exists() and not (log.is_file() or log.is_dir()):
+        raise C2nError(
+            f"{path}: line {line} names {named}, which is no file (a device or a pipe) — "
+            "name a log file or a session folder"
+        )
+    frames = (log / f"frames{suffix}" for suffix in RAW_FORMATS) if log.is_dir() else ()
+    no_file = next((f for f in frames if f.exists() and not f.is_file()), None)
+    if no_file is not None:
+        raise C2nError(
+            f"{path}: line {line} names {named}, whose {no_file.name} is no file (a device or a pipe) — "
+            "name a session folder whose frames are a file"
+        )
+    return log
+
+
+def _decimal_comma(text: str) -> str | None:
+    """``text`` with its decimal comma made a point, where it is a finite number written so or
+    without any mark ('2,5', '-0,5', '1,5E+03', '20'); None where a point or a second comma
+    makes it something else ('1.234,5', '2,0,1') or it is no number."""
+    if "." in text or text.count(",") > 1:
+        return None
+    pointed = text.replace(",", ".")
+    return pointed if _number(pointed) else None
+
+
+def _decimal_commas(entries: list[Entry], name: str) -> tuple[list[Entry], list[str]]:
+    """The entries with the tag ``name`` written with decimal points, where each of its non-empty
+    values is a number and one at least has a decimal comma; else as they were, and a line naming
+    the value that could not be read where the others are such numbers."""
+    values = [(entry.line, entry.tags[name]) for entry in entries if entry.tags[name]]
+    read = {line: _decimal_comma(value) for line, value in values}
+    example = next((value for line, value in values if "," in value and read[line] is not None), None)
+    if example is None:  # no decimal comma: nothing to translate
+        return entries, []
+    unread = next(((line, value) for line, value in values if read[line] is None), None)
+    if unread is not None:
+        line, value = unread
+        return entries, [
+            f"line {line}, column '{name}': '{value}' is no number with a decimal comma, as the "
+            f"column's other values are — the column is kept as text, with no trend against it; "
+            f"write it like '{example}'"
+        ]
+    return [replace(e, tags=e.tags | {name: read.get(e.line) or ""}) for e in entries], []

@@ -17,6 +17,7 @@ from app.campaign.compare import (
     Softening,
     Trend,
     difference,
+    no_trend,
     pool,
     softening,
     trend,
@@ -145,6 +146,7 @@ class Comparison:
     n_sessions: int
     softening: dict[str, Softening] = field(default_factory=dict)  # group -> its tyres' model
     compared: dict[str, Compared] = field(default_factory=dict)  # log -> what was compared of it
+    no_trend: dict[str, str] = field(default_factory=dict)  # tag -> why no trend is fitted against it
 
     @property
     def switched(self) -> dict[str, Compared]:
@@ -171,6 +173,7 @@ class Comparison:
                 tag: {group: json_ready(asdict(t)) for group, t in per.items()}
                 for tag, per in self.trends.items()
             },
+            "no_trend": self.no_trend,
             "method": "random effects: DerSimonian–Laird τ², Hartung–Knapp t interval (modified, max(1, q)); "
             "tyre softening per group: Stouffer's z of the sessions' a_y³ t (|z| > 2); a marginal fit's C2n "
             "(the default) carries the softening under its prior and is pooled as it is, a cascade fit's is "
@@ -243,12 +246,17 @@ def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> C
     common = {name: max(s.result.scale for s in done if s.group == name) for name in names}
     groups = {name: with_scale(p, common[name]) for name, p in pooled.items()}
     trends: dict[str, dict[str, Trend]] = {}
+    unfitted: dict[str, str] = {}
     for tag, per_group in tagged.items():
         everything = [value for values in per_group.values() for value in values]
         found = {"all": trend(*zip(*everything, strict=True))} if len(per_group) > 1 else {}
         found |= {group: trend(*zip(*values, strict=True)) for group, values in sorted(per_group.items())}
         trends[tag] = {group: t for group, t in found.items() if t is not None}
-    return Comparison(by, groups, sessions, differences, trends, tagged, failed, len(rows), decided, compared)
+        if not trends[tag]:
+            unfitted[tag] = no_trend([x for x, _, _ in everything])
+    return Comparison(
+        by, groups, sessions, differences, trends, tagged, failed, len(rows), decided, compared, unfitted
+    )
 
 
 def with_compared(
@@ -352,7 +360,7 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
         ),
         section(
             "Trends",
-            *([_trend_table(tag, per) for tag, per in comparison.trends.items()] or [none("no numeric tag")]),
+            *_trend_tables(comparison),
         ),
         section(
             "Failed logs",
@@ -369,8 +377,22 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
     write_html(page(title, body), folder / "report.html", "report.html")
 
 
+def sessions(n: int) -> str:
+    """A count of sessions in words: "1 session", "2 sessions"."""
+    return f"{n} session" if n == 1 else f"{n} sessions"
+
+
 def _tyres(tyres: Softening | None) -> str:
-    return "—" if tyres is None else f"{tyres.shown}, {tyres.n_sessions} sessions"
+    return "—" if tyres is None else f"{tyres.shown}, {sessions(tyres.n_sessions)}"
+
+
+def _trend_tables(comparison: Comparison) -> list[str]:
+    """A table of each numeric tag's trends, or why it has none."""
+    said = [
+        _trend_table(tag, per) if per else none(f"{tag} {comparison.no_trend.get(tag, 'no trend')}")
+        for tag, per in comparison.trends.items()
+    ]
+    return said or [none("no numeric tag")]
 
 
 def _trend_table(tag: str, per: dict[str, Trend]) -> str:
@@ -431,18 +453,41 @@ def _group_plot(comparison: Comparison) -> bytes:
     return _png(draw)
 
 
+# beyond this a tag is plotted in a power of ten of it: matplotlib's margins and tick steps
+# overflow past ~1e307 ("arange: cannot compute length"), long after the trend was fitted
+_LARGEST_PLOTTED = 1e100
+
+
+def _plotted(tag: str, x: list[float]) -> tuple[float, str]:
+    """The unit a tag with the values x is plotted in, and the axis's label."""
+    largest = max((abs(v) for v in x), default=0.0)
+    if largest < _LARGEST_PLOTTED:
+        return 1.0, tag
+    power = math.floor(math.log10(largest))
+    return 10.0**power, f"{tag} [× 1e{power}]"
+
+
 def _trend_plot(comparison: Comparison, tag: str) -> bytes:
+    per_group = sorted(comparison.tag_values[tag].items())
+    unit, label = _plotted(tag, [v[0] for _, values in per_group for v in values])
+
     def draw(ax: Any) -> None:
-        for k, (group, values) in enumerate(sorted(comparison.tag_values[tag].items())):
+        for k, (group, values) in enumerate(per_group):
             x = [v[0] for v in values]
             y = [v[1] for v in values]
             err = [Z95 * v[2] for v in values]
-            ax.errorbar(x, y, yerr=err, fmt="o", ms=4, color=f"C{k}", alpha=0.8, label=group)
+            ax.errorbar(
+                [v / unit for v in x], y, yerr=err, fmt="o", ms=4, color=f"C{k}", alpha=0.8, label=group
+            )
             fitted = comparison.trends.get(tag, {}).get(group)
             if fitted is not None:
                 ends = [min(x), max(x)]
-                ax.plot(ends, [fitted.intercept + fitted.slope * e for e in ends], color=f"C{k}")
-        ax.set_xlabel(tag)
+                ax.plot(
+                    [e / unit for e in ends],
+                    [fitted.intercept + fitted.slope * e for e in ends],
+                    color=f"C{k}",
+                )
+        ax.set_xlabel(label)
         ax.set_ylabel("C2n [1/rad]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="small")

@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from app.campaign.analysis import Job, analyse, config_hash, content_hash, where
+from app.campaign.analysis import Job, analyse, config_hash, content_hash, logs_hash, where
 from app.campaign.manifest import Manifest
 from app.campaign.row import SessionRow
 from app.errors import C2nError, printable
@@ -40,11 +40,15 @@ class Task:
     known: frozenset[str]  # keys whose rows the campaign has already
 
 
+def _one_hash(path: Path) -> str:
+    return content_hash([path])
+
+
 def run_task(task: Task) -> SessionRow | str:
     """On a worker: the row of one drive, or only its key when that row is known."""
     try:
-        raw, config_path, dbc_dir = where(task.job)
-        key = f"{content_hash([raw])}-{config_hash(config_path, dbc_dir, lambda path: content_hash([path]))}"
+        raws, config_path, dbc_dir = where(task.job)
+        key = f"{logs_hash(raws, _one_hash)}-{config_hash(config_path, dbc_dir, _one_hash)}"
     except (C2nError, OSError) as error:
         message = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
         return SessionRow(error=printable(f"{task.job.log}: {message}"))
@@ -340,8 +344,8 @@ class HashMemo:
 
     def key(self, job: Job) -> str | None:
         try:
-            raw, config_path, dbc_dir = where(job)
-            log_hash = self._hash(raw)
+            raws, config_path, dbc_dir = where(job)
+            log_hash = logs_hash(raws, self._hash)
             config_key = (config_path, dbc_dir)
             if config_key not in self._configs:
                 self._configs[config_key] = config_hash(config_path, dbc_dir, self._hash)

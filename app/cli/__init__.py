@@ -6,12 +6,13 @@ import logging
 import sys
 import traceback
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import NoReturn, TextIO, cast
 
 from rich.console import Console
 
 from app import __version__
 from app.cli import analyze, campaign, demo, export, gap, gap_check, live, replay, simulate
+from app.cli.terminal import LosableStream, say
 from app.errors import C2nError, UsageError, printable
 
 COMMANDS = (live, replay, analyze, export, simulate, gap, gap_check, campaign, demo)
@@ -60,7 +61,7 @@ class _WarningFormatter(logging.Formatter):
 
 
 def _configure_logging(debug: bool) -> None:
-    handler = logging.StreamHandler(sys.stderr)
+    handler = logging.StreamHandler(LosableStream(sys.stderr))
     handler.setFormatter(_WarningFormatter())
     root = logging.getLogger()
     root.handlers[:] = [handler]
@@ -93,14 +94,22 @@ def main(argv: Sequence[str] | None = None, console: Console | None = None) -> i
     _configure_logging(args.debug)
     # `--json -` (or `--report -`): standard output carries the file, the words go to stderr
     to_stdout = any(str(getattr(args, name, None)) == "-" for name in ("json", "report"))
-    console = console or Console(file=sys.stderr if to_stdout else None, highlight=False, soft_wrap=True)
+    words = LosableStream(sys.stderr if to_stdout else sys.stdout)
+    own = console is None
+    console = console or Console(file=cast(TextIO, words), highlight=False, soft_wrap=True)
     try:
-        return int(args.run(args, console))
+        code = int(args.run(args, console))
     except C2nError as error:
         if args.debug:
             traceback.print_exc()
-        print(f"c2n: error: {printable(str(error))}", file=sys.stderr)
+        say(f"c2n: error: {printable(str(error))}")
         return 2 if isinstance(error, UsageError) else 1
     except KeyboardInterrupt:
-        print("c2n: interrupted", file=sys.stderr)
+        say("c2n: interrupted")
         return 130
+    if own and words.lost is not None and not words.reader_left:
+        # a reader that stopped reading (`| head`) wanted no more; any other loss hid the words
+        where = "standard error" if to_stdout else "standard output"
+        say(f"c2n: error: {where}: cannot write ({words.why}) — the command ran to its end unseen")
+        return code or 1
+    return code

@@ -1,9 +1,10 @@
 """``c2n analyze LOG...``: the live pipeline over log files, as fast as it can."""
 
 import argparse
+import itertools
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from rich.console import Console
 
@@ -15,6 +16,7 @@ from app.results.headline import Method
 
 if TYPE_CHECKING:
     from app.config import Config
+    from app.sources.logs import LogReport
 
 _POOL_GAP_S = 10.0  # between drives pooled: no filter, gate or regression run spans it
 
@@ -44,9 +46,20 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     return parser
 
 
-def _each_alone(logs: list[Path], config: "Config", merge: bool, console: Console) -> None:
-    """Each log analysed alone first: drives pooled must agree (``app.results.agreement``), and
-    files merged must be channels of one drive, not whole drives of their own."""
+# What to do where logs given together disagree, each alone, by how they were given
+_FIX = {
+    "pool": "pool one set of tyres",
+    "merge": "merge the channels of one drive, pool drives that agree",
+    "one": "analyse each alone, or --pool drives of one set of tyres",
+}
+
+
+def _each_alone(
+    logs: list[Path], config: "Config", how: Literal["pool", "merge", "one"], console: Console
+) -> None:
+    """Each log analysed alone first: drives pooled, or given as one, must agree
+    (``app.results.agreement``), and files merged must be channels of one drive, not whole drives
+    of their own."""
     from app.pipeline import Pipeline
     from app.results.agreement import DriveResult, disagreement
     from app.run_loop import run as run_pipeline
@@ -64,20 +77,77 @@ def _each_alone(logs: list[Path], config: "Config", merge: bool, console: Consol
             if headline is not None:
                 alone.append(DriveResult(str(log), headline.c2n, headline.ci95))
                 quasi_only = quasi_only and headline.method is Method.QUASI_STEADY
-    if merge and len(alone) < 2:
+    if how == "merge" and len(alone) < 2:
         return
-    if quasi_only and not merge:  # the pooled run fits each drive's quasi-steady samples alone too
-        return  # and says, with each one's result in the summary, why there is no C2n
+    if quasi_only and how == "pool":  # the pooled run fits each drive's quasi-steady samples alone
+        return  # too and says, with each one's result in the summary, why there is no C2n
     why = disagreement(alone)
     if why is not None:
-        fix = "merge the channels of one drive, pool drives that agree" if merge else "pool one set of tyres"
-        raise NoResultError(f"{why} — {fix}")
-    if merge:
+        raise NoResultError(f"{why} — {_FIX[how]}")
+    if how == "merge":
         error_console().print(
             f"c2n: warning: {printable(', '.join(d.name for d in alone))}: each is a whole drive with "
             "its own C2n — --merge is for the channels of one drive; --pool takes drives",
             markup=False,
         )
+
+
+def _one_drive(reports: "list[LogReport]", config: "Config", console: Console) -> "list[LogReport]":
+    """Files given as one drive are read one after the other: a recording split in files (a
+    session's parts, a logger's size limit) goes on where the last stopped. Where one does not —
+    it begins before the last ended, or after a pause the filter does not bridge — they are
+    separate recordings: each is analysed alone, and drives that disagree (two tyre sets, a day
+    apart) have no one C2n (they read 15.40 [15.17, 15.64] for 14.89 and 15.91, each outside).
+    Separate ones that agree are still run on as one (one ψ0 and yaw bias): said in a note."""
+    from app.sources.logs import LogReport
+
+    bridged = config.filter.gap_reset_s
+    for before, after in itertools.pairwise(r for r in reports if r.span_s is not None):
+        assert before.span_s is not None and after.span_s is not None
+        gap = after.span_s[0] - before.span_s[1]
+        if 0.0 <= gap <= bridged:
+            continue
+        where = (
+            f"begins {gap:.3g} s after {before.path.name} ends"
+            if gap > 0
+            else f"begins {-gap:.3g} s before {before.path.name} ends"
+        )
+        _each_alone([r.path for r in reports], config, "one", console)
+        note = (
+            f"{where}: separate recordings, run on as one drive (one head offset ψ0 and yaw-rate bias "
+            "for both) — --pool takes separate drives of one car, --merge the channels of one drive"
+        )
+        return [LogReport(after.path, stopped=note, done=True)]
+    return []
+
+
+def _side_by_side(reports: "list[LogReport]") -> "list[LogReport]":
+    """Files merged are channels of one drive, recorded over the same time: one that does not
+    overlap the first (a logger counting from 0, another on the calendar's clock) is said — the
+    merge lays its frames beside no others."""
+    from app.sources.logs import LogReport
+
+    spans = [(r, r.span_s) for r in reports if r.span_s is not None]
+    if len(spans) < 2:
+        return []
+    first, (first_start, first_end) = spans[0]
+    notes = []
+    for report, (start, end) in spans[1:]:
+        if start > first_end or end < first_start:
+            gap = start - first_end if start > first_end else first_start - end
+            when = "after" if start > first_end else "before"
+            notes.append(
+                LogReport(
+                    report.path,
+                    stopped=(
+                        f"its frames lie {gap:.3g} s {when} those of {first.path.name}, not beside them — "
+                        "--merge takes channels of one drive recorded on one clock: is a logger's clock "
+                        "off, or are these separate drives (--pool)?"
+                    ),
+                    done=True,
+                )
+            )
+    return notes
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
@@ -101,7 +171,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
         kept, notes = distinct(args.logs)
         drives = [[log] for log in kept]
     if (args.pool or args.merge) and len(drives[0] if args.merge else drives) > 1:
-        _each_alone(drives[0] if args.merge else [d[0] for d in drives], config, args.merge, console)
+        if args.merge:
+            _each_alone(drives[0], config, "merge", console)
+        else:
+            _each_alone([d[0] for d in drives], config, "pool", console)
     for number, logs in enumerate(drives):
         source = LogSource(logs, merge=args.merge, triage=pipeline.decoder)
         progress = ReadProgress(source, ", ".join(p.name for p in logs))
@@ -122,6 +195,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
         notes += source.notes
         if not completed:  # Ctrl-C: the result of what was read
             break
+        if args.merge:
+            notes += _side_by_side(source.reports)
+        elif not args.pool:
+            notes += _one_drive(source.reports, config, console)
     snapshot = pipeline.snapshot()
     result = summary.build(snapshot, config, [str(p) for p in args.logs], notes)
     if args.json:

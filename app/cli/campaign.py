@@ -5,7 +5,6 @@ against numeric tags."""
 
 import argparse
 import os
-import signal
 import time
 from concurrent.futures import Executor
 from contextlib import AbstractContextManager
@@ -15,7 +14,7 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from app.cli.common import error_console, interrupted_by, number
+from app.cli.common import ENDING, error_console, interrupted_by, number
 from app.config import load_config
 from app.errors import UsageError, need, printable
 from app.output.files import files_together
@@ -87,6 +86,8 @@ def _scheduler(text: str) -> str:
 def print_comparison(console: Console, comparison: "Comparison", by: str | None) -> None:
     """The groups, their differences and the sessions compared on their group's model, one line
     each; every tag and log name printed as the user wrote it (``shown``)."""
+    from app.campaign.outputs import sessions
+
     for name, pooled in comparison.groups.items():
         low, high = pooled.ci95
         tyres = comparison.softening.get(name)
@@ -94,7 +95,7 @@ def print_comparison(console: Console, comparison: "Comparison", by: str | None)
         group = f"{shown(by)} {shown(name)}" if by else "all sessions"
         console.print(
             f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
-            f"(95 %, {pooled.n_sessions} sessions, τ {pooled.tau:.3f}{soften})"
+            f"(95 %, {sessions(pooled.n_sessions)}, τ {pooled.tau:.3f}{soften})"
         )
     for d in comparison.differences:
         console.print(
@@ -141,7 +142,7 @@ def _analysed(
                 return work.dask_workers(args.scheduler)
             return work.local_workers(args.workers or os.cpu_count() or 1)
 
-        with interrupted_by(signal.SIGINT, signal.SIGTERM):  # either stops it, keeping what is done
+        with interrupted_by(*ENDING):  # each stops it, keeping what is done
             rows = work.run_campaign(manifest, config, out, workers, arrived)
     return rows, frames, time.perf_counter() - started
 
@@ -168,6 +169,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
             f"{args.manifest}: the tag column '{clashing[0]}' has the name of a column c2n writes in "
             f"results.csv — rename it (e.g. 'tag_{clashing[0]}')"
         )
+    errors = error_console()
+    for warning in manifest.warnings:  # said before the work, not after hours of it
+        errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     out = args.out or args.manifest.with_name(f"{args.manifest.stem}-campaign")
     inputs = [args.manifest, *(entry.log for entry in manifest.entries)]
     inputs += [args.config] if args.config else []
@@ -184,11 +188,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
             outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
     cached = sum(1 for row in rows if row.cached)
     console.print(
-        f"{len(rows)} sessions in {elapsed:.1f} s ({cached} known from an earlier run, "
+        f"{outputs.sessions(len(rows))} in {elapsed:.1f} s ({cached} known from an earlier run, "
         f"{frames:,} frames analysed); results in {shown(out)}"
     )
     print_comparison(console, comparison, args.by)
-    errors = error_console()
     for entry, row in zip(manifest.entries, rows, strict=True):
         for warning in row.warnings_about(entry.log):
             errors.print(f"c2n: warning: {printable(warning)}", markup=False)
@@ -196,5 +199,5 @@ def run(args: argparse.Namespace, console: Console) -> int:
         errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)
     failed = len(comparison.failed) - len(repeats)  # a repeat is said above, not a failure
     if failed:
-        errors.print(f"c2n: {failed} of {len(rows)} sessions failed (see report.html)", markup=False)
+        errors.print(f"c2n: {failed} of {outputs.sessions(len(rows))} failed (see report.html)", markup=False)
     return 0

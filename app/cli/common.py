@@ -4,13 +4,15 @@ import argparse
 import math
 import signal
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
 from rich.console import Console
 
+from app.cli.terminal import console_stream
 from app.config import DEFAULT_CONFIG
 from app.errors import UsageError, printable
 
@@ -54,7 +56,11 @@ def add_bus(parser: argparse.ArgumentParser) -> None:
 def channels(args: argparse.Namespace) -> list[str | int | None]:
     """Channel names as given; bare numbers become ints (Vector, Kvaser, … count from 0)."""
     given: list[str] = args.channel or []
-    return [int(c) if c.isdigit() else c for c in given] or [None]
+    named: list[str | int | None] = [int(c) if c.isdigit() else c for c in given]
+    twice = next((c for i, c in enumerate(named) if c in named[:i]), None)
+    if twice is not None:  # read twice, every frame would be recorded and decoded twice
+        raise UsageError(f"-c {printable(str(twice))} is given twice — name each channel once")
+    return named or [None]
 
 
 # python-can arguments that have their own option: a --bus-arg naming one would be given twice
@@ -90,7 +96,7 @@ SEED = _seed
 
 
 def error_console() -> Console:
-    return Console(file=sys.stderr, highlight=False, soft_wrap=True)
+    return Console(file=console_stream(sys.stderr), highlight=False, soft_wrap=True)
 
 
 def number(
@@ -123,17 +129,36 @@ def add_force(parser: argparse.ArgumentParser) -> None:
     )
 
 
+# The signals that end a command as Ctrl-C does: Ctrl-C, a shutdown's or `kill`'s SIGTERM, and the
+# terminal closed or an ssh session dropped (SIGHUP, POSIX only).
+ENDING: tuple[signal.Signals, ...] = tuple(
+    sig for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)) if sig is not None
+)
+
+
 def interrupt(signum: int, frame: FrameType | None) -> None:
     """A signal handler: the signal ends the command as Ctrl-C does."""
     raise KeyboardInterrupt
 
 
+def take_over(signals: Iterable[signal.Signals]) -> dict[signal.Signals, Any]:
+    """Make each of ``signals`` raise KeyboardInterrupt, Ctrl-C's way out; returns the handlers
+    they had. SIGINT is taken also where it was inherited ignored (a shell starts background jobs
+    so, and Python then leaves it ignored); SIGHUP is not: ignored, it is `nohup`'s, a user's word
+    that the command outlives its terminal."""
+    hangup = getattr(signal, "SIGHUP", None)
+    return {
+        sig: signal.signal(sig, interrupt)
+        for sig in signals
+        if not (sig == hangup and signal.getsignal(sig) == signal.SIG_IGN)
+    }
+
+
 @contextmanager
 def interrupted_by(*signals: signal.Signals) -> Iterator[None]:
-    """While the body runs, each of ``signals`` raises KeyboardInterrupt, Ctrl-C's way out: what the
-    body holds is unwound (a temporary folder, a background process), also where SIGINT was
-    inherited ignored (a shell starts background jobs so, and Python then leaves it ignored)."""
-    previous = {sig: signal.signal(sig, interrupt) for sig in signals}
+    """While the body runs, each of ``signals`` raises KeyboardInterrupt (``take_over``): what the
+    body holds is unwound (a temporary folder, a background process)."""
+    previous = take_over(signals)
     try:
         yield
     finally:

@@ -3,7 +3,6 @@ live dashboard; the crossings print as they happen, then C2n beside the simulate
 
 import argparse
 import os
-import signal
 import tempfile
 import threading
 import uuid
@@ -13,7 +12,7 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import SEED, add_config, interrupted_by, number
+from app.cli.common import ENDING, SEED, add_config, interrupted_by, number
 from app.config import Config, load_config
 from app.errors import C2nError
 from app.output import files
@@ -80,7 +79,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     console.print(f"the drive: {describe(drive.truth)}", style="dim")
     channel = f"c2n-demo-{uuid.uuid4().hex[:8]}"
     remove_stale()
-    with interrupted_by(signal.SIGTERM):  # unwinds: the temporary folder goes too
+    with interrupted_by(*ENDING):  # unwinds: the temporary folder goes too
         return _replay(args, console, config, drive, channel)
 
 

@@ -2,16 +2,23 @@
 table, the summary, plots and one self-contained HTML report."""
 
 import argparse
+import stat
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 
 from app.cli.common import error_console
 from app.config import DEFAULT_CONFIG, Config, load_config
-from app.errors import need, printable
+from app.errors import NoResultError, need, printable
 from app.output.files import folder_atomically
 from app.output.paths import HTML_REPORT, SUMMARY_JSON, Output, check, config_files
 from app.user_text import shown
+
+if TYPE_CHECKING:
+    from app.sinks.summary import Summary
+    from app.snapshot import Snapshot
+    from app.sources.logs import LogReport
 
 FORMATS = ("csv", "parquet", "mf4")  # app.sinks.channels.FORMATS; pyarrow and asammdf load only when used
 
@@ -50,17 +57,59 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     return parser
 
 
-def _inputs(args: argparse.Namespace) -> tuple[Path, Config, Path]:
-    """The log, the config and the output folder."""
+def _inputs(args: argparse.Namespace) -> tuple[list[Path], Config, Path]:
+    """The logs (a session's: its own, then its parts'), the config and the output folder."""
     from app.sinks.recorder import read_session
+    from app.sources.logs import status
 
     path: Path = args.input
-    if path.is_dir():
-        log, copy = read_session(path)
+    if stat.S_ISDIR(status(path).st_mode):  # a name the system cannot look up is one line
+        logs, copy = read_session(path)
         config = load_config(args.config) if args.config else load_config(copy, dbc_dir=copy.parent)
-        return log, config, args.out or path / "export"
+        return logs, config, args.out or path / "export"
     config = load_config(args.config or DEFAULT_CONFIG)
-    return path, config, args.out or path.with_name(f"{path.stem}-export")
+    return [path], config, args.out or path.with_name(f"{path.stem}-export")
+
+
+SESSION_SUMMARY = "summary.json"  # what c2n live writes in its session folder at the end (app.sinks.recorder)
+
+
+def _unfinished(path: Path) -> "list[LogReport]":
+    """A note for a session folder without the summary c2n live writes when it ends: the session
+    is still being recorded, or its run was killed, so the export is of the frames on disk so far
+    — said in the warnings (and the exported summary), not taken for the whole drive."""
+    from app.sources.logs import LogReport
+
+    if not path.is_dir() or (path / SESSION_SUMMARY).exists():
+        return []
+    why = (
+        f"no {SESSION_SUMMARY}: the session is still being recorded, or its c2n live was killed — "
+        "this export covers the frames on disk so far"
+    )
+    return [LogReport(path, stopped=why, done=True)]
+
+
+def _nothing_to_export(snapshot: "Snapshot", config: Config, logs: list[Path], out: Path) -> str | None:
+    """Why there is nothing to export: not one frame carried a role of the config (its DBCs or
+    ids are not this log's). Nothing is written then — an empty export would take the place of
+    an older one at ``out``. A log with some roles (a vehicle bus, no optical sensor) is
+    exported: analyze needs the sensor, export converts what there is."""
+    if any(snapshot.frames.role_frames[role] for role in config.roles):
+        return None
+    return (
+        f"{', '.join(str(p) for p in logs)}: no frames for any role of {config.path} — wrong DBC or "
+        f"config for this log? give the car's with --config (nothing written to {out})"
+    )
+
+
+def _say_result(console: Console, snapshot: "Snapshot", result: "Summary") -> None:
+    """The result line, and the summary's warnings on standard error."""
+    from app.sinks.event_printer import print_result
+
+    print_result(console, snapshot)
+    errors = error_console()
+    for warning in result.warnings:
+        errors.print(f"c2n: warning: {printable(warning)}", markup=False)
 
 
 # the rows of data a spreadsheet's sheet holds below the header (Excel's and LibreOffice's 2²⁰)
@@ -112,7 +161,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sinks import channels as export
     from app.sinks import events_csv as events
     from app.sinks import summary
-    from app.sinks.event_printer import EventPrinter, print_result
+    from app.sinks.event_printer import EventPrinter
     from app.sinks.progress import ReadProgress
     from app.sinks.trace import TraceRecorder
     from app.sources.logs import LogSource
@@ -121,12 +170,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
     export.need_writers(formats)  # before the drive is read: a missing extra is said at once
     if not args.no_plots:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
-    log, config, out = _inputs(args)
-    check([Output("--out", out, _ours_by_content, folder=True)], [log, *config_files(config)])
+    logs, config, out = _inputs(args)
+    check([Output("--out", out, _ours_by_content, folder=True)], [*logs, *config_files(config)])
+    unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began
     pipeline = Pipeline(config)
-    source = LogSource([log], triage=pipeline.decoder)
+    source = LogSource(logs, triage=pipeline.decoder)
     trace_recorder = TraceRecorder(config.roles)
-    progress = ReadProgress(source, log.name)
+    progress = ReadProgress(source, logs[0].name)
     run_pipeline(
         source,
         pipeline,
@@ -138,7 +188,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)
-    result = summary.build(snapshot, config, [str(log)], source.reports)
+    result = summary.build(snapshot, config, [str(p) for p in logs], [*unfinished, *source.reports])
+    nothing = _nothing_to_export(snapshot, config, logs, out)
+    if nothing is not None:
+        _say_result(console, snapshot, result)
+        raise NoResultError(nothing)
     written: list[Path] = []
     writing = folder_atomically(out, _ours_by_content, "c2n export")
     with console.status("writing the exports…"), writing as staging:
@@ -157,12 +211,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
 
             plots = write_plots(trace, result, staging)
             report = staging / "report.html"
-            write_report(result, plots, report, title=f"c2n — {log.name}")
+            write_report(result, plots, report, title=f"c2n — {logs[0].name}")
             written += [*plots, report]
-    print_result(console, snapshot)
+    _say_result(console, snapshot, result)
     errors = error_console()
-    for warning in result.warnings:
-        errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     if "csv" in formats and len(trace) > SPREADSHEET_ROWS:
         errors.print(
             f"c2n: warning: channels.csv holds {len(trace):,} rows: a spreadsheet opens the first "

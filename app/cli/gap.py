@@ -3,12 +3,11 @@ unmodelled effect explains it, and how far the gap shrinks once it is added."""
 
 import argparse
 import os
-import signal
 from pathlib import Path
 
 from rich.console import Console
 
-from app.cli.common import add_config, add_force, interrupted_by
+from app.cli.common import ENDING, add_config, add_force, interrupted_by
 from app.config import load_config
 from app.errors import need
 from app.gap.result import GapResult
@@ -51,7 +50,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         args.force,
     )
     workers = os.cpu_count() or 1
-    with interrupted_by(signal.SIGINT, signal.SIGTERM):  # either stops the forked processes too
+    with interrupted_by(*ENDING):  # each stops the forked processes too
         with console.status("reading the drive…"):  # the method's detector and regressions go on
             measured = measure(args.logs, config, background=workers > 1)  # beside the diagnosis
         with console.status("fitting the candidate effects…"):

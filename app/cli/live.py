@@ -16,14 +16,15 @@ from rich.console import Console
 from rich.text import Text
 
 from app.cli.common import (
+    ENDING,
     add_bus,
     add_config,
     add_force,
     bus_kwargs,
     channels,
     error_console,
-    interrupt,
     number,
+    take_over,
 )
 from app.config import load_config
 from app.errors import C2nError, OutputError, printable
@@ -132,6 +133,13 @@ def _recorder(parent: Path, config: "Config", raw_format: str) -> "SessionRecord
         raise
 
 
+def _console_lost(console: Console) -> list[str]:
+    """A warning for the summary where the console went away during the session (a closed
+    terminal, a dropped ssh session): the words were lost, the recording went on."""
+    why = getattr(console.file, "why", "")
+    return [f"the console went away during the session ({why}): recorded to the end unseen"] if why else []
+
+
 OpenBuses = Callable[..., list["can.BusABC"]]
 
 
@@ -175,9 +183,8 @@ def run(
     recorder = None if args.no_record else _recorder(args.record, config, args.raw_format)
     stop = threading.Event()
     timer = threading.Timer(args.duration, stop.set) if args.duration else None
-    # Ctrl-C and SIGTERM both end the session cleanly, also where SIGINT was inherited ignored
-    # (a shell starts background jobs so, and Python then leaves it ignored).
-    previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
+    # Ctrl-C, SIGTERM and a closed terminal (SIGHUP, unless run under nohup) end the session cleanly
+    previous = take_over(ENDING)
     console.print(f"c2n live on {shown(title)} — Ctrl-C ends the session", style="dim")
     if args.rate != 1.0:
         console.print(
@@ -216,7 +223,8 @@ def run(
         snapshot = pipeline.snapshot()
         stopped = [recorder.problem] if recorder is not None and recorder.problem else []
         parts = recorder.notes if recorder is not None else []
-        result = summary.build(snapshot, config, [title]).warned([*stopped, *parts, *source.losses])
+        unseen = _console_lost(console)
+        result = summary.build(snapshot, config, [title]).warned([*stopped, *parts, *source.losses, *unseen])
         unwritten = []  # a full disk: the numbers are still shown
         for write, where in (
             (recorder.write_summary if recorder is not None else None, "the session's summary"),
@@ -231,7 +239,7 @@ def run(
     errors = error_console()
     for warning in [*result.warnings, *unwritten]:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
-    if recorder is not None:
-        saved = ", ".join(shown(folder) for folder in recorder.folders)
-        console.print(f"session saved in {saved}", style="dim")
+    kept = [folder for folder in recorder.folders if folder.is_dir()] if recorder is not None else []
+    if kept:
+        console.print(f"session saved in {', '.join(shown(folder) for folder in kept)}", style="dim")
     return 1 if stopped or unwritten else 0

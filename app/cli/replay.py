@@ -27,10 +27,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     add_bus(parser)
     parser.add_argument(
         "--rate",
-        type=number(0.0, 1e6, low_allowed=False),
+        type=number(0.01, 1e6),  # as slow as `c2n live --rate` takes it
         default=1.0,
         metavar="X",
-        help="play X times faster than recorded",
+        help="play X times faster than recorded (0.01: a hundred times slower)",
     )
     parser.add_argument(
         "--loop",
@@ -133,9 +133,16 @@ def _virtual_only(interface: str | None, channel: str | int | None) -> None:
         where, why = f"{interface} {channel}", f"is not known to be virtual (ip -details link show {channel})"
     raise UsageError(
         f"{printable(where)}: {why} — a replay sends the drive's frames, the vehicle speed's among "
-        "them, to every node on the bus (a car's ECUs): replay onto -i virtual or -i socketcan -c vcan0, "
-        "or add --real-bus to send there"
+        "them, to every node on the bus (a car's ECUs): replay onto -i socketcan -c vcan0 (a virtual "
+        "SocketCAN bus), or add --real-bus to send there"
     )
+
+
+def _in_process_only(interface: str | None) -> bool:
+    """Is the bus python-can's ``virtual``, which carries frames between buses of one process?"""
+    from app.sources import bus_kind
+
+    return bus_kind.resolved(interface, None)[0] == "virtual"
 
 
 def channels_of(path: Path) -> list[str]:
@@ -153,11 +160,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     import can
 
     from app.sources.buses import open_buses
-    from app.sources.logs import LogReport, open_log, read_log
+    from app.sources.logs import LogReport, check_readable, read_log
     from app.sources.playback import looped, paced
 
-    reader = open_log(args.log)  # a missing or unknown file fails before the bus opens
-    getattr(reader, "stop", lambda: None)()
+    check_readable(args.log)  # a missing, unknown or damaged file fails before the bus opens
     names = channels(args)
     options = bus_kwargs(args)
     if not args.real_bus:
@@ -201,6 +207,14 @@ def run(args: argparse.Namespace, console: Console) -> int:
         for bus in buses:
             bus.shutdown()
     console.print(f"sent {sent} frames from {shown(args.log)}", style="dim")
+    if _in_process_only(args.interface):
+        console.print(
+            "c2n: note: python-can's -i virtual reaches only buses in this process: no other program "
+            "heard these frames — to feed c2n live, replay onto a SocketCAN vcan (sudo ip link add dev "
+            "vcan0 type vcan && sudo ip link set up vcan0), or run c2n demo",
+            style="yellow",
+            markup=False,
+        )
     if report.stopped:
         console.print(
             f"c2n: warning: {printable(f'{args.log}: {report.stopped}')}", style="yellow", markup=False

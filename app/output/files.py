@@ -13,6 +13,7 @@ import json
 import os
 import shutil
 import signal
+import stat
 import sys
 import uuid
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -110,6 +111,8 @@ STDOUT = Path("-")  # a file name that means standard output, as for cat and tar
 def write_text(path: Path, text: str, what: str) -> None:
     """``path`` ``-``: standard output (the command's own words then go to stderr)."""
     if path == STDOUT:
+        if sys.stdout is None:  # closed before the command began (`1>&-`)
+            raise OutputError(f"standard output is closed: cannot write {what} — give a file instead of -")
         try:
             sys.stdout.write(text)
             sys.stdout.flush()
@@ -156,6 +159,8 @@ def folder_atomically(
         )
     remove_stale(place.parent, f".{place.name}.partial-")  # a killed run's
     staging = _staging(place.parent, f".{place.name}.partial-", out)
+    if place.is_dir():
+        _same_access(place, staging)
     kept = False
     try:
         try:
@@ -214,6 +219,28 @@ def _synced(path: Path, out: Path, sync: Callable[[Path], None]) -> None:
         raise OutputError(
             f"{out}: cannot write the output to the disk ({error.strerror or error})"
         ) from error
+
+
+def _same_access(folder: Path, new: Path) -> None:
+    """Give ``new``, which takes ``folder``'s place, who may read and write it: its mode (a
+    group's setgid, a private 0700), its group and owner, its extended attributes (an ACL among
+    them) — a user's folder made for an export kept them not (it took the umask's 0755 and
+    the user's own group). Each as far as the system lets this user set it."""
+    st = folder.stat()
+    with contextlib.suppress(OSError):
+        os.chown(new, st.st_uid if os.geteuid() == 0 else -1, st.st_gid)
+    with contextlib.suppress(OSError):
+        os.chmod(new, stat.S_IMODE(st.st_mode))  # after chown, which clears setgid
+    for name in _xattrs(folder):
+        with contextlib.suppress(OSError):
+            os.setxattr(new, name, os.getxattr(folder, name, follow_symlinks=False), follow_symlinks=False)
+
+
+def _xattrs(path: Path) -> list[str]:
+    try:
+        return os.listxattr(path, follow_symlinks=False)
+    except (OSError, AttributeError):  # none, or a system without them (macOS's Python)
+        return []
 
 
 def _staging(parent: Path, prefix: str, out: Path) -> Path:

@@ -254,7 +254,8 @@ def d_from_tape(f: Findings) -> str | None:
             f"C2n, so d is the config's {config.d_m:g} m (its interval counts the tape's {tape}); sweep the "
             "speed through u0 to measure both"
         )
-    if fit.d.information is not None and fit.d.information < 1.0:
+    apart = not fit.d.ci95_m[0] <= config.d_m <= fit.d.ci95_m[1]  # d_disagrees says so: not resting on it
+    if fit.d.information is not None and fit.d.information < 1.0 and not apart:
         low, high = fit.samples.speed_range_mps
         where = "quasi-steady cornering" if f.on_quasi else f"the steady samples ({low:.1f}–{high:.1f} m/s)"
         return (

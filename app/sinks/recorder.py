@@ -10,6 +10,7 @@ cut they read back to at most a second before it.
 import contextlib
 import copy
 import errno
+import glob
 import json
 import os
 import shutil
@@ -33,6 +34,7 @@ from app.sinks.summary import write as write_summary
 
 RAW_FORMATS = (".log", ".asc", ".blf")
 CONFIG_FOLDER = "config"
+PART_FILE = "part.json"  # in each part of a session after the first: whose part, which number
 # how often the raw log and the events table are synced to the disk: what a power cut can lose
 # (a sync is about a millisecond on a laptop's SSD and is made off the bus's thread)
 SYNC_S = 1.0
@@ -117,6 +119,10 @@ class _CandumpWriter(can.CanutilsLogWriter):
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame or msg.is_fd or not msg.timestamp:
+            channel = _candump_channel(msg.channel, self.channel)
+            if channel != msg.channel:  # a copy: the frame itself goes on to the pipeline as it came
+                msg = copy.copy(msg)
+                msg.channel = channel
             super().on_message_received(msg)
             return
         first = self.last_timestamp  # python-can's writer keeps the first frame's time here
@@ -132,9 +138,18 @@ class _CandumpWriter(can.CanutilsLogWriter):
         self.file.write(f"({t:f}){head[0]}{msg.data.hex().upper()}{head[1]}")
 
 
+def _candump_channel(channel: Any, default_channel: str) -> Any:
+    """The channel as one word of a candump line, which its readers split at white space: an
+    interface that names no channel on its frames gets its description instead (python-can's
+    serial one: ``Serial interface: loop://``), and spaces in it made the whole log unreadable."""
+    if isinstance(channel, str):
+        return "_".join(channel.split()) or default_channel
+    return default_channel if channel is None else channel
+
+
 def _candump_head(msg: can.Message, default_channel: str) -> tuple[str, str]:
     """What python-can's candump writer puts between the time and the data, and after it."""
-    channel = msg.channel if msg.channel is not None else default_channel
+    channel = _candump_channel(msg.channel, default_channel)
     if isinstance(channel, int) or (isinstance(channel, str) and channel.isdigit()):
         channel = f"can{channel}"
     frame_id = f"{msg.arbitration_id:08X}" if msg.is_extended_id else f"{msg.arbitration_id:03X}"
@@ -292,7 +307,13 @@ class SessionRecorder(Sink):
         if self.problem is not None:
             return
         error = (self._spool or self._writer).error
-        if error is not None:
+        if self._deleted():
+            self.problem = (
+                f"{self.raw_path}: deleted while the session recorded it (its folder removed by a user "
+                "or a program) — the frames went with it and are not recorded from here on; the live "
+                "numbers go on"
+            )
+        elif error is not None:
             kept = self.raw_path.stat().st_size if self.raw_path.exists() else 0
             mount = _mount_of(self.folder)
             why = f"{error.strerror or error} on the disk of {mount}"
@@ -321,7 +342,9 @@ class SessionRecorder(Sink):
         assert self._spool is not None
         full, folder, events = self.raw_path, None, None
         try:
-            folder = _new_beside(self.folders[0], len(self.folders) + 1)
+            number = len(self.folders) + 1
+            folder = _new_beside(self.folders[0], number)
+            _mark_part(folder, self.folders[0].name, number)
             copy_config(self._config, folder / CONFIG_FOLDER)
             events = EventsTable(folder / "events.csv")
             raw = folder / full.name
@@ -351,10 +374,19 @@ class SessionRecorder(Sink):
         self.notes.append(note)
         self.on_note(note)
 
+    def _deleted(self) -> bool:
+        """Is the raw log gone from its folder while still open here (``rm -rf`` of the sessions)?"""
+        file = self._spool._file if self._spool is not None else getattr(self._writer, "file", None)
+        try:
+            return file is not None and os.fstat(file.fileno()).st_nlink == 0
+        except (OSError, ValueError):  # closed
+            return False
+
     def close(self) -> None:
         """Finish the raw log and the events table (once; again is nothing)."""
         if self._closed:
             return
+        self._check()  # a deletion is seen while the file is open
         self._closed = True
         try:
             self._writer.stop()  # a candump log's last lines: a part to go on in, where they need one
@@ -369,9 +401,11 @@ class SessionRecorder(Sink):
         self._check()
 
     def write_summary(self, summary: Summary) -> None:
-        """The whole run's summary in each of the session's folders."""
+        """The whole run's summary in each of the session's folders that is still there (one
+        deleted meanwhile is not made again to hold a summary of frames it no longer has)."""
         for folder in self.folders:
-            write_summary(folder / "summary.json", summary)
+            if folder.is_dir():
+                write_summary(folder / "summary.json", summary)
 
 
 _MOST_PARTS = 10_000  # a folder c2n cannot make beside the first this many times: stop trying
@@ -394,11 +428,36 @@ def _mount_of(path: Path) -> Path:
     return path
 
 
-def read_session(folder: Path) -> tuple[Path, Path]:
-    """A recorded session folder's raw log and config copy (whose DBCs lie beside it)."""
-    logs = [folder / f"frames{suffix}" for suffix in RAW_FORMATS if (folder / f"frames{suffix}").exists()]
+def _mark_part(folder: Path, session: str, number: int) -> None:
+    """Say in a part's folder whose part it is, before its first frame: a session whose run was
+    killed is still read whole (``read_session``), and a user's folder that happens to be named
+    ``<session>-part2`` is never taken for one."""
+    (folder / PART_FILE).write_text(json.dumps({"session": session, "part": number}) + "\n", encoding="utf-8")
+
+
+def _part_number(folder: Path, session: str) -> int | None:
+    """``folder``'s number as a part of ``session`` (None: not one of its parts)."""
+    try:
+        mark = json.loads((folder / PART_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(mark, dict) or mark.get("session") != session:
+        return None
+    number = mark.get("part")
+    return number if isinstance(number, int) and not isinstance(number, bool) and number >= 2 else None
+
+
+def _raw_log(folder: Path) -> Path | None:
+    return next((folder / f"frames{s}" for s in RAW_FORMATS if (folder / f"frames{s}").is_file()), None)
+
+
+def read_session(folder: Path) -> tuple[list[Path], Path]:
+    """A recorded session folder's raw logs — its own, then those of the parts it went on in
+    (``<folder>-part2``…, a disk's largest file reached), in order — and its config copy (whose
+    DBCs lie beside it)."""
+    first = _raw_log(folder)
     configs = sorted((folder / CONFIG_FOLDER).glob("*.toml"))
-    if not logs:
+    if first is None:
         raise C2nError(
             f"{folder}: not a c2n session folder (no frames.log/.asc/.blf) — give a session folder or a log"
         )
@@ -406,4 +465,10 @@ def read_session(folder: Path) -> tuple[Path, Path]:
         raise C2nError(
             f"{folder / CONFIG_FOLDER}: expected one config copy, found {len(configs)} — pass --config F"
         )
-    return logs[0], configs[0]
+    parts: dict[int, Path] = {}
+    whole = Path(os.path.abspath(folder))  # `.` too has a name and a parent
+    for sibling in whole.parent.glob(f"{glob.escape(whole.name)}-part*"):
+        number, log = _part_number(sibling, whole.name), _raw_log(sibling)
+        if number is not None and log is not None:
+            parts[number] = log
+    return [first, *(parts[n] for n in sorted(parts))], configs[0]

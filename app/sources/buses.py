@@ -122,7 +122,11 @@ class _Lost:
     failed_attempts: int = 0
 
 
-_DRAIN_S = 2.0  # at most this long reading what the buses hold after a stop
+# At most this long reading what the buses hold after a stop: a reader behind its bus catches up
+# at its own speed (100,000 frames/s, tools/bench.py: 10 s is a minute of a saturated 1 Mbit/s bus),
+# well inside the 90 s a shutdown (systemd) waits after its SIGTERM. Only a bus sending faster
+# than the reader can keep it reading that long; what it still holds then is said to be lost.
+_DRAIN_S = 10.0
 
 
 class BusSource:
@@ -266,17 +270,25 @@ class BusSource:
         """What is left when the session is stopped: the frames that arrived before the stop and
         wait unread (a reader behind its bus holds seconds of them), from the receive threads'
         queue and then each bus, until they are empty — for ``_DRAIN_S`` at most, where a bus
-        goes on sending after the stop."""
+        goes on sending after the stop; then what it holds is not read, and ``losses`` says so."""
         deadline = time.monotonic() + _DRAIN_S
-        while time.monotonic() < deadline:
+        last: float | None = None
+        while True:
+            if time.monotonic() >= deadline:
+                self._left_unread(last)
+                return
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
                 break
             if not isinstance(item, _Failure):
+                last = item.timestamp
                 yield item
         for index, bus in enumerate(self.buses):
-            while index not in self.lost and time.monotonic() < deadline:
+            while index not in self.lost:
+                if time.monotonic() >= deadline:
+                    self._left_unread(last)
+                    return
                 try:
                     msg = bus.recv(0.0)
                 except Exception:  # a bus that fails now: the session has ended anyway
@@ -285,7 +297,15 @@ class BusSource:
                     break
                 if msg.channel is None:
                     msg.channel = bus.channel_info
+                last = msg.timestamp
                 yield msg
+
+    def _left_unread(self, last: float | None) -> None:
+        after = f" (after the frame at {last:.3f} s)" if last is not None else ""
+        self.losses.append(
+            f"the stop found the buses sending faster than c2n reads: after {_DRAIN_S:g} s of reading "
+            f"what waited, the frames still held{after} are not in the session"
+        )
 
     def _listen(self, index: int) -> None:
         bus = self.buses[index]

@@ -5,6 +5,7 @@ at the edge; a log that breaks part-way gives every frame before the damage and 
 stopped.
 """
 
+import errno
 import gc
 import heapq
 import io
@@ -12,6 +13,7 @@ import locale
 import logging
 import os
 import re
+import stat
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
@@ -43,6 +45,7 @@ class LogReport:
     stopped: str | None = None  # why reading stopped before the end, if it did
     done: bool = False
     reader: object = None  # the python-can reader while the file is open
+    span_s: tuple[float, float] | None = None  # the times of the first frame read and the last
 
     def bytes_read(self) -> int | None:
         """How far into the file the reader is (None where the reader does not say)."""
@@ -62,20 +65,72 @@ def _size(path: Path) -> int:
         return 0
 
 
+def status(path: Path) -> os.stat_result:
+    """The input's status (through a link, where it points), or the LogFileError that says why
+    there is none: a path the system cannot even look up (a name too long for it) is the user's
+    to fix, not a traceback."""
+    try:
+        return path.stat()
+    except OSError as error:
+        if error.errno in (errno.ENOENT, errno.ENOTDIR):
+            raise LogFileError(f"{path}: no such file") from error
+        if error.errno == errno.ENAMETOOLONG:
+            raise LogFileError(_too_long(path)) from error
+        raise LogFileError(
+            f"{path}: cannot be read ({error.strerror or error}) — check the path and its permissions"
+        ) from error
+
+
+_SHOWN = 40  # characters of an over-long name shown in its error: the rest would fill the screen
+
+
+def _too_long(path: Path) -> str:
+    """Which part of ``path`` no file system here can hold: a name over its NAME_MAX bytes (255
+    on ext4), else the whole path over PATH_MAX — no file can be there, so the name is the
+    mistake (a pasted name run on, a name made by a script)."""
+    limit = _name_max(path)
+    for part in path.parts:
+        size = len(os.fsencode(part))
+        if size > limit:
+            shown = str(path).replace(part, f"{part[:_SHOWN]}…", 1)
+            return (
+                f"{shown}: the file name is too long ({size} bytes; this file system takes at most "
+                f"{limit}) — no file can have it: check the name"
+            )
+    return (
+        f"{str(path)[:_SHOWN]}…: the path is too long ({len(os.fsencode(path))} bytes) — "
+        "give it relative to a folder nearer to the file"
+    )
+
+
+def _name_max(path: Path) -> int:
+    """The longest file name, in bytes, of the file system of the nearest folder of ``path``
+    that can be looked up."""
+    for folder in path.absolute().parents:
+        try:
+            return int(os.pathconf(folder, "PC_NAME_MAX"))
+        except (OSError, ValueError):
+            continue
+    return 255
+
+
 def _format(path: Path) -> str:
     """The log's suffix (the one before .gz), after the checks every log passes (and the
-    library its format needs: asammdf for MF4, an optional extra)."""
-    if not path.exists():
-        raise LogFileError(f"{path}: no such file")
-    if path.is_dir():
+    library its format needs: asammdf for MF4, an optional extra). A pipe or a device is
+    refused before it is opened: reading one would wait for a writer, and its size of 0 is no
+    file's."""
+    found = status(path)
+    if stat.S_ISDIR(found.st_mode):
         raise LogFileError(f"{path}: is a folder, not a log file")
+    if not stat.S_ISREG(found.st_mode):
+        raise LogFileError(f"{path}: is a pipe or a device, not a log file — give the recorded file")
     suffixes = [s.lower() for s in path.suffixes]
     real = (
         suffixes[-2]
         if suffixes and suffixes[-1] == ".gz" and len(suffixes) > 1
         else (suffixes[-1] if suffixes else "")
     )
-    if path.stat().st_size == 0:
+    if found.st_size == 0:
         raise LogFileError(f"{path}: the file is empty")
     if real == ".mf4":
         need("asammdf", "reading .mf4 logs", "mf4")
@@ -204,6 +259,8 @@ def read_log(
         reader = open_log(path)
     report.reader = reader
     iterator = iter(reader)
+    first: can.Message | FrameBlock | None = None
+    last: can.Message | FrameBlock | None = None
     try:
         while True:
             try:
@@ -217,13 +274,22 @@ def read_log(
             except Exception as error:
                 report.stopped = f"stopped after frame {report.frames}: {one_line(error)}"
                 return
+            if first is None:
+                first = message
+            last = message
             report.frames += len(message) if type(message) is FrameBlock else 1
             yield message
     finally:
         report.done, report.reader = True, None
+        if first is not None and last is not None:
+            report.span_s = (_time(first, 0), _time(last, -1))
         stop = getattr(reader, "stop", None)
         if callable(stop):
             stop()
+
+
+def _time(item: "can.Message | FrameBlock", index: int) -> float:
+    return float(item.t[index]) if isinstance(item, FrameBlock) else float(item.timestamp)
 
 
 _BulkReader = Callable[[Path, Triage, Callable[[int], None]], Iterable[can.Message | FrameBlock]]

@@ -1,0 +1,179 @@
+"""A campaign's inputs as users and spreadsheets write them: a manifest saved where the decimal
+mark is a comma, a tag a spreadsheet rounded, tags near the ends of a float, a session folder
+whose frames are a pipe; and the counts said in words."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+from app.campaign.compare import Estimate, trend
+from app.campaign.manifest import read_manifest
+from app.campaign.outputs import compare, write_comparison, write_report
+from app.campaign.row import SessionResult, SessionRow
+from app.cli.campaign import print_comparison
+from app.errors import C2nError
+from tests.test_campaign import run_cli
+
+C2N = [15.0, 15.2, 14.9, 15.1]  # the sessions' C2n [1/rad], each ±0.2 (95 %)
+
+
+def _rows(c2n: list[float]) -> list[SessionRow]:
+    """Campaign rows as workers return them, each with its headline C2n."""
+    return [
+        SessionRow(result=SessionResult(Estimate(c, (c - 0.2, c + 0.2), 0.1), 0.0, None, None), key=str(i))
+        for i, c in enumerate(c2n)
+    ]
+
+
+def _manifest(folder: Path, text: str, name: str = "manifest.csv") -> Path:
+    path = folder / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+# -- decimal commas ---------------------------------------------------------------------------
+
+SEMICOLON = """log;tyre_set;pressure_bar;temp_C
+s001.blf;A;2,0;20,5
+s002.blf;B;2,3;21,5
+s003.blf;C;2,6;19
+s004.blf;A;2,1;22,5
+"""
+COMMA = SEMICOLON.replace(",", ".").replace(";", ",")
+
+
+def test_a_semicolon_manifest_reads_decimal_commas_as_numbers(tmp_path: Path) -> None:
+    """Excel where the decimal mark is a comma writes ';' between fields and '2,0' for 2.0: the
+    same trends as the manifest written with ',' and '.', and the same tags in the results."""
+    semicolon = read_manifest(_manifest(tmp_path, SEMICOLON, "semicolon.csv"))
+    comma = read_manifest(_manifest(tmp_path, COMMA, "comma.csv"))
+    assert semicolon.numeric_tags() == comma.numeric_tags() == ["pressure_bar", "temp_C"]
+    assert [e.tags for e in semicolon.entries] == [e.tags for e in comma.entries]
+    assert semicolon.warnings == ()
+    trends = compare(semicolon, _rows(C2N), "tyre_set").trends
+    assert trends == compare(comma, _rows(C2N), "tyre_set").trends
+    assert set(trends) == {"pressure_bar", "temp_C"} and "all" in trends["pressure_bar"]
+
+
+def test_a_column_mixing_decimal_commas_with_other_values_says_which_it_could_not_read(
+    tmp_path: Path,
+) -> None:
+    """A value with a decimal point among decimal commas, or no number, is not guessed at: the
+    column stays text, and the terminal names the file, the line, the column and the value."""
+    text = "log;pressure_bar;driver\ngone1.blf;2,0;Smith, J\ngone2.blf;2,3;Jones\ngone3.blf;2.6;Lee\n"
+    manifest = read_manifest(_manifest(tmp_path, text))
+    assert manifest.numeric_tags() == []
+    assert [e.tags["pressure_bar"] for e in manifest.entries] == ["2,0", "2,3", "2.6"]
+    assert len(manifest.warnings) == 1  # 'Smith, J' is no number written with a decimal comma
+    warning = manifest.warnings[0]
+    assert f"{tmp_path / 'manifest.csv'}: line 4, column 'pressure_bar': '2.6'" in warning
+    assert "no trend" in warning and "'2,0'" in warning
+    code, _, err = run_cli(["campaign", str(tmp_path / "manifest.csv"), "--workers", "1"])
+    assert code == 0 and f"c2n: warning: {warning}\n" in err and "Traceback" not in err
+
+
+# -- tags a spreadsheet rounded, tags near a float's ends ----------------------------------------
+
+
+def test_a_tag_constant_to_a_spreadsheet_s_precision_takes_one_value(tmp_path: Path) -> None:
+    """2.3 and 2.3000000000000003 are one value to a spreadsheet (15 significant digits): no
+    trend (a line through them had a slope of 1e14 1/rad per bar), and the report says why."""
+    assert trend([2.3, 2.3, 2.3, 2.3000000000000003], C2N, [0.1] * 4) is None
+    fitted = trend([2.3, 2.3, 2.4, 2.4000000000000004], C2N, [0.1] * 4)
+    assert fitted is not None and abs(fitted.slope) < 10  # 2.4 is another value
+    text = "log,pressure_bar\na.blf,2.3\nb.blf,2.3\nc.blf,2.3\nd.blf,2.3000000000000003\n"
+    comparison = compare(read_manifest(_manifest(tmp_path, text)), _rows(C2N), None)
+    assert comparison.trends == {"pressure_bar": {}}
+    assert comparison.no_trend == {"pressure_bar": "takes one value: no trend"}
+    write_comparison(tmp_path, comparison)
+    said = json.loads((tmp_path / "comparison.json").read_text())
+    assert said["no_trend"] == {"pressure_bar": "takes one value: no trend"}
+    write_report(tmp_path, comparison, "campaign")
+    assert "pressure_bar takes one value: no trend" in (tmp_path / "report.html").read_text()
+
+
+@pytest.mark.parametrize(
+    "values", [(1e308, -1e308, 0.0, 1.0), (1.7e308, 1e308, 1.5e308, 1.6e308), (-8e307, 8e307, 0.0, 1.0)]
+)
+def test_a_tag_near_the_ends_of_a_float_is_fitted_and_plotted(
+    tmp_path: Path, values: tuple[float, ...]
+) -> None:
+    """The trend is fitted on the tag centred and scaled (docs/campaigns.md); its plot, too, is
+    drawn on the tag scaled, where matplotlib's ticks would overflow past ~1e307."""
+    text = "log,load\n" + "".join(f"{i}.blf,{v!r}\n" for i, v in enumerate(values))
+    comparison = compare(read_manifest(_manifest(tmp_path, text)), _rows(C2N), None)
+    assert comparison.trends["load"]["all"].n_sessions == 4
+    write_report(tmp_path, comparison, "campaign")
+    report = (tmp_path / "report.html").read_text()
+    assert "C2n against load" in report and "<img" in report
+
+
+# -- a session folder whose frames are a pipe --------------------------------------------------
+
+
+def test_a_session_folder_whose_frames_are_a_pipe_is_refused_before_any_work(tmp_path: Path) -> None:
+    """Opening a pipe for reading waits for a writer that never comes: the campaign hung in its
+    hash memo. The manifest refuses it, as it refuses a pipe it names itself."""
+    session = tmp_path / "S"
+    (session / "config").mkdir(parents=True)
+    os.mkfifo(session / "frames.log")
+    manifest = _manifest(tmp_path, "log\nS\n")
+    done = subprocess.run(
+        [sys.executable, "-m", "app", "campaign", str(manifest), "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=Path(__file__).parent.parent,
+    )
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    assert "line 2 names S, whose frames.log is no file (a device or a pipe)" in done.stderr
+    assert not (tmp_path / "manifest-campaign").exists()
+
+
+def test_a_pipe_is_never_opened_for_its_hash(tmp_path: Path) -> None:
+    """A pipe swapped in after the manifest was read: hashing it fails at once, never waits."""
+    pipe = tmp_path / "frames.log"
+    os.mkfifo(pipe)
+    hashing = (
+        "import sys\nfrom pathlib import Path\nfrom app.campaign.analysis import content_hash\n"
+        "from app.errors import C2nError\ntry:\n    content_hash([Path(sys.argv[1])])\n"
+        "except C2nError as error:\n    print(error)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", hashing, str(pipe)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=Path(__file__).parent.parent,
+    )
+    assert done.stdout == f"{pipe}: not a regular file (a device or a pipe) — name a log file\n", done.stderr
+
+
+# -- counts in words ---------------------------------------------------------------------------
+
+
+def test_one_session_is_one_session(tmp_path: Path) -> None:
+    manifest = read_manifest(_manifest(tmp_path, "log,tyre_set\na.blf,A\nb.blf,B\nc.blf,B\n"))
+    comparison = compare(manifest, _rows(C2N[:3]), "tyre_set")
+    console = Console(record=True, width=200)
+    print_comparison(console, comparison, "tyre_set")
+    shown = console.export_text()
+    assert "(95 %, 1 session, τ" in shown and "(95 %, 2 sessions, τ" in shown
+    _manifest(tmp_path, "log\ngone.blf\n", "one.csv")
+    code, text, err = run_cli(["campaign", str(tmp_path / "one.csv"), "--workers", "1"])
+    assert code == 0 and "\n1 session in " in text and "c2n: 1 of 1 session failed" in err
+
+
+def test_a_log_name_no_file_system_holds_is_one_line(tmp_path: Path) -> None:
+    """A manifest line naming a file of 300 bytes' name (a pasted name run on): one line naming
+    the manifest's line, before any work (it was `OSError: [Errno 36]`'s traceback)."""
+    manifest = _manifest(tmp_path, "log,tyre_set\n" + "a" * 300 + ".log,A\n")
+    with pytest.raises(
+        C2nError, match=r"line 2 names a{40}…, which cannot be looked up \(File name too long\)"
+    ):
+        read_manifest(manifest)

@@ -1,0 +1,129 @@
+"""What a log input can be besides a log: a name no file system holds, a pipe or a device, a
+recording of another car's ids, a session still being recorded. Each through the command line:
+the exit code, the one line, what is on disk."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+import pytest
+
+from tests.simulated import REPO, cached_drive
+from tests.test_reliability_inputs import run_cli
+
+SPEED_ID = 0x415  # BrakeSysFeatures: the Mondeo config's 'speed', on the vehicle bus
+MONDEO_TOML = REPO / "config" / "mondeo.toml"
+
+
+def _speed_frames() -> list[can.Message]:
+    """The simulated drive's vehicle speed alone: a vehicle bus without the optical sensor."""
+    return [m for m in cached_drive("constant_radius", 41, 15.1).messages if m.arbitration_id == SPEED_ID]
+
+
+def _one_error_line(err: str) -> str:
+    line = err.strip()
+    assert line.startswith("c2n: error: ") and "\n" not in line and "Traceback" not in err, err
+    return line
+
+
+def _write_log(path: Path, frames: list[can.Message]) -> Path:
+    with can.Logger(path) as writer:
+        for m in frames:
+            writer.on_message_received(m)
+    return path
+
+
+@pytest.mark.parametrize("command", ["analyze", "export"])
+def test_a_log_name_too_long_for_the_file_system_is_one_line(command: str, tmp_path: Path) -> None:
+    """A name over the file system's 255 bytes cannot be looked up (``ENAMETOOLONG``), in the file
+    name or in a folder of the path (was: a traceback from ``path.exists()``)."""
+    name = "a" * 260 + ".log"
+    for log in (tmp_path / name, tmp_path / name / "d.log"):
+        code, _, err = run_cli([command, str(log)])
+        line = _one_error_line(err)
+        assert code == 1
+        assert f"{tmp_path / ('a' * 40)}…" in line and "the file name is too long (264 bytes" in line
+        assert name not in line  # cut: the whole name would fill the screen
+    assert sorted(os.listdir(tmp_path)) == []
+
+
+@pytest.mark.parametrize("command", ["analyze", "export"])
+def test_a_pipe_or_a_device_given_as_a_log_is_named_never_read(command: str, tmp_path: Path) -> None:
+    """A FIFO (its size 0) was `the file is empty`; it is refused before it is opened, which
+    would wait for a writer forever (hence a process with a timeout)."""
+    fifo = tmp_path / "x.log"
+    os.mkfifo(fifo)
+    for log in (fifo, Path(os.devnull)):
+        argv = [sys.executable, "-m", "app", command, str(log), "--config", str(MONDEO_TOML)]
+        if command == "export":
+            argv += ["--out", str(tmp_path / "exp"), "--no-plots"]
+        run = subprocess.run(argv, cwd=REPO, capture_output=True, text=True, timeout=120)
+        assert run.returncode == 1
+        line = _one_error_line(run.stderr)
+        assert line == f"c2n: error: {log}: is a pipe or a device, not a log file — give the recorded file"
+    assert not (tmp_path / "exp").exists()
+
+
+def test_an_export_where_no_role_decodes_says_so_exits_1_and_writes_nothing(tmp_path: Path) -> None:
+    """A log of ids none of the config's DBCs hold (another car's, or the wrong config) was a
+    0-row export, `C2n: no result (no cornering …)` and exit 0, where analyze exits 1: export says
+    no role had a frame and leaves --out as it was — an empty export would replace an older one."""
+    other = [
+        can.Message(timestamp=0.01 * i, arbitration_id=0x123, data=bytes(8), is_extended_id=False)
+        for i in range(200)
+    ]
+    log = _write_log(tmp_path / "other.log", other)
+    out = tmp_path / "exp"
+    code, _, err = run_cli(["analyze", str(log)])
+    assert code == 1 and f"c2n: error: {log}: no frames for role 'vx'" in err
+    code, _, err = run_cli(["export", str(log), "--out", str(out), "--no-plots"])
+    assert code == 1 and "Traceback" not in err
+    error = err.strip().splitlines()[-1]
+    assert error.startswith(f"c2n: error: {log}: no frames for any role of ")
+    assert "wrong DBC or config" in error and f"nothing written to {out}" in error
+    assert "c2n: warning: no frames for role 'vx'" in err
+    assert not out.exists()
+    vehicle = _write_log(tmp_path / "vehicle.log", _speed_frames())
+    assert run_cli(["export", str(vehicle), "--out", str(out), "--no-plots", "--format", "csv"])[0] == 0
+    before = {path.name: path.read_bytes() for path in out.iterdir()}
+    assert run_cli(["export", str(log), "--out", str(out), "--no-plots", "--format", "csv"])[0] == 1
+    assert {path.name: path.read_bytes() for path in out.iterdir()} == before  # the older export kept
+
+
+def test_an_export_of_a_vehicle_bus_without_the_sensor_still_converts_what_there_is(tmp_path: Path) -> None:
+    """Only where no role at all decodes is export refused: the vehicle's speed alone is exported."""
+    frames = _speed_frames()
+    log = _write_log(tmp_path / "vehicle.log", frames)
+    out = tmp_path / "exp"
+    code, _, err = run_cli(["export", str(log), "--out", str(out), "--no-plots", "--format", "csv"])
+    assert code == 0 and "no frames for role 'vx'" in err
+    with (out / "channels.csv").open(encoding="utf-8-sig") as file:
+        assert len(file.readlines()) - 1 == len(frames)
+
+
+def test_an_export_of_a_session_without_its_summary_warns_it_covers_the_frames_so_far(tmp_path: Path) -> None:
+    """c2n live writes summary.json when it ends: without it the session is still being recorded
+    or its run was killed (was: exported as if final, no word); the warning is on stderr and in
+    the exported summary, first. A session with its summary exports without it."""
+    from app.config import load_config
+    from app.sinks.recorder import SessionRecorder
+
+    session = tmp_path / "session"
+    recorder = SessionRecorder(session, load_config())
+    for m in cached_drive("constant_radius", 41, 15.1).messages:
+        recorder.on_frame(m)
+    recorder.close()  # as a killed run left it: no summary
+    warning = (
+        f"{session}: no summary.json: the session is still being recorded, or its c2n live was "
+        "killed — this export covers the frames on disk so far"
+    )
+    code, _, err = run_cli(["export", str(session), "--no-plots", "--format", "csv"])
+    assert code == 0 and f"c2n: warning: {warning}\n" in err
+    exported = json.loads((session / "export" / "summary.json").read_text())
+    assert exported["warnings"][0] == warning and exported["c2n"] == pytest.approx(15.1, rel=0.02)
+    (session / "summary.json").write_text(json.dumps(exported))  # the end of the run
+    code, _, err = run_cli(["export", str(session), "--no-plots", "--format", "csv"])
+    assert code == 0 and "no summary.json" not in err

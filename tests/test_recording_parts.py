@@ -220,3 +220,30 @@ def test_live_on_a_disk_that_holds_small_files_records_every_frame_in_parts(tmp_
     said = " ".join(done.stdout.split())
     assert f"the recording goes on in {folders[1]}" in said
     assert "session saved in " + ", ".join(str(f) for f in folders) in said
+
+
+def test_a_session_renamed_is_read_whole_and_one_without_its_part_is_refused(
+    tmp_path: Path, config: Config
+) -> None:
+    """The first folder names its parts (`parts.json`): renamed, it is still read whole; with a
+    part moved away, `c2n export` of it says which part is missing instead of exporting the first
+    alone as if it were the session."""
+    recorder = SessionRecorder(tmp_path / "s", config)
+    assert recorder._spool is not None
+    recorder._spool._file = Capped(recorder._spool._file, 5_000)  # type: ignore[assignment]
+    sent = _frames(500)
+    for msg in sent:
+        recorder.on_frame(msg)
+        recorder.flush()
+    recorder.close()
+    assert len(recorder.folders) >= 2
+    (tmp_path / "s").rename(tmp_path / "day1")
+    logs, _ = read_session(tmp_path / "day1")
+    assert logs == [tmp_path / "day1" / "frames.log", *(f / "frames.log" for f in recorder.folders[1:])]
+    _same([msg for log in logs for msg in can.LogReader(log)], sent)
+    (tmp_path / "elsewhere").mkdir()
+    recorder.folders[1].rename(tmp_path / "elsewhere" / recorder.folders[1].name)
+    code, _, err = run_cli(["export", str(tmp_path / "day1"), "--no-plots", "--format", "csv"])
+    assert code == 1 and "Traceback" not in err
+    assert f"its session went on in {recorder.folders[1].name}, which is not beside it" in err
+    assert not (tmp_path / "day1" / "export").exists()

@@ -10,7 +10,6 @@ cut they read back to at most a second before it.
 import contextlib
 import copy
 import errno
-import glob
 import json
 import os
 import shutil
@@ -34,7 +33,7 @@ from app.sinks.summary import write as write_summary
 
 RAW_FORMATS = (".log", ".asc", ".blf")
 CONFIG_FOLDER = "config"
-PART_FILE = "part.json"  # in each part of a session after the first: whose part, which number
+PARTS_FILE = "parts.json"  # in a session's first folder: the parts it went on in, in order
 # how often the raw log and the events table are synced to the disk: what a power cut can lose
 # (a sync is about a millisecond on a laptop's SSD and is made off the bus's thread)
 SYNC_S = 1.0
@@ -342,9 +341,8 @@ class SessionRecorder(Sink):
         assert self._spool is not None
         full, folder, events = self.raw_path, None, None
         try:
-            number = len(self.folders) + 1
-            folder = _new_beside(self.folders[0], number)
-            _mark_part(folder, self.folders[0].name, number)
+            folder = _new_beside(self.folders[0], len(self.folders) + 1)
+            _list_parts(self.folders[0], [*self.folders[1:], folder])
             copy_config(self._config, folder / CONFIG_FOLDER)
             events = EventsTable(folder / "events.csv")
             raw = folder / full.name
@@ -428,23 +426,41 @@ def _mount_of(path: Path) -> Path:
     return path
 
 
-def _mark_part(folder: Path, session: str, number: int) -> None:
-    """Say in a part's folder whose part it is, before its first frame: a session whose run was
-    killed is still read whole (``read_session``), and a user's folder that happens to be named
-    ``<session>-part2`` is never taken for one."""
-    (folder / PART_FILE).write_text(json.dumps({"session": session, "part": number}) + "\n", encoding="utf-8")
+def _list_parts(first: Path, parts: list[Path]) -> None:
+    """Name the session's parts in its first folder, as each is made (before its first frame):
+    the first folder alone is the whole session (``read_session``), renamed or killed, and a
+    user's folder that happens to be named ``<session>-part2`` is never taken for one."""
+    text = json.dumps({"parts": [part.name for part in parts]}) + "\n"
+    temporary = first / f".{PARTS_FILE}.{os.getpid()}"
+    temporary.write_text(text, encoding="utf-8")
+    synced(temporary)
+    os.replace(temporary, first / PARTS_FILE)
+    with contextlib.suppress(OSError):  # its name on the disk
+        synced(first)
 
 
-def _part_number(folder: Path, session: str) -> int | None:
-    """``folder``'s number as a part of ``session`` (None: not one of its parts)."""
+def _parts_named(folder: Path) -> list[str]:
+    """The names of the parts ``folder``'s session went on in (none: it went on in none)."""
     try:
-        mark = json.loads((folder / PART_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(mark, dict) or mark.get("session") != session:
-        return None
-    number = mark.get("part")
-    return number if isinstance(number, int) and not isinstance(number, bool) and number >= 2 else None
+        listed = json.loads((folder / PARTS_FILE).read_text(encoding="utf-8")).get("parts")
+    except FileNotFoundError:
+        return []
+    except (OSError, ValueError, AttributeError) as error:
+        raise C2nError(
+            f"{folder / PARTS_FILE}: cannot be read ({error}) — give the parts' logs to c2n analyze"
+        ) from error
+    if not isinstance(listed, list) or not all(_folder_name(n) for n in listed):
+        raise C2nError(
+            f"{folder / PARTS_FILE}: not a list of part folders — give the parts' logs to c2n analyze"
+        )
+    return listed
+
+
+def _folder_name(name: object) -> bool:
+    """A folder's own name, beside the session's: no path, no `.` or `..`."""
+    return (
+        isinstance(name, str) and name not in ("", ".", "..") and Path(name).name == name and "\\" not in name
+    )
 
 
 def _raw_log(folder: Path) -> Path | None:
@@ -465,10 +481,15 @@ def read_session(folder: Path) -> tuple[list[Path], Path]:
         raise C2nError(
             f"{folder / CONFIG_FOLDER}: expected one config copy, found {len(configs)} — pass --config F"
         )
-    parts: dict[int, Path] = {}
-    whole = Path(os.path.abspath(folder))  # `.` too has a name and a parent
-    for sibling in whole.parent.glob(f"{glob.escape(whole.name)}-part*"):
-        number, log = _part_number(sibling, whole.name), _raw_log(sibling)
-        if number is not None and log is not None:
-            parts[number] = log
-    return [first, *(parts[n] for n in sorted(parts))], configs[0]
+    beside = Path(os.path.abspath(folder)).parent  # `.` too has a parent
+    logs = [first]
+    for name in _parts_named(folder):
+        if not (beside / name).is_dir():
+            raise C2nError(
+                f"{folder}: its session went on in {name}, which is not beside it (moved, renamed or "
+                f"deleted) — put the parts beside it, or give the logs you have to c2n analyze"
+            )
+        log = _raw_log(beside / name)
+        if log is not None:  # none: the run was killed as the part was made, before its first frame
+            logs.append(log)
+    return logs, configs[0]

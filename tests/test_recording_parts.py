@@ -62,6 +62,19 @@ def _same(got: list[can.Message], sent: list[can.Message], times: bool = True) -
         assert all(a.timestamp <= b.timestamp for a, b in itertools.pairwise(got))
 
 
+def _recorded_in_parts(folder: Path, config: Config) -> tuple[SessionRecorder, list[can.Message]]:
+    """500 frames recorded into ``folder`` on a disk that holds files of 5 kB: a session in parts."""
+    recorder = SessionRecorder(folder, config)
+    assert recorder._spool is not None
+    recorder._spool._file = Capped(recorder._spool._file, 5_000)  # type: ignore[assignment]
+    sent = _frames(500)
+    for msg in sent:
+        recorder.on_frame(msg)
+        recorder.flush()
+    recorder.close()
+    return recorder, sent
+
+
 def test_a_log_as_large_as_its_disk_holds_goes_on_in_a_folder_beside_it(
     tmp_path: Path, config: Config
 ) -> None:
@@ -137,14 +150,7 @@ def test_the_parts_read_as_the_one_drive_they_are(tmp_path: Path, config: Config
 def test_a_part_folder_never_enters_one_already_there(tmp_path: Path, config: Config) -> None:
     (tmp_path / "s-part2").mkdir()
     (tmp_path / "s-part2" / "notes.txt").write_text("mine")
-    recorder = SessionRecorder(tmp_path / "s", config)
-    assert recorder._spool is not None
-    recorder._spool._file = Capped(recorder._spool._file, 5_000)  # type: ignore[assignment]
-    sent = _frames(500)
-    for msg in sent:
-        recorder.on_frame(msg)
-        recorder.flush()
-    recorder.close()
+    recorder, sent = _recorded_in_parts(tmp_path / "s", config)
     assert recorder.folders == [tmp_path / "s", tmp_path / "s-part3"]
     assert [p.name for p in (tmp_path / "s-part2").iterdir()] == ["notes.txt"]
     parts = [tmp_path / "s" / "frames.log", tmp_path / "s-part3" / "frames.log"]
@@ -228,14 +234,7 @@ def test_a_session_renamed_is_read_whole_and_one_without_its_part_is_refused(
     """The first folder names its parts (`parts.json`): renamed, it is still read whole; with a
     part moved away, `c2n export` of it says which part is missing instead of exporting the first
     alone as if it were the session."""
-    recorder = SessionRecorder(tmp_path / "s", config)
-    assert recorder._spool is not None
-    recorder._spool._file = Capped(recorder._spool._file, 5_000)  # type: ignore[assignment]
-    sent = _frames(500)
-    for msg in sent:
-        recorder.on_frame(msg)
-        recorder.flush()
-    recorder.close()
+    recorder, sent = _recorded_in_parts(tmp_path / "s", config)
     assert len(recorder.folders) >= 2
     (tmp_path / "s").rename(tmp_path / "day1")
     logs, _ = read_session(tmp_path / "day1")

@@ -25,11 +25,12 @@ from app.results.refusal import (
     resting_fit,
     sign_problem,
     standing_headline,
+    unbounded_fit,
     witness,
 )
 from app.results.regression import RegressionFit
 from app.results.sideslip_profile import ProfileView
-from app.results.support import unsteady_crossings
+from app.results.support import unbounded_crossings, unsteady_crossings
 
 _FITTED = (Method.REGRESSION, Method.QUASI_STEADY)  # headlines that are a regression's C2n
 
@@ -91,7 +92,7 @@ class Snapshot:
         return standing_headline(
             self.sign_problem,
             self.drives_disagree,
-            self.unsteady_crossings,
+            self.crossings_problem,
             self.fit,
             self.regression,
             self.quasi,
@@ -108,8 +109,19 @@ class Snapshot:
     def refusal(self) -> str:
         """Why there is no C2n: a wrong sign, or the manoeuvre the drive lacked (``refusal.refusal``)."""
         return refusal(
-            self.sign_problem, self.drives_disagree, self.unsteady_crossings, self.regression, self.cornering
+            self.sign_problem,
+            self.drives_disagree,
+            self.crossings_problem,
+            self.regression,
+            self.cornering,
+            unbounded_fit(self.fit),
         )
+
+    @property
+    def crossings_problem(self) -> str | None:
+        """Why the crossings give no C2n: their sweeps disagree, or they do not bound it
+        (``support.unbounded_crossings``: said only where no regression stands for them)."""
+        return self.unsteady_crossings or unbounded_crossings(self.paired, self.combined)
 
     @property
     def unsteady_crossings(self) -> str | None:

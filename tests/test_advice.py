@@ -88,11 +88,12 @@ def test_yaw_bias_within_its_noise_says_nothing(config: Config) -> None:
 
 
 def test_crossings_apart_from_the_regression(config: Config) -> None:
-    paired = Paired(15.0, 0.2, None, None, None, None, {}, 4, 1.0)  # 14.61–15.39: clear of 13.8–14.2
+    # 15/(1 ± 1.96·0.2/15), the reading a share of C2n (combine.ratio_ci95): clear of 13.8–14.2
+    paired = Paired(15.0, 0.2, None, None, None, None, {}, 4, 1.0)
     said = advice.crossings_apart(_findings(config, paired=paired, headline=HEADLINE))
     assert said is not None
     assert said.startswith(
-        "the paired crossings read 15.000 [14.608, 15.392], apart from the regression's 14.000"
+        "the paired crossings read 15.000 [14.618, 15.403], apart from the regression's 14.000"
     )
     assert said.endswith("the regression's C2n is the result")
 

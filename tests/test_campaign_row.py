@@ -50,14 +50,16 @@ def test_a_fit_holds_its_data_s_interval_apart_from_the_sensors_scales(priors: P
 
 def test_the_crossings_hold_their_data_s_error_apart_from_the_scales() -> None:
     """A scale of 1 % on C2n 15 (0.15) beside the crossings' own 0.1: the interval counts both,
-    the data's interval is the crossings' alone (±1.96·0.1)."""
+    the data's interval is the crossings' alone (their se of 0.1, as a share of C2n:
+    combine.ratio_ci95)."""
     combined = _with_scale(Combined(15.0, 0.1, 6, 1.0), 0.01)
     assert combined is not None and combined.se == pytest.approx(math.hypot(0.1, 0.15))
     head = headline(None, None, None, combined)
     assert head is not None and head.method is Method.CROSSINGS
-    assert head.data_only_ci95 == pytest.approx((15.0 - Z95 * 0.1, 15.0 + Z95 * 0.1))
-    assert head.ci95[1] - 15.0 == pytest.approx(Z95 * math.hypot(0.1, 0.15))
-    assert Estimate.of(15.0, head.ci95, head.data_only_ci95).se == pytest.approx(0.1)
+    share, both = Z95 * 0.1 / 15.0, Z95 * math.hypot(0.1, 0.15) / 15.0
+    assert head.data_only_ci95 == pytest.approx((15.0 / (1 + share), 15.0 / (1 - share)))
+    assert head.ci95 == pytest.approx((15.0 / (1 + both), 15.0 / (1 - both)))
+    assert Estimate.of(15.0, head.ci95, head.data_only_ci95).se == pytest.approx(0.1, rel=1e-3)
 
 
 ROW = SessionRow(

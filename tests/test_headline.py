@@ -71,3 +71,16 @@ def test_the_method_is_written_as_its_name() -> None:
     assert json.dumps({"c2n_method": Method.PAIRED}) == '{"c2n_method": "paired crossings"}'
     assert f"{Method.QUASI_STEADY}" == "quasi-steady" and Method.REGRESSION == "regression"
     assert [m.is_fit for m in Method] == [True, True, False, False]
+
+
+def test_an_interval_without_an_upper_end_is_no_headline() -> None:
+    """A C2n that a fit or the crossings cannot bound above is no result (refusal.unbounded_fit,
+    support.unbounded_crossings say why), and the crossings' mean does not stand in for the
+    paired crossings that counted the head's yaw."""
+    open_fit = replace(FIT, c2n_ci95=(9.0, math.inf))
+    assert headline(**_all(regression=open_fit, paired=PAIRED, combined=COMBINED)) is None
+    assert headline(**_all(quasi=open_fit, combined=COMBINED)) is None
+    wide = replace(PAIRED, se=15.0 / 1.9)  # Z95·se > C2n
+    assert not wide.bounded
+    assert headline(**_all(paired=wide, combined=COMBINED)) is None
+    assert headline(**_all(combined=replace(COMBINED, se=16.0 / 1.9))) is None

@@ -16,6 +16,7 @@ from app.results.marginal import (
     mixture,
     mixture_quantiles,
     posterior,
+    reciprocal_mixture,
     wide_share,
 )
 from app.results.regression import _TERMS, SampleRegression
@@ -179,7 +180,8 @@ def test_a_soft_heavy_car_is_told_how_high_the_left_out_term_reads_it() -> None:
         assert error_pct > 1.0 and fit.softening.next_term_pct == pytest.approx(error_pct, rel=0.25)
         low, high = fit.c2n_ci95  # reaching further down by it: the truth inside
         reach = fit.c2n * fit.softening.next_term_pct / 100.0
-        assert low <= 10.0 <= high and fit.c2n - low == pytest.approx(high - fit.c2n + reach, rel=1e-5)
+        assert low <= 10.0 <= high  # and without the reach, 1/C2n's interval (reciprocal_mixture)
+        assert 1.0 / (low + reach) - 1.0 / fit.c2n == pytest.approx(1.0 / fit.c2n - 1.0 / high, rel=1e-5)
         said = softening(Findings(config=config, result_fit=fit, regression=fit))
         assert isinstance(said, tuple) and "the tyres soften strongly" in said[1]
         assert f"reads C2n about {fit.softening.next_term_pct:.1f} % high" in said[1]
@@ -333,6 +335,26 @@ def test_a_mixtures_interval_holds_its_level() -> None:
     median, (low, high) = mixture([0.0, 10.0], [1.0, 2.0], [0.7, 0.3], 30, 0.95)
     for x, p in ((low, 0.025), (median, 0.5), (high, 0.975)):
         assert 0.7 * t.cdf(x, 30) + 0.3 * t.cdf((x - 10.0) / 2.0, 30) == pytest.approx(p, abs=1e-12)
+
+
+def test_c2ns_interval_is_its_coefficients_mapped_through_the_reciprocal() -> None:
+    """C2n = −1/(g·b): the a_y coefficient b has the t posterior, so C2n's interval is b's ends
+    mapped through 1/x — for one component [1/(x + t·s), 1/(x − t·s)] with x = 1/C2n and
+    s = se/C2n² — not C2n ± t·se, which a 12-second drive read [5.5, 19.5] for a coefficient
+    whose own interval maps to [8.0, 28.5]."""
+    q = t.ppf(0.975, 30)
+    x, s = 1.0 / 12.5, 3.5 / 12.5**2
+    value, (low, high) = reciprocal_mixture([12.5], [3.5], [1.0], 30, 0.95)
+    assert (value, low, high) == pytest.approx((12.5, 1.0 / (x + q * s), 1.0 / (x - q * s)), rel=1e-12)
+    assert high - 12.5 > 12.5 - low  # a reciprocal reaches further up than down
+    # where b's interval reaches zero (a sideslip that may not change with a_y), C2n has no upper end
+    wide = reciprocal_mixture([12.5], [7.0], [1.0], 30, 0.95)[1]
+    assert wide == (pytest.approx(1.0 / (x + q * 2 * s)), math.inf)
+    # two components: the quantiles of 1/C2n's mixture, mapped (1/x keeps their order reversed)
+    median, (low, high) = reciprocal_mixture([14.0, 10.0], [0.5, 1.0], [0.7, 0.3], 30, 0.95)
+    for value, p in ((1.0 / high, 0.025), (1.0 / median, 0.5), (1.0 / low, 0.975)):
+        cdf = 0.7 * t.cdf((value - 1 / 14.0) / (0.5 / 14.0**2), 30) + 0.3 * t.cdf((value - 0.1) / 0.01, 30)
+        assert cdf == pytest.approx(p, abs=1e-12)
 
 
 def test_a_component_of_vanishing_weight_still_gives_the_quantiles() -> None:

@@ -7,6 +7,7 @@ import pytest
 from app import paper
 from app.records import Crossing, Direction, Sweep
 from app.results.pairing import pair
+from app.units import Z95
 from tests.crossings import D, G, read_crossing
 
 
@@ -76,3 +77,26 @@ def test_one_direction_on_two_radii_measures_the_misalignment() -> None:
     paired = pair(crossings, D, G)
     assert paired is not None and paired.misalignment_rad == pytest.approx(0.004, rel=1e-3)
     assert paired.c2n == pytest.approx(14.0, rel=2e-4) and paired.ci95[0] <= 14.0 <= paired.ci95[1]
+
+
+def test_a_crossings_interval_is_every_c2n_that_reads_it_within_its_share() -> None:
+    """A crossing reads C2n·(1 + ε), its errors shares of C2n (combine.ratio_ci95): the interval
+    is every C2n within Z95·se/ĉ of the reading, [ĉ/(1 + Z95·r), ĉ/(1 − Z95·r)]. On a 40 m circle
+    turning one way, with the head's ±0.5° prior, that reaches higher above ĉ than below it."""
+    paired = pair([crossing(14.0, "left", "up", 40.0, 0.3, 0.0, 0.0)], D, G)
+    assert paired is not None and paired.bounded
+    share = Z95 * paired.se / paired.c2n
+    low, high = paired.ci95
+    assert (low, high) == pytest.approx((paired.c2n / (1 + share), paired.c2n / (1 - share)), rel=1e-12)
+    for end in (low, high):  # both ends read ĉ at exactly their own share
+        assert abs(paired.c2n - end) == pytest.approx(share * end, rel=1e-9)
+    assert high > paired.c2n + Z95 * paired.se and low > paired.c2n - Z95 * paired.se
+
+
+def test_one_crossing_on_a_wide_circle_does_not_bound_c2n() -> None:
+    """On 150 m (R/d = 135) a head yawed by its prior's 0.5° moves the crossing by 1.2 of C2n:
+    no reading rules out a C2n far above it. ĉ ± Z95·se read below zero (−4.4 … 34.2 once)."""
+    paired = pair([crossing(14.0, "left", "up", 150.0, 0.3, 0.0, 0.0)], D, G)
+    assert paired is not None and Z95 * paired.se > paired.c2n
+    assert not paired.bounded
+    assert paired.ci95 == (pytest.approx(paired.c2n / (1 + Z95 * paired.se / paired.c2n)), math.inf)

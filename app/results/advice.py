@@ -15,6 +15,7 @@ from app.config import Config
 from app.decode.counts import FrameCounts
 from app.detect.steady_state import WHEELBASE_M
 from app.estimate.motion_model import FilterCounts
+from app.results.combine import bracket
 from app.results.headline import Headline, Method
 from app.results.pairing import Paired
 from app.results.regression import TIGHT_WHEELBASES, RegressionFit
@@ -207,7 +208,7 @@ def crossings_apart(f: Findings) -> str | None:
     if low <= h_high and h_low <= high:
         return None
     return (
-        f"the paired crossings read {paired.c2n:.3f} [{low:.3f}, {high:.3f}], apart from the "
+        f"the paired crossings read {paired.c2n:.3f} {bracket(paired.ci95)}, apart from the "
         f"regression's {head.c2n:.3f}: each crossing rests on one speed and the config's d (eq. 7) "
         "and carries what the regression fits beside C2n (a head's yaw where only one direction "
         "crossed, the tyres' secant beyond its a_y, a tight turn's two wheels) — the regression's C2n "
@@ -257,9 +258,10 @@ def d_from_tape(f: Findings) -> str | None:
     apart = not fit.d.ci95_m[0] <= config.d_m <= fit.d.ci95_m[1]  # d_disagrees says so: not resting on it
     if fit.d.information is not None and fit.d.information < 1.0 and not apart:
         low, high = fit.samples.speed_range_mps
-        where = "quasi-steady cornering" if f.on_quasi else f"the steady samples ({low:.1f}–{high:.1f} m/s)"
+        steady = f"the steady samples ({low:.1f}–{high:.1f} m/s) place"
+        where = "quasi-steady cornering places" if f.on_quasi else steady
         return (
-            f"{where} place the sensor's d less well than the tape does ({fit.d.information:.2f} of its "
+            f"{where} the sensor's d less well than the tape does ({fit.d.information:.2f} of its "
             f"information): C2n rests on the config's {config.d_m:g} m more than on the drive (its interval "
             f"counts the tape's {tape}); sweep the speed through u0 on two radii to measure both"
         )

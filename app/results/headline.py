@@ -13,7 +13,10 @@ best:
 - crossings but too few steady samples for a fit (under 200, ten blocks or 0.5 m/s² of a_y): the
   crossings paired (misalignment and lag taken out), else their inverse-variance mean.
 
-A C2n that is not positive is no stiffness, and none is reported.
+A C2n that is not positive is no stiffness, and none is reported; nor is one whose interval has no
+upper end: a fit's whose a_y coefficient's interval reaches zero (``marginal.reciprocal_mixture``;
+``refusal.unbounded_fit`` says why), or the crossings' where a head's yaw they cannot tell from C2n
+may cancel the whole sideslip (``combine.ratio_ci95``; ``support.unbounded_crossings``).
 """
 
 import math
@@ -70,9 +73,10 @@ def headline(
     disagree) are the caller's: they decide whether there is a result, not which one."""
     fit, method = (quasi, Method.QUASI_STEADY) if quasi is not None else (regression, Method.REGRESSION)
     if fit is not None:
-        return Headline(fit.c2n, fit.c2n_ci95, method, fit.c2n_data_ci95) if positive(fit.c2n) else None
-    if paired is not None and positive(paired.c2n):
-        return Headline(paired.c2n, paired.ci95, Method.PAIRED, paired.data_ci95)
-    if combined is not None and positive(combined.c2n):
+        bounded = positive(fit.c2n) and math.isfinite(fit.c2n_ci95[1])
+        return Headline(fit.c2n, fit.c2n_ci95, method, fit.c2n_data_ci95) if bounded else None
+    if paired is not None and positive(paired.c2n):  # unbounded: the mean would hide what it counts
+        return Headline(paired.c2n, paired.ci95, Method.PAIRED, paired.data_ci95) if paired.bounded else None
+    if combined is not None and positive(combined.c2n) and combined.bounded:
         return Headline(combined.c2n, combined.ci95, Method.CROSSINGS, combined.data_ci95)
     return None

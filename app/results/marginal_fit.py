@@ -50,6 +50,7 @@ from app.results.marginal import (
     left_out,
     mixture,
     posterior,
+    reciprocal_mixture,
     well_conditioned_inverse,
     wide_share,
 )
@@ -269,11 +270,11 @@ def _result(
     c2ns = [-1.0 / (model.g * f[0].value(Term.AY)) for f, _ in kept]
     data_ses = [f[0].se(Term.AY) * model.g * c * c for (f, _), c in zip(kept, c2ns, strict=True)]
     c2n_ses = [math.hypot(se, model.scale_se * abs(c)) for se, c in zip(data_ses, c2ns, strict=True)]
-    c2n, c2n_ci = mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
+    c2n, c2n_ci = reciprocal_mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
     data_ci = c2n_ci
     if model.scale_se:  # the sensors' scales widen the interval; the value is the data's mixture's,
         # which a stated tolerance does not move (its median would: the widths weigh it)
-        c2n, data_ci = mixture(c2ns, data_ses, shares, dof, priors.confidence)
+        c2n, data_ci = reciprocal_mixture(c2ns, data_ses, shares, dof, priors.confidence)
     # the softening's next term, where the model leaves it out, reads C2n high by at least
     # next_pct (its series at r = 1): the interval reaches that much further down
     b_ay = post.value(Term.AY)

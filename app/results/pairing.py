@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.records import Crossing
+from app.results.combine import ratio_ci95
 from app.results.marginal import Posterior, data_alone
 from app.units import Z95
 
@@ -48,9 +49,7 @@ class Paired:
     @property
     def data_ci95(self) -> tuple[float, float] | None:
         """C2n's 95 % interval from the crossings alone, where ci95 holds the sensors' scales too."""
-        if self.data_se is None:
-            return None
-        return (self.c2n - Z95 * self.data_se, self.c2n + Z95 * self.data_se)
+        return None if self.data_se is None else ratio_ci95(self.c2n, self.data_se)
 
     @property
     def cancels(self) -> tuple[str, ...]:
@@ -64,7 +63,14 @@ class Paired:
 
     @property
     def ci95(self) -> tuple[float, float]:
-        return (self.c2n - Z95 * self.se, self.c2n + Z95 * self.se)
+        """C2n's 95 % interval, a share of C2n (``combine.ratio_ci95``): no upper bound (inf)
+        where the priors' share reaches C2n itself."""
+        return ratio_ci95(self.c2n, self.se)
+
+    @property
+    def bounded(self) -> bool:
+        """Does the interval bound C2n above?"""
+        return math.isfinite(self.ci95[1])
 
     @property
     def misalignment_ci95_rad(self) -> tuple[float, float] | None:

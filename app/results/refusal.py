@@ -4,11 +4,13 @@ run found. ``snapshot.py`` asks them and keeps their outcomes; the sinks read th
 - ``resting_fit``: which regression the result rests on (the steady samples', or the quasi-steady's).
 - ``sign_problem``: a role the wrong way round, or a C2n that is not positive.
 - ``drives_disagree``: drives pooled that do not measure one C2n.
+- ``unbounded_fit``: a positive C2n whose interval has no upper end.
 - ``standing_headline``: the headline, unless one of these refuses it.
 - ``refusal``: why there is no C2n at all.
 - ``replay_hint``: optical frames far faster than a sensor sends them.
 """
 
+import math
 from collections.abc import Sequence
 
 from app.detect.quasi_steady import Cornering
@@ -109,20 +111,39 @@ def drives_disagree(
     )
 
 
+def unbounded_fit(fit: RegressionFit | None) -> str | None:
+    """Why the regression's C2n is no result though positive: its interval has no upper end (its
+    a_y coefficient's reaches zero: too few samples, or too narrow an a_y range, to rule out a
+    sideslip that does not change with a_y). ``fit`` is the result's (``resting_fit``)."""
+    if fit is None or not positive(fit.c2n) or math.isfinite(fit.c2n_ci95[1]):
+        return None
+    low, high = fit.samples.ay_range_mps2
+    held = f"; what holds it open most: {fit.held_open.by}" if fit.held_open and fit.held_open.by else ""
+    return (
+        f"the regression over {fit.samples.count:,} samples reads C2n {fit.c2n:.2f} but does not bound "
+        f"it: its 95 % interval runs from {fit.c2n_ci95[0]:.2f} with no upper end (a_y "
+        f"{low:.1f}–{high:.1f} m/s²{held}) — drive longer: steady circles at 2–4 m/s² with the speed "
+        "swept slowly through the sign change"
+    )
+
+
 def refusal(
     sign: str | None,
     disagree: str | None,
     unsteady: str | None,
     regression: RegressionFit | None,
     cornering: Cornering,
+    unbounded: str | None = None,
 ) -> str:
     """Why there is no C2n: a wrong sign (``sign_problem``), drives apart (``drives_disagree``),
-    crossings whose sweeps disagree (``support.unsteady_crossings``), or the manoeuvre the drive
-    lacked."""
+    a fit that does not bound C2n (``unbounded_fit``), crossings whose sweeps disagree or that do
+    not bound it (``support``), or the manoeuvre the drive lacked."""
     if sign:
         return sign
     if disagree:
         return disagree
+    if unbounded:
+        return unbounded
     if unsteady and (regression is None or not positive(regression.c2n)):
         return unsteady
     c = cornering
@@ -166,7 +187,8 @@ def standing_headline(
 ) -> Headline | None:
     """The C2n to report (``headline.py``: by what the drive held), unless a refusal stands: a
     role's sign the wrong way round (``sign``), pooled drives that disagree (``disagree``), or —
-    with no fit to rest on — crossings whose sweeps disagree (``unsteady``)."""
+    with no fit to rest on — crossings whose sweeps disagree or that do not bound C2n
+    (``unsteady``)."""
     if sign:
         return None
     held = fit if fit is not None and fit is quasi else None  # no sweep crossed zero

@@ -9,8 +9,14 @@ sensor's latency but a car that never reached steady linear cornering — tyres 
 limit (a drive on ice: a_y never above 1 m/s², crossings 7.3 and 12.1 sweeping up and down, a
 "lag" of −5.5 s), or a manoeuvre too fast for its radius. No C2n is then printed from the
 crossings; the reason is.
+
+Nor where the crossings cannot bound C2n at all (``unbounded_crossings``): crossings on one
+radius turning one way cannot tell a head's yaw from C2n, and on a wide circle a yaw within the
+head's tolerance moves the sign change by as much as C2n itself (``combine.ratio_ci95``).
 """
 
+from app.results.combine import Combined
+from app.results.headline import positive
 from app.results.pairing import Paired
 from app.units import Z95
 
@@ -36,4 +42,30 @@ def unsteady_crossings(paired: Paired | None, settle_s: float) -> str | None:
         "steady-state gate lets the car settle: the car was not in steady linear cornering at the "
         "sign change (tyres near their grip limit on a slippery surface, or sweeps too fast); drive "
         "steady circles on a dry surface at 2–4 m/s² with the speed swept slowly through the sign change"
+    )
+
+
+def unbounded_crossings(paired: Paired | None, combined: Combined | None) -> str | None:
+    """Why the crossings give no C2n: their 95 % interval has no upper end (None: it has, or
+    there is no positive reading to speak of). Says what held it open: the head's yaw where
+    the crossings could not place it, the lag where one sweep direction was driven."""
+    crossings = paired if paired is not None else combined
+    if crossings is None or not positive(crossings.c2n) or crossings.bounded:
+        return None
+    held = []
+    if paired is not None and paired.misalignment_rad is None:
+        held.append(
+            "a head yawed within its tolerance ([priors] head_yaw_deg) moves every crossing alike, "
+            "as the crossings turn one way on one radius"
+        )
+    if paired is not None and paired.lag_s is None:
+        held.append("a lag between speed and sideslip, as one sweep direction was driven")
+    why = "; ".join(held) if held else "the crossings scatter as widely as C2n itself"
+    count = f"{crossings.n} crossings read" if crossings.n != 1 else "1 crossing reads"
+    bind = "do" if crossings.n != 1 else "does"
+    return (
+        f"{count} C2n {crossings.c2n:.2f} but {bind} not bound it: its 95 % interval runs from "
+        f"{crossings.ci95[0]:.2f} with no upper end ({why}) — drive circles both ways with the speed "
+        "swept up and down through the sign change, or long enough for the regression (200 steady "
+        "samples over 0.5 m/s² of a_y)"
     )

@@ -8,6 +8,7 @@ from rich.console import Console
 from rich.text import Text
 
 from app.records import Crossing, CrossingRejected, Event
+from app.results.combine import bracket
 from app.results.headline import Method
 from app.sinks.sink import Sink
 from app.snapshot import Snapshot
@@ -61,9 +62,9 @@ def result_line(snapshot: Snapshot) -> str:
     text += f"u0 = {u0:.3f} m/s = {u0 * 3.6:.2f} km/h" if u0 is not None else "u0: none (C2n is not positive)"
     crossings = snapshot.paired or snapshot.combined
     if crossings is not None and headline.method is Method.REGRESSION:
-        clo, chi = crossings.ci95
         paired = " paired" if snapshot.paired is not None else ""
-        text += f"; {crossings.n}{paired} crossings: {crossings.c2n:.3f} [{clo:.3f}, {chi:.3f}]"
+        count = f"{crossings.n}{paired} crossing{'s' if crossings.n != 1 else ''}"
+        text += f"; {count}: {crossings.c2n:.3f} {bracket(crossings.ci95)}"
     return text
 
 

@@ -97,6 +97,47 @@ def test_a_tag_constant_to_a_spreadsheet_s_precision_takes_one_value(tmp_path: P
     assert "pressure_bar takes one value: no trend" in (tmp_path / "report.html").read_text()
 
 
+def test_a_numeric_tag_with_an_empty_cell_is_fitted_on_the_rows_with_a_value_and_says_so(
+    tmp_path: Path,
+) -> None:
+    """A pressure not noted on one line: the column is still numeric (it was taken for text, with
+    no trend and no word why), the trend is fitted on the other rows and the row left out is
+    named — one line in the terminal before the work, ``no_value`` in comparison.json, the report.
+    Too few rows left with a value: ``no_trend`` says so, and why."""
+    path = _manifest(tmp_path, "log,pressure_bar\na.blf,2.0\nb.blf,\nc.blf,2.4\nd.blf,2.6\n")
+    manifest = read_manifest(path)
+    assert manifest.numeric_tags() == ["pressure_bar"] and manifest.empty_cells() == {"pressure_bar": [3]}
+    comparison = compare(manifest, _rows(C2N), None)
+    fitted = comparison.trends["pressure_bar"]["all"]
+    assert fitted == trend([2.0, 2.4, 2.6], [C2N[0], C2N[2], C2N[3]], [0.1] * 3) and fitted.n_sessions == 3
+    assert comparison.no_value == {"pressure_bar": ["b.blf"]} and comparison.no_trend == {}
+    write_comparison(tmp_path, comparison)
+    said = json.loads((tmp_path / "comparison.json").read_text())
+    assert said["no_value"] == {"pressure_bar": ["b.blf"]} and said["trends"]["pressure_bar"]["all"]
+    write_report(tmp_path, comparison, "campaign")
+    assert "pressure_bar: left out, no value in the manifest: b.blf" in (tmp_path / "report.html").read_text()
+    code, _, err = run_cli(["campaign", str(path), "--workers", "1"])
+    assert code == 0 and "Traceback" not in err
+    assert (
+        f"c2n: warning: {path}: column 'pressure_bar' has 1 empty cell of 4 (line 3) — the trends "
+        "against it leave that row out\n"
+    ) in err
+    _, _, err = run_cli(["campaign", str(path), "--workers", "1", "--by", "pressure_bar"])
+    assert "empty cell" not in err  # a group of its own, "(empty)": no trend against it to leave it out of
+
+    two = read_manifest(_manifest(tmp_path, "log,p\na.blf,2.0\nb.blf,\nc.blf,\nd.blf,2.6\n", "two.csv"))
+    assert two.empty_cells_warning("p") == (
+        f"{tmp_path / 'two.csv'}: column 'p' has 2 empty cells of 4 (lines 3, 4) — the trends against it "
+        "leave those rows out"
+    )
+    comparison = compare(two, _rows(C2N), None)
+    assert comparison.trends == {"p": {}} and comparison.no_value == {"p": ["b.blf", "c.blf"]}
+    assert comparison.no_trend == {
+        "p": "2 sessions with a C2n and a value: a trend needs three "
+        "(2 sessions with a C2n have no value: left out)"
+    }
+
+
 @pytest.mark.parametrize(
     "values", [(1e308, -1e308, 0.0, 1.0), (1.7e308, 1e308, 1.5e308, 1.6e308), (-8e307, 8e307, 0.0, 1.0)]
 )

@@ -180,12 +180,19 @@ def as_kept(x: float) -> float:
     return kept if math.isfinite(kept) else x
 
 
-def no_trend(x: Sequence[float]) -> str:
-    """Why ``trend`` fits no line against a tag whose values are x: said where it fits none."""
+def no_trend(x: Sequence[float], no_value: int = 0) -> str:
+    """Why ``trend`` fits no line against a tag whose values are x: said where it fits none;
+    ``no_value``: the sessions with a C2n left out, their tag's cell empty."""
+    left_out, with_value = "", ""
+    if no_value:
+        had = "1 session with a C2n has" if no_value == 1 else f"{no_value} sessions with a C2n have"
+        left_out, with_value = f" ({had} no value: left out)", " and a value"
+    if not x:
+        return f"no session with a C2n{with_value}: no trend{left_out}"
     if len({as_kept(v) for v in x}) < 2:
-        return "takes one value: no trend"
+        return f"takes one value: no trend{left_out}"
     if len(x) < 3:
-        return f"{len(x)} sessions with a C2n: a trend needs three"
+        return f"{len(x)} sessions with a C2n{with_value}: a trend needs three{left_out}"
     return "the fit overflows: no trend"
 
 

@@ -5,7 +5,8 @@
     sessions/2026-11-24_101500,B,240,1
 
 ``log`` is a log file or a session folder of ``c2n live``, relative to the manifest. Tags are
-kept as text; a tag whose every value is a number is numeric (``numeric_tags``), for trends. A
+kept as text; a tag whose every value is a number, bar empty cells, is numeric (``numeric_tags``),
+for trends, which leave its empty cells' rows out (``empty_cells`` says where). A
 manifest not separated by commas may write its numbers with a decimal comma (Excel's ``;`` CSV
 where that is the decimal mark): such a column's values are kept with a decimal point.
 """
@@ -37,8 +38,36 @@ class Manifest:
     warnings: tuple[str, ...] = ()  # a column not read as its values suggest, one line each
 
     def numeric_tags(self) -> list[str]:
-        """The tags whose every value is a finite number (pressure, load, temperature …)."""
-        return [name for name in self.tag_names if all(_number(e.tags[name]) for e in self.entries)]
+        """The tags whose every value is a finite number (pressure, load, temperature …), bar
+        empty cells (a value not noted): a trend against such a tag leaves their rows out."""
+        return [
+            name
+            for name in self.tag_names
+            if any(e.tags[name] for e in self.entries)
+            and all(_number(e.tags[name]) for e in self.entries if e.tags[name])
+        ]
+
+    def empty_cells(self) -> dict[str, list[int]]:
+        """The numeric tags with empty cells, and the lines they are on."""
+        lines = {name: [e.line for e in self.entries if not e.tags[name]] for name in self.numeric_tags()}
+        return {name: on for name, on in lines.items() if on}
+
+    def empty_cells_warning(self, tag: str) -> str | None:
+        """One line on ``tag``'s empty cells, where it has any: how many, on which lines, and
+        that the trends against it leave those rows out."""
+        lines = self.empty_cells().get(tag)
+        if not lines:
+            return None
+        n, shown = len(lines), ", ".join(str(line) for line in lines[:_LINES_NAMED])
+        more = f" and {n - _LINES_NAMED} more" if n > _LINES_NAMED else ""
+        cells, rows = ("1 empty cell", "that row") if n == 1 else (f"{n} empty cells", "those rows")
+        return (
+            f"{self.path}: column '{tag}' has {cells} of {len(self.entries)} "
+            f"(line{'s' if n > 1 else ''} {shown}{more}) — the trends against it leave {rows} out"
+        )
+
+
+_LINES_NAMED = 5  # an empty cell's line named up to this many; the rest counted
 
 
 def _number(text: str) -> bool:

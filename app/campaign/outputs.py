@@ -5,6 +5,7 @@ import csv
 import io
 import math
 import os
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -135,6 +136,25 @@ class Compared:
 
 
 @dataclass(frozen=True)
+class NoC2n:
+    """A group none of whose sessions gave a C2n, and why: each error (its log's name taken off)
+    with the number of sessions that gave it, the most common first."""
+
+    n_sessions: int
+    reasons: dict[str, int]
+
+    @classmethod
+    def of(cls, reasons: Sequence[str]) -> "NoC2n":
+        return cls(len(reasons), dict(Counter(reasons).most_common()))
+
+    @property
+    def said(self) -> str:
+        """``3 sessions, none gave a C2n: 2× <why>; 1× <why>`` (the reasons as the files gave them)."""
+        counted = "; ".join(f"{n}× {reason}" for reason, n in self.reasons.items())
+        return f"{sessions(self.n_sessions)}, none gave a C2n: {counted}"
+
+
+@dataclass(frozen=True)
 class Comparison:
     by: str | None
     groups: dict[str, Pooled]
@@ -147,6 +167,9 @@ class Comparison:
     softening: dict[str, Softening] = field(default_factory=dict)  # group -> its tyres' model
     compared: dict[str, Compared] = field(default_factory=dict)  # log -> what was compared of it
     no_trend: dict[str, str] = field(default_factory=dict)  # tag -> why no trend is fitted against it
+    no_c2n: dict[str, NoC2n] = field(default_factory=dict)  # a group none of whose sessions gave a C2n
+    # tag -> the sessions with a C2n whose cell of that numeric tag is empty: left out of its trends
+    no_value: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def switched(self) -> dict[str, Compared]:
@@ -166,6 +189,7 @@ class Comparison:
             "sessions": self.n_sessions,
             "failed": [{"log": log, "error": error} for log, error in self.failed],
             "groups": {name: json_ready(asdict(p)) for name, p in self.groups.items()},
+            "no_c2n": {name: json_ready(asdict(n)) for name, n in self.no_c2n.items()},
             "softening": {name: json_ready(asdict(s)) for name, s in self.softening.items()},
             "switched": [{"log": log} | json_ready(asdict(c)) for log, c in self.switched.items()],
             "differences": [json_ready(asdict(d)) for d in self.differences],
@@ -174,6 +198,7 @@ class Comparison:
                 for tag, per in self.trends.items()
             },
             "no_trend": self.no_trend,
+            "no_value": self.no_value,
             "method": "random effects: DerSimonian–Laird τ², Hartung–Knapp t interval (modified, max(1, q)); "
             "tyre softening per group: Stouffer's z of the sessions' a_y³ t (|z| > 2); a marginal fit's C2n "
             "(the default) carries the softening under its prior and is pooled as it is, a cascade fit's is "
@@ -212,14 +237,28 @@ class _Session(NamedTuple):
         return Compared(picked.c2n, picked.ci95, tyres.model, fits.chosen, fits.softening_t), picked.se
 
 
+def reason(log: Path, error: str) -> str:
+    """Why a row has no C2n, without its log's name in front (``<log>: <why>``, or a session
+    folder's file's ``<log>/frames.blf: <why>``): what the rows of a group can have in common."""
+    name = str(log)
+    if error.startswith(name):
+        _, said, why = error[len(name) :].partition(": ")
+        if said and why:
+            return why
+    return error
+
+
 def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> Comparison:
-    """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed."""
+    """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed,
+    and a group of such rows is one of ``no_c2n``, with their reasons counted."""
     failed, done = [], []
+    reasons: dict[str, list[str]] = {}  # group -> why each of its failed rows has no C2n
     for entry, row in zip(manifest.entries, rows, strict=True):
+        group = entry.tags[by] if by else "all"
         if row.error or row.result is None:
             failed.append((entry.log.name, row.error or "no C2n"))
+            reasons.setdefault(group, []).append(reason(entry.log, row.error or "no C2n"))
             continue
-        group = entry.tags[by] if by else "all"
         done.append(_Session(entry.tags, log_name(manifest, entry), group, row.result))
     evidence: dict[str, list[float]] = {}
     for session in done:
@@ -229,12 +268,16 @@ def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> C
     sessions: dict[str, list[tuple[float, float]]] = {}
     tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
     numeric = [tag for tag in manifest.numeric_tags() if tag != by]
+    no_value: dict[str, list[str]] = {}
     compared: dict[str, Compared] = {}
     for session in done:
         c, se = session.compared(decided)
         compared[session.log] = c
         sessions.setdefault(session.group, []).append((c.c2n, se))
         for tag in numeric:
+            if not session.tags[tag]:  # not noted: no place on the line (the terminal said so)
+                no_value.setdefault(tag, []).append(session.log)
+                continue
             tagged.setdefault(tag, {}).setdefault(session.group, []).append(
                 (float(session.tags[tag]), c.c2n, se)
             )
@@ -247,15 +290,29 @@ def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> C
     groups = {name: with_scale(p, common[name]) for name, p in pooled.items()}
     trends: dict[str, dict[str, Trend]] = {}
     unfitted: dict[str, str] = {}
-    for tag, per_group in tagged.items():
+    for tag in numeric if done else []:  # every numeric tag a trend, or why it has none
+        per_group = tagged.get(tag, {})
         everything = [value for values in per_group.values() for value in values]
         found = {"all": trend(*zip(*everything, strict=True))} if len(per_group) > 1 else {}
         found |= {group: trend(*zip(*values, strict=True)) for group, values in sorted(per_group.items())}
         trends[tag] = {group: t for group, t in found.items() if t is not None}
         if not trends[tag]:
-            unfitted[tag] = no_trend([x for x, _, _ in everything])
+            unfitted[tag] = no_trend([x for x, _, _ in everything], len(no_value.get(tag, [])))
+    no_c2n = {group: NoC2n.of(why) for group, why in sorted(reasons.items()) if group not in sessions}
     return Comparison(
-        by, groups, sessions, differences, trends, tagged, failed, len(rows), decided, compared, unfitted
+        by,
+        groups,
+        sessions,
+        differences,
+        trends,
+        tagged,
+        failed,
+        len(rows),
+        decided,
+        compared,
+        unfitted,
+        no_c2n,
+        no_value,
     )
 
 
@@ -316,6 +373,7 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
             )
             if group_rows
             else none("no session gave a C2n"),
+            *(none(f"{by} {name}: {group.said}") for name, group in comparison.no_c2n.items()),
         ),
         section(
             "Sessions compared on their group's tyre model",
@@ -387,11 +445,16 @@ def _tyres(tyres: Softening | None) -> str:
 
 
 def _trend_tables(comparison: Comparison) -> list[str]:
-    """A table of each numeric tag's trends, or why it has none."""
-    said = [
-        _trend_table(tag, per) if per else none(f"{tag} {comparison.no_trend.get(tag, 'no trend')}")
-        for tag, per in comparison.trends.items()
-    ]
+    """A table of each numeric tag's trends, or why it has none; and the sessions left out of
+    them, their tag's cell empty."""
+    said = []
+    for tag, per in comparison.trends.items():
+        if not per:
+            said.append(none(f"{tag} {comparison.no_trend.get(tag, 'no trend')}"))
+            continue
+        said.append(_trend_table(tag, per))
+        if left_out := comparison.no_value.get(tag):
+            said.append(none(f"{tag}: left out, no value in the manifest: {', '.join(left_out)}"))
     return said or [none("no numeric tag")]
 
 

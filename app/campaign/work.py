@@ -133,7 +133,14 @@ def dask_workers(address: str) -> Iterator[cf.Executor]:
         if address == "local":
             workers = os.cpu_count() or 1
             cluster = LocalCluster(  # type: ignore[no-untyped-call]
-                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                # no dashboard, but the scheduler's HTTP routes are served anyway: on port 8787 of
+                # every interface, else (taken by a Jupyter's cluster or another campaign) on
+                # another after a UserWarning of four lines; a free port of this machine's own
+                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
             )
             stack.enter_context(cluster)
             address = cluster.scheduler_address

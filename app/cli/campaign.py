@@ -4,6 +4,7 @@ intervals that count the spread between sessions, the differences between groups
 against numeric tags."""
 
 import argparse
+import logging
 import os
 import time
 from concurrent.futures import Executor
@@ -84,15 +85,20 @@ def _scheduler(text: str) -> str:
 
 
 def print_comparison(console: Console, comparison: "Comparison", by: str | None) -> None:
-    """The groups, their differences and the sessions compared on their group's model, one line
-    each; every tag and log name printed as the user wrote it (``shown``)."""
+    """The groups (a group none of whose sessions gave a C2n too, with why), their differences
+    and the sessions compared on their group's model, one line each; every tag and log name
+    printed as the user wrote it (``shown``)."""
     from app.campaign.outputs import sessions
 
-    for name, pooled in comparison.groups.items():
+    for name in sorted({*comparison.groups, *comparison.no_c2n}):
+        group = f"{shown(by)} {shown(name)}" if by else "all sessions"
+        if name not in comparison.groups:
+            console.print(f"  {group}: {shown(comparison.no_c2n[name].said)}")
+            continue
+        pooled = comparison.groups[name]
         low, high = pooled.ci95
         tyres = comparison.softening.get(name)
         soften = f", tyres {tyres.shown}" if tyres else ""
-        group = f"{shown(by)} {shown(name)}" if by else "all sessions"
         console.print(
             f"  {group}: C2n = {pooled.c2n:.3f} 1/rad [{low:.3f}, {high:.3f}] "
             f"(95 %, {sessions(pooled.n_sessions)}, τ {pooled.tau:.3f}{soften})"
@@ -108,6 +114,15 @@ def print_comparison(console: Console, comparison: "Comparison", by: str | None)
             f"its own fit chose the {c.own_model} one (t = {c.softening_t:+.1f}), its group's sessions "
             f"together the {c.model} one"
         )
+
+
+def quiet_dask(debug: bool) -> None:
+    """Dask's own bookkeeping kept out of the terminal: importing distributed sets its loggers
+    to INFO, and ours prints what reaches it, ~40 lines a run of a LocalCluster ('Start Nanny
+    at', 'Register worker', 'Scheduler closing all comms' …). Its warnings and errors stay;
+    ``--debug`` keeps it all."""
+    if not debug:
+        logging.getLogger("distributed").setLevel(logging.WARNING)
 
 
 def _analysed(
@@ -156,6 +171,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     need("matplotlib", "c2n campaign (report.html's plots)", "export")
     if args.scheduler is not None:
         need("distributed", "c2n campaign --scheduler", "dask")
+        quiet_dask(args.debug)
 
     manifest = read_manifest(args.manifest)
     if args.config is not None:  # a missing or broken config fails once, before any work
@@ -170,7 +186,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             f"results.csv — rename it (e.g. 'tag_{clashing[0]}')"
         )
     errors = error_console()
-    for warning in manifest.warnings:  # said before the work, not after hours of it
+    empty = [manifest.empty_cells_warning(tag) for tag in manifest.empty_cells() if tag != args.by]
+    for warning in [*manifest.warnings, *filter(None, empty)]:  # said before the work, not after hours of it
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     out = args.out or args.manifest.with_name(f"{args.manifest.stem}-campaign")
     inputs = [args.manifest, *(entry.log for entry in manifest.entries)]

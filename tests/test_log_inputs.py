@@ -1,6 +1,6 @@
 """What a log input can be besides a log: a name no file system holds, a pipe or a device, a
-recording of another car's ids, a session still being recorded. Each through the command line:
-the exit code, the one line, what is on disk."""
+recording of another car's ids, a log timed in milliseconds, a session still being recorded. Each
+through the command line: the exit code, the one line, what is on disk."""
 
 import json
 import os
@@ -78,7 +78,7 @@ def test_an_export_where_no_role_decodes_says_so_exits_1_and_writes_nothing(tmp_
     log = _write_log(tmp_path / "other.log", other)
     out = tmp_path / "exp"
     code, _, err = run_cli(["analyze", str(log)])
-    assert code == 1 and f"c2n: error: {log}: no frames for role 'vx'" in err
+    assert code == 1 and f"c2n: error: {log}: no frames for any role of " in err
     code, _, err = run_cli(["export", str(log), "--out", str(out), "--no-plots"])
     assert code == 1 and "Traceback" not in err
     error = err.strip().splitlines()[-1]
@@ -91,6 +91,85 @@ def test_an_export_where_no_role_decodes_says_so_exits_1_and_writes_nothing(tmp_
     before = {path.name: path.read_bytes() for path in out.iterdir()}
     assert run_cli(["export", str(log), "--out", str(out), "--no-plots", "--format", "csv"])[0] == 1
     assert {path.name: path.read_bytes() for path in out.iterdir()} == before  # the older export kept
+
+
+@pytest.mark.parametrize("command", ["analyze", "export"])
+def test_a_log_of_another_car_is_refused_for_what_it_lacks_without_a_result_line(
+    command: str, tmp_path: Path
+) -> None:
+    """Not one frame of a role of the config (another car's log, the wrong config): the refusal
+    says so — `no frames for any role of <config> — wrong DBC or config` — and no result line
+    comes first (was: `C2n: no result (no cornering in the drive …)`, blaming the drive). A
+    vehicle bus without the sensor is refused for the sensor, again without that line."""
+    other = [
+        can.Message(timestamp=0.01 * i, arbitration_id=0x123, data=bytes(8), is_extended_id=False)
+        for i in range(200)
+    ]
+    log = _write_log(tmp_path / "other.log", other)
+    argv = [command, str(log)] + (
+        ["--out", str(tmp_path / "exp"), "--no-plots"] if command == "export" else []
+    )
+    code, out, err = run_cli(argv)
+    assert code == 1 and "C2n:" not in out and "cornering" not in out + err, out + err
+    error = err.strip().splitlines()[-1]
+    assert error.startswith(f"c2n: error: {log}: no frames for any role of {MONDEO_TOML}")
+    assert "wrong DBC or config for this log? give the car's with --config" in error
+    if command == "analyze":
+        vehicle = _write_log(tmp_path / "vehicle.log", _speed_frames())
+        code, out, err = run_cli(["analyze", str(vehicle)])
+        assert code == 1 and "C2n:" not in out and "no cornering" not in out + err, out + err
+        assert err.strip().splitlines()[-1].startswith(f"c2n: error: {vehicle}: no frames for role 'vx'")
+
+
+def _timed_in(unit: float, frames: list[can.Message]) -> list[can.Message]:
+    """The frames with their timestamps in 1/``unit`` of a second, as a logger counting in
+    milliseconds (``unit`` 1000) or microseconds writes them."""
+    return [
+        can.Message(
+            timestamp=m.timestamp * unit,
+            arbitration_id=m.arbitration_id,
+            is_extended_id=m.is_extended_id,
+            channel=m.channel,
+            dlc=m.dlc,
+            data=m.data,
+        )
+        for m in frames
+    ]
+
+
+@pytest.mark.parametrize(
+    ("suffix", "unit", "name", "factor"),
+    [(".csv", 1e3, "milliseconds", "1000"), (".log", 1e6, "microseconds", "1,000,000")],
+    ids=["csv-ms", "candump-us"],
+)
+def test_a_log_timed_in_milliseconds_or_microseconds_is_one_line_saying_so(
+    suffix: str, unit: float, name: str, factor: str, tmp_path: Path
+) -> None:
+    """A CSV or candump log whose timestamp column counts milliseconds (or microseconds) reads
+    as a drive 1000× (10⁶×) too long: the filter restarted at every optical frame and analyze
+    said `C2n: no result (no sideslip sign change and too little quasi-steady cornering …)` with
+    exit 0 (in microseconds since 1970 no frame decoded: `no frames for role 'vx'`). The sensor's
+    frames lie 20 "s" apart (median), past gap_reset_s: one line naming the log, the spacing and
+    the fix, exit 1, and export writes nothing. The same frames in seconds say nothing of it."""
+    frames = cached_drive("constant_radius", 41, 15.1).messages  # the sensor at 50 Hz
+    log = _write_log(tmp_path / f"drive{suffix}", _timed_in(unit, frames))
+    code, out, err = run_cli(["analyze", str(log), "--json", str(tmp_path / "s.json")])
+    assert code == 1 and out == "", out
+    why = (
+        f"the optical sensor's frames (id 0x7E5) are {0.02 * unit:,.0f} s apart (median), where a sensor "
+        f"sends one every 20 ms (its DBC's cycle): timestamps in {name} read as seconds, {factor}× too "
+        "slow — past gap_reset_s (1 s) the filter restarts at every frame; convert the timestamp column "
+        f"to seconds (÷ {factor})"
+    )
+    assert _one_error_line(err) == f"c2n: error: {log}: {why}"
+    assert json.loads((tmp_path / "s.json").read_text())["warnings"][0] == f"{log}: {why}"
+    folder = tmp_path / "exp"
+    code, _, err = run_cli(["export", str(log), "--out", str(folder), "--no-plots", "--format", "csv"])
+    assert code == 1 and _one_error_line(err) == f"c2n: error: {log}: {why} (nothing written to {folder})"
+    assert not folder.exists()
+    in_seconds = _write_log(tmp_path / f"seconds{suffix}", frames)
+    code, out, err = run_cli(["analyze", str(in_seconds)])
+    assert code == 0 and "C2n = " in out and "apart (median)" not in err, out + err
 
 
 def test_an_export_of_a_vehicle_bus_without_the_sensor_still_converts_what_there_is(tmp_path: Path) -> None:

@@ -142,12 +142,12 @@ def dbc_ids(*dbcs: tuple[Path, bool]) -> set[int]:
     return ids
 
 
-def assert_no_optical_sensor(run: Analysis) -> None:
-    """Exit 1, one error line naming role 'vx' and saying it had no frames, and a summary."""
+def assert_no_optical_sensor(run: Analysis, because: tuple[str, ...] = ("no frames for role 'vx'",)) -> None:
+    """Exit 1, one error line saying role 'vx' had no frames (or ``because``), and a summary."""
     assert run.code == 1, run.stderr
     assert "Traceback" not in run.stderr
     assert len(run.errors) == 1, run.stderr
-    assert "'vx'" in run.errors[0] and "no frames" in run.errors[0], run.errors[0]
+    assert all(words in run.errors[0] for words in because), run.errors[0]
     assert run.summary is not None, "the JSON summary is written even when there is no result"
     assert run.summary["c2n"] is None
     frames = run.frames
@@ -282,11 +282,18 @@ def test_car_mf4_with_obd_on_a_kistler_id(tmp_path: Path) -> None:
     assert run.frames["bad_length"] == run.frames["undecodable"] == 0
 
 
+NOTHING_DECODED = (
+    "no frames for any role of",
+    "wrong DBC or config for this log? give the car's with --config",
+)
+
+
 def test_j1939_mf4_ids_with_another_source_address_are_unknown(tmp_path: Path) -> None:
-    """J1939 ids that differ from the DBC's only in the source address: all unknown, no crash."""
+    """J1939 ids that differ from the DBC's only in the source address: all unknown, no crash;
+    not one frame of a role, which the error says."""
     config = config_from_template("canedge_j1939.toml", tmp_path)
     run = analyze(real_path(*J1939_MF4), config, tmp_path / "out.json")
-    assert_no_optical_sensor(run)
+    assert_no_optical_sensor(run, because=(f"no frames for any role of {config}", NOTHING_DECODED[1]))
     assert run.frames["total"] == J1939_FRAMES
     assert run.frames["unknown_id"] == J1939_FRAMES
     per_id = run.frames_per_id()
@@ -294,6 +301,22 @@ def test_j1939_mf4_ids_with_another_source_address_are_unknown(tmp_path: Path) -
     dbc_frame_ids = {m.frame_id for m in cantools.database.load_file(real_path(*J1939_DBC)).messages}
     assert not dbc_frame_ids & set(per_id)
     assert any(w.startswith("no frames for role 'speed'") for w in run.warnings)
+
+
+def test_a_real_log_of_another_vehicle_is_refused_for_its_ids_not_its_cornering(tmp_path: Path) -> None:
+    """CSS's J1939 truck log with the default (Mondeo) config: no frame of any role. The refusal
+    says so, and no result line comes before it (was: `C2n: no result (no cornering in the
+    drive: drive steady circles …)` on stdout first, the real reason only in the last line)."""
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with redirect_stdout(stdout), redirect_stderr(stderr):
+        code = main(["analyze", str(real_path(*J1939_MF4))])
+    run = Analysis(code, stderr.getvalue(), None)
+    assert code == 1 and "Traceback" not in run.stderr
+    assert stdout.getvalue() == "" and "cornering" not in run.stderr, stdout.getvalue() + run.stderr
+    assert [
+        line for line in run.lines if not line.startswith("c2n: warning: no frames for role ")
+    ] == run.errors
+    assert len(run.errors) == 1 and all(words in run.errors[0] for words in NOTHING_DECODED), run.stderr
 
 
 # -- nemodrive Dacia Logan: a candump named .can and a DBC cantools refuses -----------------------

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from rich.console import Console
 
-from app.cli.common import add_config, add_force, error_console
+from app.cli.common import add_config, add_force, error_console, no_role_decoded
 from app.config import load_config
 from app.errors import NoResultError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
@@ -153,6 +153,7 @@ def _side_by_side(reports: "list[LogReport]") -> "list[LogReport]":
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     from app.pipeline import Pipeline
+    from app.results.log_clock import clock_notes, sensor_messages
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
     from app.sinks.event_printer import EventPrinter, print_result
@@ -165,6 +166,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     pipeline = Pipeline(config)
     drives: list[list[Path]] = [args.logs]
     notes: list[LogReport] = []
+    read: list[LogReport] = []  # each file's report, for the spacing of its sensor's frames
+    spaced = frozenset(sensor_messages(config))
     if args.pool:  # one drive at a time, each recording once
         for log in args.logs:  # fail before any work on a file that cannot be read
             check_readable(log)
@@ -176,7 +179,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         else:
             _each_alone([d[0] for d in drives], config, "pool", console)
     for number, logs in enumerate(drives):
-        source = LogSource(logs, merge=args.merge, triage=pipeline.decoder)
+        source = LogSource(logs, merge=args.merge, triage=pipeline.decoder, spaced=spaced)
         progress = ReadProgress(source, ", ".join(p.name for p in logs))
         frames: Iterator[Any] = source.items(blocks=True)  # a BLF or MF4 in FrameBlocks: process_block
         end = pipeline.state.t_last
@@ -193,6 +196,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             blocks=True,
         )
         notes += source.notes
+        read += source.reports
         if not completed:  # Ctrl-C: the result of what was read
             break
         if args.merge:
@@ -200,14 +204,21 @@ def run(args: argparse.Namespace, console: Console) -> int:
         elif not args.pool:
             notes += _one_drive(source.reports, config, console)
     snapshot = pipeline.snapshot()
-    result = summary.build(snapshot, config, [str(p) for p in args.logs], notes)
+    clock = clock_notes(read, config)
+    result = summary.build(snapshot, config, [str(p) for p in args.logs], [*clock, *notes])
     if args.json:
         summary.write(args.json, result)
-    print_result(console, snapshot)
+    if clock:  # the run's every figure is on the wrong time: its result and warnings would mislead
+        raise NoResultError(f"{clock[0].path}: {clock[0].stopped}")
+    missing = summary.missing_required(snapshot, config)
+    refused = no_role_decoded(snapshot, config, args.logs) or (
+        f"{', '.join(str(p) for p in args.logs)}: {missing}" if missing else None
+    )
+    if refused is None:  # else the result line would blame the drive ("no cornering") for the log
+        print_result(console, snapshot)
     errors = error_console()
     for warning in result.warnings:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
-    missing = summary.missing_required(snapshot, config)
-    if missing:
-        raise NoResultError(f"{', '.join(str(p) for p in args.logs)}: {missing}")
+    if refused is not None:
+        raise NoResultError(refused)
     return 0

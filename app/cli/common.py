@@ -4,17 +4,20 @@ import argparse
 import math
 import signal
 import sys
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 
 from app.cli.terminal import console_stream
-from app.config import DEFAULT_CONFIG
+from app.config import DEFAULT_CONFIG, Config
 from app.errors import UsageError, printable
+
+if TYPE_CHECKING:
+    from app.snapshot import Snapshot
 
 
 def add_config(parser: argparse.ArgumentParser) -> None:
@@ -97,6 +100,18 @@ SEED = _seed
 
 def error_console() -> Console:
     return Console(file=console_stream(sys.stderr), highlight=False, soft_wrap=True)
+
+
+def no_role_decoded(snapshot: "Snapshot", config: Config, logs: Sequence[Path]) -> str | None:
+    """Why a run has nothing to show at all: not one frame carried a role of the config — its
+    DBCs or ids are not this log's (another car's, or the wrong config). Said before anything
+    the run found: a result line would blame the drive ("no cornering") for what the log lacks."""
+    if any(snapshot.frames.role_frames[role] for role in config.roles):
+        return None
+    return (
+        f"{', '.join(str(p) for p in logs)}: no frames for any role of {config.path} — wrong DBC or "
+        "config for this log? give the car's with --config"
+    )
 
 
 def number(

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from rich.console import Console
 
-from app.cli.common import error_console
+from app.cli.common import error_console, no_role_decoded
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import NoResultError, need, printable
 from app.output.files import folder_atomically
@@ -91,22 +91,19 @@ def _unfinished(path: Path) -> "list[LogReport]":
 
 def _nothing_to_export(snapshot: "Snapshot", config: Config, logs: list[Path], out: Path) -> str | None:
     """Why there is nothing to export: not one frame carried a role of the config (its DBCs or
-    ids are not this log's). Nothing is written then — an empty export would take the place of
-    an older one at ``out``. A log with some roles (a vehicle bus, no optical sensor) is
-    exported: analyze needs the sensor, export converts what there is."""
-    if any(snapshot.frames.role_frames[role] for role in config.roles):
-        return None
-    return (
-        f"{', '.join(str(p) for p in logs)}: no frames for any role of {config.path} — wrong DBC or "
-        f"config for this log? give the car's with --config (nothing written to {out})"
-    )
+    ids are not this log's: ``no_role_decoded``). Nothing is written then — an empty export would
+    take the place of an older one at ``out``. A log with some roles (a vehicle bus, no optical
+    sensor) is exported: analyze needs the sensor, export converts what there is."""
+    nothing = no_role_decoded(snapshot, config, logs)
+    return None if nothing is None else f"{nothing} (nothing written to {out})"
 
 
-def _say_result(console: Console, snapshot: "Snapshot", result: "Summary") -> None:
-    """The result line, and the summary's warnings on standard error."""
+def _say_result(console: Console, snapshot: "Snapshot", result: "Summary", line: bool = True) -> None:
+    """The result line (unless not ``line``), and the summary's warnings on standard error."""
     from app.sinks.event_printer import print_result
 
-    print_result(console, snapshot)
+    if line:
+        print_result(console, snapshot)
     errors = error_console()
     for warning in result.warnings:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
@@ -157,6 +154,7 @@ def _ours_by_content(path: Path) -> bool:
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     from app.pipeline import Pipeline
+    from app.results.log_clock import clock_notes, sensor_messages
     from app.run_loop import run as run_pipeline
     from app.sinks import channels as export
     from app.sinks import events_csv as events
@@ -174,7 +172,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     check([Output("--out", out, _ours_by_content, folder=True)], [*logs, *config_files(config)])
     unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began
     pipeline = Pipeline(config)
-    source = LogSource(logs, triage=pipeline.decoder)
+    source = LogSource(logs, triage=pipeline.decoder, spaced=frozenset(sensor_messages(config)))
     trace_recorder = TraceRecorder(config.roles)
     progress = ReadProgress(source, logs[0].name)
     run_pipeline(
@@ -185,13 +183,16 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console=console,
         transient=True,
     )
+    clock = clock_notes(source.reports, config)
+    if clock:  # every channel is on the wrong time: nothing is written
+        raise NoResultError(f"{clock[0].path}: {clock[0].stopped} (nothing written to {out})")
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)
     result = summary.build(snapshot, config, [str(p) for p in logs], [*unfinished, *source.reports])
     nothing = _nothing_to_export(snapshot, config, logs, out)
-    if nothing is not None:
-        _say_result(console, snapshot, result)
+    if nothing is not None:  # the warnings name each role's ids; a result line would blame the drive
+        _say_result(console, snapshot, result, line=False)
         raise NoResultError(nothing)
     written: list[Path] = []
     writing = folder_atomically(out, _ours_by_content, "c2n export")

@@ -16,7 +16,7 @@ import re
 import stat
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any, Literal, cast, overload
@@ -27,6 +27,7 @@ from app.errors import LogFileError, need, one_line
 from app.sources.blf_bulk import TriagedBLFReader
 from app.sources.blocks import FrameBlock
 from app.sources.identity import DriveIdentity, identity_of
+from app.sources.spacing import FrameSpacing
 from app.sources.triage import NotInBulk, Triage
 
 log = logging.getLogger(__name__)
@@ -46,6 +47,7 @@ class LogReport:
     done: bool = False
     reader: object = None  # the python-can reader while the file is open
     span_s: tuple[float, float] | None = None  # the times of the first frame read and the last
+    spacing: FrameSpacing = field(default_factory=FrameSpacing)  # of the frames of the ids it watches
 
     def bytes_read(self) -> int | None:
         """How far into the file the reader is (None where the reader does not say)."""
@@ -253,12 +255,14 @@ def read_log(
     With ``triage`` (the decoder), BLF and MF4 files are read in bulk: only the frames the
     pipeline decodes are yielded, the rest are counted by the decoder directly. With ``blocks``
     too, a BLF or an MF4 yields them as FrameBlocks (``Pipeline.process_block``), and the frames
-    a block does not hold (a BLF's remote and error frames, CAN FD …) as Messages among them."""
+    a block does not hold (a BLF's remote and error frames, CAN FD …) as Messages among them.
+    The times of the frames of the ids ``report.spacing`` watches are noted there."""
     reader = _bulk_reader(path, report, triage, blocks) if triage is not None else None
     if reader is None:
         reader = open_log(path)
     report.reader = reader
     iterator = iter(reader)
+    watching = report.spacing.watching  # shrinks as each id has its spacings
     first: can.Message | FrameBlock | None = None
     last: can.Message | FrameBlock | None = None
     try:
@@ -277,7 +281,14 @@ def read_log(
             if first is None:
                 first = message
             last = message
-            report.frames += len(message) if type(message) is FrameBlock else 1
+            if isinstance(message, FrameBlock):
+                report.frames += len(message)
+                if watching:
+                    report.spacing.add(message)
+            else:
+                report.frames += 1
+                if watching and message.arbitration_id in watching:
+                    report.spacing.add(message)
             yield message
     finally:
         report.done, report.reader = True, None
@@ -455,15 +466,23 @@ def starting_at(
 class LogSource:
     """Frames of several log files: one after another, or merged by timestamp (``merge``), for
     per-channel recordings of one drive (e.g. two candump files). Given the decoder as
-    ``triage``, BLF and MF4 files are read in bulk (``read_log``)."""
+    ``triage``, BLF and MF4 files are read in bulk (``read_log``). Each file's report keeps the
+    spacing of the frames of the ids in ``spaced`` (the optical sensor's: the log's clock shows
+    in it, ``results/log_clock.py``)."""
 
-    def __init__(self, paths: Sequence[Path], merge: bool = False, triage: Triage | None = None) -> None:
+    def __init__(
+        self,
+        paths: Sequence[Path],
+        merge: bool = False,
+        triage: Triage | None = None,
+        spaced: frozenset[int] = frozenset(),
+    ) -> None:
         for path in paths:  # fail before any work on a missing, unknown or unreadable file
             check_readable(path)
         self.paths, self.repeated = distinct(paths)
         self.merge = merge
         self.triage = triage
-        self.reports = [LogReport(p) for p in self.paths]
+        self.reports = [LogReport(p, spacing=FrameSpacing(spaced)) for p in self.paths]
 
     @property
     def notes(self) -> list[LogReport]:

@@ -163,7 +163,10 @@ def bad_length(f: Findings) -> str | None:
 def bad_time(f: Findings) -> str | None:
     if not f.frames.bad_time:
         return None
-    return f"{f.frames.bad_time} frames without a usable timestamp (NaN or infinite): not used"
+    return (
+        f"{f.frames.bad_time} frames without a usable timestamp (NaN, infinite, or beyond ±10¹⁵ s: a clock "
+        "in µs or ns since 1970?): not used"
+    )
 
 
 def values_dropped(f: Findings) -> tuple[str, ...]:
@@ -447,7 +450,8 @@ def no_crossing(f: Findings) -> str | None:
                 else ""
             )
         )
-    if f.started and not f.crossings and beyond is None:
+    sensed = missing_required(f.frames, f.config) is None  # without the sensor, no sideslip to change sign
+    if f.started and not f.crossings and beyond is None and sensed:
         return "no sideslip sign change was found in steady cornering: sweep the speed through u0 on a circle"
     return None
 

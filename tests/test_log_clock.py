@@ -52,6 +52,28 @@ def test_frames_and_blocks_give_the_same_spacing_of_each_watched_id() -> None:
     assert FrameSpacing(frozenset({SENSOR_ID})).busiest() is None  # no frame: no spacing
 
 
+def test_the_watched_ids_pauses_are_kept_over_the_whole_file_frames_and_blocks_alike() -> None:
+    """No watched frame for longer than pause_s, between the last before and the first after —
+    past the spacings' cap too; a frame of another id does not end a pause, nor does the first
+    frame make one."""
+    times = [*(0.02 * k for k in range(SPACINGS_KEPT + 10)), 600.0, 600.02, 601.5]
+    ids = [SENSOR_ID] * len(times)
+    by_frame, by_block = FrameSpacing(frozenset({SENSOR_ID}), 1.0), FrameSpacing(frozenset({SENSOR_ID}), 1.0)
+    for t, frame_id in zip(times, ids, strict=True):
+        by_frame.add(can.Message(timestamp=t, arbitration_id=frame_id))
+        if t == 600.0:
+            by_frame.add(can.Message(timestamp=300.0, arbitration_id=0x123))  # another id's: no end
+    by_block.add(_block(times[:5000], ids[:5000]))
+    by_block.add(_block([*times[5000:-3], 300.0], [*ids[5000:-3], 0x123]))
+    by_block.add(_block(times[-3:], ids[-3:]))
+    last = 0.02 * (SPACINGS_KEPT + 9)
+    for spacing in (by_frame, by_block):
+        assert spacing.pauses == [(pytest.approx(last), 600.0), (600.02, 601.5)]
+    unbounded = FrameSpacing(frozenset({SENSOR_ID}))  # no pause_s: none kept
+    unbounded.add(_block(times, ids))
+    assert unbounded.pauses == []
+
+
 def test_an_id_is_watched_until_it_has_its_spacings() -> None:
     spacing = FrameSpacing(frozenset({SENSOR_ID}))
     spacing.add(_block([0.02 * k for k in range(SPACINGS_KEPT + 50)], [SENSOR_ID] * (SPACINGS_KEPT + 50)))

@@ -6,7 +6,10 @@ import json
 from pathlib import Path
 
 import can
+import pytest
 
+from app.config import load_config
+from app.results.log_clock import sensor_messages
 from app.sim.simulated_drive import SimulatedDrive
 from tests.simulated import cached_drive
 from tests.test_reliability_inputs import run_cli
@@ -86,3 +89,50 @@ def test_channels_merged_from_loggers_on_different_clocks_are_said(tmp_path: Pat
     warnings = json.loads(out.read_text())["warnings"]
     [said] = [w for w in warnings if "not beside them" in w]
     assert said.startswith(f"{b}: its frames lie") and "before those of optical.log" in said
+
+
+def _one_file(path: Path, *parts: tuple[list[can.Message], float]) -> Path:
+    """Drives written one after another into one log, each shifted by its seconds."""
+    with can.Logger(path) as writer:
+        for messages, shift_s in parts:
+            for m in messages:
+                writer.on_message_received(
+                    can.Message(
+                        timestamp=m.timestamp + shift_s,
+                        arbitration_id=m.arbitration_id,
+                        is_extended_id=m.is_extended_id,
+                        data=m.data,
+                        channel=m.channel,
+                    )
+                )
+    return path
+
+
+@pytest.mark.parametrize("suffix", [".log", ".blf"])  # frame by frame, and in blocks
+def test_two_tyre_sets_in_one_file_across_a_pause_have_no_one_c2n(tmp_path: Path, suffix: str) -> None:
+    """A logger left recording through a tyre change: 14.89 before a pause of ten minutes, 15.91
+    after it, in one file. It read 15.442 [15.214, 15.671] — outside both — as one drive; the
+    parts between the sensor's pauses are now analysed alone, as separate files are."""
+    before, after = _drive(14.89, 5).messages, _drive(15.91, 5).messages
+    shift = before[-1].timestamp + 600.0 - after[0].timestamp
+    log = _one_file(tmp_path / f"day{suffix}", (before, 0.0), (after, shift))
+    code, result, err = _analysed(tmp_path, [log])
+    assert code == 1 and result is None
+    assert f"the drives disagree, each alone: {log.name} 0–150 s 14.9" in err
+    assert f"{log.name} 750–900 s 15.9" in err and "cut the log at the pause" in err
+
+
+def test_a_sensor_dropout_in_one_drive_leaves_its_c2n(tmp_path: Path) -> None:
+    """Two seconds without the optical sensor in one drive: two parts that agree, run on as
+    one — a C2n, its interval holding the truth, and no word of parts."""
+    drive = _drive(14.89, 5)
+    start = drive.messages[0].timestamp
+    optical = set(sensor_messages(load_config()))  # the Correvit's frames, which the dropout takes out
+    assert any(m.arbitration_id in optical for m in drive.messages)
+    dropped = [m.arbitration_id in optical and 70.0 <= m.timestamp - start < 72.0 for m in drive.messages]
+    kept = [m for m, gone in zip(drive.messages, dropped, strict=True) if not gone]
+    log = _one_file(tmp_path / "dropout.log", (kept, 0.0))
+    code, result, err = _analysed(tmp_path, [log])
+    assert code == 0 and result is not None, err
+    assert result["c2n_ci95"][0] <= 14.89 <= result["c2n_ci95"][1]
+    assert "disagree" not in err and "pause" not in err

@@ -41,6 +41,20 @@ class FrameBlock:
         return len(self.t)
 
 
+def rows(block: FrameBlock, begin: int, end: int) -> FrameBlock:
+    """The frames ``begin`` to ``end`` of a block, as a block."""
+    channel = block.channel[begin:end] if block.channel is not None else None
+    return FrameBlock(
+        block.t[begin:end],
+        block.frame_id[begin:end],
+        block.extended[begin:end],
+        channel,
+        block.data[begin:end],
+        block.length[begin:end],
+        block.fd[begin:end],
+    )
+
+
 @dataclass
 class RecordBlock:
     """The Records of a FrameBlock as columns: ``values`` role -> column, NaN where the record

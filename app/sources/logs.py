@@ -11,6 +11,7 @@ import heapq
 import io
 import locale
 import logging
+import math
 import os
 import re
 import stat
@@ -262,7 +263,7 @@ def read_log(
         reader = open_log(path)
     report.reader = reader
     iterator = iter(reader)
-    watching = report.spacing.watching  # shrinks as each id has its spacings
+    spaced = report.spacing.ids  # the sensor's: its spacing and its pauses
     first: can.Message | FrameBlock | None = None
     last: can.Message | FrameBlock | None = None
     try:
@@ -283,11 +284,11 @@ def read_log(
             last = message
             if isinstance(message, FrameBlock):
                 report.frames += len(message)
-                if watching:
+                if spaced:
                     report.spacing.add(message)
             else:
                 report.frames += 1
-                if watching and message.arbitration_id in watching:
+                if spaced and message.arbitration_id in spaced:
                     report.spacing.add(message)
             yield message
     finally:
@@ -468,7 +469,7 @@ class LogSource:
     per-channel recordings of one drive (e.g. two candump files). Given the decoder as
     ``triage``, BLF and MF4 files are read in bulk (``read_log``). Each file's report keeps the
     spacing of the frames of the ids in ``spaced`` (the optical sensor's: the log's clock shows
-    in it, ``results/log_clock.py``)."""
+    in it, ``results/log_clock.py``) and where they paused beyond ``pause_s``."""
 
     def __init__(
         self,
@@ -476,13 +477,14 @@ class LogSource:
         merge: bool = False,
         triage: Triage | None = None,
         spaced: frozenset[int] = frozenset(),
+        pause_s: float = math.inf,
     ) -> None:
         for path in paths:  # fail before any work on a missing, unknown or unreadable file
             check_readable(path)
         self.paths, self.repeated = distinct(paths)
         self.merge = merge
         self.triage = triage
-        self.reports = [LogReport(p, spacing=FrameSpacing(spaced)) for p in self.paths]
+        self.reports = [LogReport(p, spacing=FrameSpacing(spaced, pause_s)) for p in self.paths]
 
     @property
     def notes(self) -> list[LogReport]:

@@ -1,9 +1,12 @@
-"""How far apart the frames of a periodic message lie in a log's own time.
+"""How far apart the frames of a periodic message lie in a log's own time, and where they pause.
 
 The log's clock unit shows in it: a sensor sending every 10 ms whose log keeps its times in
 milliseconds (a CSV or candump file written by another tool) reads as frames 10 "s" apart. The
 reader keeps each watched id's spacings (``LogReport.spacing``); ``results/log_clock.py`` says
-what they mean.
+what they mean. A pause — no frame of any watched id for longer than ``pause_s`` (the config's
+``gap_reset_s``, beyond which the filter starts afresh) — is kept over the whole file: the
+recording stopped there, or the sensor did, and what comes after may be another drive
+(``c2n analyze`` checks the parts between pauses alone).
 """
 
 import math
@@ -31,12 +34,16 @@ class Spacing:
 
 @dataclass
 class FrameSpacing:
-    """The spacings of consecutive frames of each id in ``ids`` (none: nothing is kept)."""
+    """The spacings of consecutive frames of each id in ``ids`` (none: nothing is kept), and the
+    pauses longer than ``pause_s`` between the frames of any of them."""
 
     ids: frozenset[int] = frozenset()
+    pause_s: float = math.inf
     watching: set[int] = field(init=False)  # the ids still short of SPACINGS_KEPT
+    pauses: list[tuple[float, float]] = field(default_factory=list, init=False)  # (last before, first after)
     _last: dict[int, float] = field(default_factory=dict, init=False)
     _gaps: dict[int, list[float]] = field(default_factory=dict, init=False)
+    _latest: float = field(default=-math.inf, init=False)  # the latest watched frame's time
 
     def __post_init__(self) -> None:
         self.watching = set(self.ids)
@@ -44,13 +51,24 @@ class FrameSpacing:
     def add(self, item: can.Message | FrameBlock) -> None:
         """Note a frame's time, or a block's frames' (the caller may skip frames of other ids)."""
         if isinstance(item, FrameBlock):
+            watched = np.isin(item.frame_id, list(self.ids)) & np.isfinite(item.t)
+            times, ids = item.t[watched], item.frame_id[watched]
+            if not len(times):
+                return
             for frame_id in list(self.watching):
-                times = item.t[item.frame_id == frame_id]
-                times = times[np.isfinite(times)]
-                if len(times):
-                    self._note(frame_id, times.tolist())
-        elif item.arbitration_id in self.watching and math.isfinite(item.timestamp):
-            self._note(item.arbitration_id, [item.timestamp])
+                own = times[ids == frame_id]
+                if len(own):
+                    self._note(frame_id, own.tolist())
+            latest = np.maximum.accumulate(np.concatenate(([self._latest], times)))
+            for k in np.flatnonzero((np.diff(latest) > self.pause_s) & np.isfinite(latest[:-1])):
+                self.pauses.append((float(latest[k]), float(latest[k + 1])))
+            self._latest = float(latest[-1])
+        elif item.arbitration_id in self.ids and math.isfinite(item.timestamp):
+            if item.arbitration_id in self.watching:
+                self._note(item.arbitration_id, [item.timestamp])
+            if item.timestamp - self._latest > self.pause_s and self._latest > -math.inf:
+                self.pauses.append((self._latest, item.timestamp))
+            self._latest = max(self._latest, item.timestamp)
 
     def _note(self, frame_id: int, times: list[float]) -> None:
         last = self._last.get(frame_id)

@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
+from app.campaign.compare import Estimate, no_trend
 from app.campaign.manifest import read_manifest
 from app.campaign.outputs import compare, write_comparison, write_report
-from app.campaign.row import SessionRow
+from app.campaign.row import SessionResult, SessionRow
 from app.cli.campaign import print_comparison, quiet_dask
 from tests.test_campaign import run_cli
 from tests.test_campaign_inputs import C2N, _manifest, _rows
@@ -117,3 +118,43 @@ def test_dask_s_warnings_and_errors_still_reach_the_terminal() -> None:
         assert scheduler.isEnabledFor(logging.INFO)
     finally:
         distributed.setLevel(before)
+
+
+# -- a group of one session; a group named "all" --------------------------------------------------
+
+
+def test_a_group_of_one_session_keeps_that_sessions_own_interval(tmp_path: Path) -> None:
+    """A 7-second drive's C2n of 16.132 [9.851, 44.410] (a regression's interval, the reciprocal of
+    its a_y coefficient's) alone in its group: the group's interval is it, in the terminal, the
+    JSON and the trend plot's bar. Made again as wide about C2n, it read [-1.148, 33.411]."""
+    text = "log,tyres,p\nshort.blf,S,250\na1.blf,A,230\na2.blf,A,240\n"
+    manifest = read_manifest(_manifest(tmp_path, text))
+    short = SessionRow(
+        result=SessionResult(Estimate(16.132, (9.851, 44.410), 8.79), 0.0, None, None), key="s"
+    )
+    comparison = compare(manifest, [short, *_rows([15.0, 15.2])], "tyres")
+    assert comparison.groups["S"].ci95 == (9.851, 44.410)
+    assert comparison.to_json()["groups"]["S"]["ci95"] == [9.851, 44.410]
+    assert comparison.groups["A"].ci95[0] < 15.0 < comparison.groups["A"].ci95[1]  # pooled as before
+    console = Console(record=True, width=300)
+    print_comparison(console, comparison, "tyres")
+    assert "  tyres S: C2n = 16.132 1/rad [9.851, 44.410] (95 %, 1 session" in console.export_text()
+    [short_point] = comparison.tag_values["p"]["S"]
+    assert short_point[3:] == (9.851, 44.410)  # the plot's bar: the session's own ends
+
+
+def test_a_by_group_named_all_is_refused_before_any_work(tmp_path: Path) -> None:
+    """'all' keys the trend over every session: a group of that name overwrote it, and the
+    report said of a tag with five sessions 'the fit overflows: no trend'."""
+    path = _manifest(tmp_path, "log,tyres\na.blf,A\nb.blf,all\n")
+    code, _, err = run_cli(["campaign", str(path), "--by", "tyres", "--workers", "1"])
+    assert code == 2
+    assert "line 3: the --by tyres group 'all' has the name of the trend over all sessions" in err
+    assert not (tmp_path / "manifest-campaign").exists()
+
+
+def test_one_session_with_a_value_is_said_to_be_one() -> None:
+    """Not 'takes one value': one session's value is no spread of values to fit."""
+    said = no_trend([2.0], 4)
+    assert said.startswith("1 session with a C2n and a value: a trend needs three")
+    assert said.endswith("(4 sessions with a C2n have no value: left out)")

@@ -12,7 +12,7 @@ import pytest
 from app.errors import C2nError
 from app.sinks.plots import write_plots
 from app.sinks.report import render, write_report
-from app.sinks.summary import RejectedRow, Summary
+from app.sinks.summary import PairedRow, RejectedRow, Summary
 from tests.exported import Exported, exported_drive
 
 HOSTILE = "<script>alert('pwned')</script> & \"quoted\""
@@ -95,6 +95,18 @@ def test_missing_blocks_show_a_dash_or_a_note() -> None:
     assert (
         render(Summary(), [], "nothing at all").count("<section>") == 8
     )  # every section, each saying it has nothing
+
+
+def test_no_result_says_why_and_an_interval_without_an_upper_end_says_so() -> None:
+    """The terminal's "C2n: no result (…)" in the report too; an interval's null upper end is no
+    missing value: "no upper bound" (a dash read as both)."""
+    why = (
+        "1 crossing reads C2n 15.05 but does not bound it: its 95 % interval runs from 6.56 with no upper end"
+    )
+    paired = PairedRow(15.0541, (6.5641, None), None, None, None, None, (), {}, 1, 1.0)
+    document = render(Summary(no_result=why, paired=paired), [], "one crossing")
+    assert f'<p class="headline">No C2n: {why}</p>' in document
+    assert "[6.5641, no upper bound]" in document
 
 
 def test_rejected_sign_changes_are_listed_with_their_reasons() -> None:

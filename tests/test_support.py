@@ -105,12 +105,13 @@ def test_one_crossing_alone_is_no_result_and_beside_a_fit_shows_no_upper_end(tmp
     summary = json.loads(out.read_text())
     assert summary["c2n"] is None and summary["c2n_ci95"] is None and len(summary["crossings"]) == 1
     assert summary["paired"]["c2n_ci95"][1] is None  # no upper end: null in the result file
+    assert summary["no_result"].startswith("1 crossing reads C2n 15.05 but does not bound it")
     printed = capsys.readouterr().out
     assert "C2n: no result (1 crossing reads C2n 15.05 but does not bound it" in printed
     out = tmp_path / "twelve.json"
     assert main(["analyze", str(_window(log, tmp_path / "twelve.log", 18, 30)), "--json", str(out)]) == 0
     summary = json.loads(out.read_text())
     low, high = summary["c2n_ci95"]
-    assert summary["c2n_method"] == "regression" and low < 14.87 < high
+    assert summary["c2n_method"] == "regression" and low < 14.87 < high and summary["no_result"] is None
     assert high - summary["c2n"] > summary["c2n"] - low  # the coefficient's interval, mapped
     assert "1 paired crossing: 15.011 [6.508, no upper bound]" in capsys.readouterr().out

@@ -189,6 +189,8 @@ def no_trend(x: Sequence[float], no_value: int = 0) -> str:
         left_out, with_value = f" ({had} no value: left out)", " and a value"
     if not x:
         return f"no session with a C2n{with_value}: no trend{left_out}"
+    if len(x) == 1:
+        return f"1 session with a C2n{with_value}: a trend needs three{left_out}"
     if len({as_kept(v) for v in x}) < 2:
         return f"takes one value: no trend{left_out}"
     if len(x) < 3:

@@ -7,7 +7,7 @@ import math
 import os
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -30,7 +30,6 @@ from app.errors import OutputError
 from app.output.files import as_text, json_ready, write_atomically, write_json
 from app.output.paths import HTML_REPORT, json_with
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
-from app.units import Z95
 
 _FIRST = ("log", "error", "c2n", "c2n_ci95.low", "c2n_ci95.high", "c2n_method", "u0_mps")
 # what the comparison took of each session (``Compared``), after the first columns
@@ -161,7 +160,8 @@ class Comparison:
     sessions: dict[str, list[tuple[float, float]]]  # group -> (C2n, se) of its sessions
     differences: list[Difference]
     trends: dict[str, dict[str, Trend]]  # tag -> group (or "all") -> trend
-    tag_values: dict[str, dict[str, list[tuple[float, float, float]]]]  # tag -> group -> (x, C2n, se)
+    # tag -> group -> (x, C2n, se, the session's own 95 % interval's low and high)
+    tag_values: dict[str, dict[str, list[tuple[float, float, float, float, float]]]]
     failed: list[tuple[str, str]]  # (log, error)
     n_sessions: int
     softening: dict[str, Softening] = field(default_factory=dict)  # group -> its tyres' model
@@ -248,6 +248,11 @@ def reason(log: Path, error: str) -> str:
     return error
 
 
+def _trend(values: Sequence[tuple[float, float, float, float, float]]) -> Trend | None:
+    """``trend`` of sessions' (x, C2n, se, low, high)."""
+    return trend([v[0] for v in values], [v[1] for v in values], [v[2] for v in values])
+
+
 def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> Comparison:
     """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed,
     and a group of such rows is one of ``no_c2n``, with their reasons counted."""
@@ -266,7 +271,7 @@ def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> C
             evidence.setdefault(session.group, []).append(session.result.softening_t)
     decided = {group: tyres for group, t in sorted(evidence.items()) if (tyres := softening(t)) is not None}
     sessions: dict[str, list[tuple[float, float]]] = {}
-    tagged: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
+    tagged: dict[str, dict[str, list[tuple[float, float, float, float, float]]]] = {}
     numeric = [tag for tag in manifest.numeric_tags() if tag != by]
     no_value: dict[str, list[str]] = {}
     compared: dict[str, Compared] = {}
@@ -279,7 +284,7 @@ def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> C
                 no_value.setdefault(tag, []).append(session.log)
                 continue
             tagged.setdefault(tag, {}).setdefault(session.group, []).append(
-                (float(session.tags[tag]), c.c2n, se)
+                (float(session.tags[tag]), c.c2n, se, *c.ci95)
             )
     pooled = {name: pool(*zip(*values, strict=True)) for name, values in sorted(sessions.items())}
     names = list(pooled)
@@ -288,16 +293,20 @@ def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> C
     ]
     common = {name: max(s.result.scale for s in done if s.group == name) for name in names}
     groups = {name: with_scale(p, common[name]) for name, p in pooled.items()}
+    for session in done:  # a group of one session: its own interval stands (a short drive's
+        # reaches further up than down; one as wide symmetric about C2n went below zero)
+        if groups[session.group].n_sessions == 1:
+            groups[session.group] = replace(groups[session.group], ci95=compared[session.log].ci95)
     trends: dict[str, dict[str, Trend]] = {}
     unfitted: dict[str, str] = {}
     for tag in numeric if done else []:  # every numeric tag a trend, or why it has none
         per_group = tagged.get(tag, {})
         everything = [value for values in per_group.values() for value in values]
-        found = {"all": trend(*zip(*everything, strict=True))} if len(per_group) > 1 else {}
-        found |= {group: trend(*zip(*values, strict=True)) for group, values in sorted(per_group.items())}
+        found = {"all": _trend(everything)} if len(per_group) > 1 else {}
+        found |= {group: _trend(values) for group, values in sorted(per_group.items())}
         trends[tag] = {group: t for group, t in found.items() if t is not None}
         if not trends[tag]:
-            unfitted[tag] = no_trend([x for x, _, _ in everything], len(no_value.get(tag, [])))
+            unfitted[tag] = no_trend([x for x, *_ in everything], len(no_value.get(tag, [])))
     no_c2n = {group: NoC2n.of(why) for group, why in sorted(reasons.items()) if group not in sessions}
     return Comparison(
         by,
@@ -538,7 +547,7 @@ def _trend_plot(comparison: Comparison, tag: str) -> bytes:
         for k, (group, values) in enumerate(per_group):
             x = [v[0] for v in values]
             y = [v[1] for v in values]
-            err = [Z95 * v[2] for v in values]
+            err = [[v[1] - v[3] for v in values], [v[4] - v[1] for v in values]]  # each one's own interval
             ax.errorbar(
                 [v / unit for v in x], y, yerr=err, fmt="o", ms=4, color=f"C{k}", alpha=0.8, label=group
             )

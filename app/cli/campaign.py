@@ -185,6 +185,12 @@ def run(args: argparse.Namespace, console: Console) -> int:
             f"{args.manifest}: the tag column '{clashing[0]}' has the name of a column c2n writes in "
             f"results.csv — rename it (e.g. 'tag_{clashing[0]}')"
         )
+    named_all = next((e.line for e in manifest.entries if args.by and e.tags[args.by] == "all"), None)
+    if named_all is not None:  # the trends key the fit over every group "all"
+        raise UsageError(
+            f"{args.manifest}, line {named_all}: the --by {args.by} group 'all' has the name of the trend "
+            f"over all sessions in comparison.json and the report — rename it (e.g. '{args.by} all')"
+        )
     errors = error_console()
     empty = [manifest.empty_cells_warning(tag) for tag in manifest.empty_cells() if tag != args.by]
     for warning in [*manifest.warnings, *filter(None, empty)]:  # said before the work, not after hours of it

@@ -96,8 +96,12 @@ def text(value: object) -> str:
 
 
 def interval(pair: tuple[object, object] | None) -> str:
-    """[low, high], or "—" when there is none."""
-    return DASH if pair is None else f"[{text(pair[0])}, {text(pair[1])}]"
+    """[low, high], or "—" when there is none; [low, no upper bound] where only the low end is
+    (a C2n's interval without an upper end: the result file's null)."""
+    if pair is None:
+        return DASH
+    high = "no upper bound" if pair[1] is None and pair[0] is not None else text(pair[1])
+    return f"[{text(pair[0])}, {high}]"
 
 
 # --- markup -------------------------------------------------------------------------------------

@@ -95,6 +95,8 @@ def _headline(summary: Summary) -> str:
         f'<p class="headline">C2n = <span class="value">{text(summary.c2n)}</span> 1/rad, '
         f"95 % {interval(summary.c2n_ci95)} 1/rad "
         f'<span class="method">({text(summary.c2n_method)})</span></p>'
+        if summary.c2n is not None or summary.no_result is None
+        else f'<p class="headline">No C2n: {text(summary.no_result)}</p>'
     )
     values = fields(
         (

@@ -178,6 +178,7 @@ class Summary:
     c2n: float | None = None
     c2n_ci95: Interval | None = None
     c2n_method: str | None = None
+    no_result: str | None = None  # why there is no C2n (the terminal's "C2n: no result (…)"), else null
     u0_mps: float | None = None
     crossings: tuple[CrossingRow, ...] = ()
     regression: RegressionRow | None = None
@@ -224,6 +225,7 @@ def build(
         c2n=_round(headline.c2n) if headline else None,
         c2n_ci95=_pair(headline.ci95) if headline else None,
         c2n_method=headline.method.value if headline else None,
+        no_result=snapshot.refusal if headline is None and snapshot.t_first is not None else None,
         c2n_scale_se_pct=_round(100.0 * config.calibration.c2n_se(headline.method.is_fit, config.d_m))
         if headline
         else None,

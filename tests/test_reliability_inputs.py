@@ -294,7 +294,7 @@ def test_circles_beyond_the_linear_range_are_flagged_not_a_confident_interval(
             assert abs(fit["c2n_linear_model"] / truth["c2n"] - 1) > 0.02  # the straight line is wrong ...
         else:
             assert fit["held_open_by"] == "d" and fit["d_information"] < 1.0
-            assert any("place the sensor's d less well than the tape does" in w for w in summary["warnings"])
+            assert any("the sensor's d less well than the tape does" in w for w in summary["warnings"])
             assert not any("a straight-line fit would give" in w for w in summary["warnings"])  # none made
         # no sweep crossed zero (u0 is beyond the gate): the headline is the quasi-steady fit,
         # whose cornering reached lower a_y and shows the softening; its interval holds the truth

@@ -178,13 +178,13 @@ class Summary:
     c2n: float | None = None
     c2n_ci95: Interval | None = None
     c2n_method: str | None = None
-    no_result: str | None = None  # why there is no C2n (the terminal's "C2n: no result (…)"), else null
     u0_mps: float | None = None
     crossings: tuple[CrossingRow, ...] = ()
     regression: RegressionRow | None = None
     paired: PairedRow | None = None
     frames: Frames = Frames()
     warnings: tuple[str, ...] = ()
+    no_result: str | None = None  # why there is no C2n (the terminal's "C2n: no result (…)"), else null
     combined: CombinedRow | None = None
     rejected_crossings: tuple[RejectedRow, ...] = ()
     quasi_steady: RegressionRow | None = None  # the quasi-steady samples' fit, where no sweep crossed zero

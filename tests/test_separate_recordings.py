@@ -16,18 +16,7 @@ from tests.test_reliability_inputs import run_cli
 
 
 def _write(path: Path, messages: list[can.Message], shift_s: float = 0.0) -> Path:
-    with can.Logger(path) as writer:
-        for m in messages:
-            writer.on_message_received(
-                can.Message(
-                    timestamp=m.timestamp + shift_s,
-                    arbitration_id=m.arbitration_id,
-                    is_extended_id=m.is_extended_id,
-                    data=m.data,
-                    channel=m.channel,
-                )
-            )
-    return path
+    return _one_file(path, (messages, shift_s))
 
 
 def _analysed(tmp_path: Path, logs: list[Path]) -> tuple[int, dict | None, str]:

@@ -279,11 +279,9 @@ def test_the_pipeline_reads_a_simulated_drive_with_the_marginal_regression(confi
     assert result.regression is not None and result.regression.c2n == pytest.approx(fit.c2n, rel=1e-3)
 
 
-def test_a_slopes_load_transfer_follows_its_pull() -> None:
-    """A 2 % grade falling towards 40°: gravity pulls the rear by g·s·sin(D − ψ) and, along the
-    heading, moves its load by L·s·cos(D − ψ) (L = 0.45 per g: our two-track car's; its
-    geometry's h·W/(l·W2) is 0.51). The fit finds the grade and its direction, and C2n within its interval."""
-    grade, falls, transfer, c2n, d = 0.02, math.radians(40.0), 0.45, 14.0, 1.1
+def _sloped_pad(grade: float, falls: float, transfer: float, c2n: float, d: float) -> SampleRegression:
+    """Steady circles on a pad of ``grade`` falling towards ``falls`` (radians): gravity pulls the
+    rear by g·s·sin(D − ψ) and, along the heading, moves its load by L·s·cos(D − ψ) of it."""
     regression = SampleRegression(G, d_tape_m=d, wheelbase_m=2.7, priors=MARGINAL)
     rng = np.random.default_rng(8)
     t_s, heading = 0.0, 0.3
@@ -298,12 +296,56 @@ def test_a_slopes_load_transfer_follows_its_pull() -> None:
                     regression.add(t_s, u, r, u * (beta + rng.normal(scale=0.001)), heading)
                     t_s, heading = t_s + 0.01, heading + 0.01 * r
                 t_s += 1.0
+    return regression
+
+
+def test_a_slopes_load_transfer_follows_its_pull() -> None:
+    """A 2 % grade falling towards 40°, L = 0.45 per g (our two-track car's; its geometry's
+    h·W/(l·W2) is 0.51). The fit finds the grade and its direction, and C2n within its interval."""
+    grade, falls, transfer, c2n, d = 0.02, math.radians(40.0), 0.45, 14.0, 1.1
+    regression = _sloped_pad(grade, falls, transfer, c2n, d)
     fit = regression.fit()
     assert fit is not None and fit.slope is not None
     assert fit.slope.pct == pytest.approx(100 * grade, rel=0.05)
     assert (fit.slope.downhill_deg - 40.0 + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=3.0)
     assert fit.c2n_ci95[0] <= c2n <= fit.c2n_ci95[1]
     assert fit.c2n == pytest.approx(c2n, rel=0.005)
+
+
+def test_the_passes_stop_within_their_tolerance_of_where_they_settle(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The priors' scale follows a_y's coefficient pass by pass; the passes stop where the result
+    is within ``_SETTLED`` (0.01 % of C2n) of the passes' fixed point — the wide d prior's fit
+    mostly after one pass, from the tape's and its contraction. Passed on to a change of 1e-11,
+    without the contraction, C2n, its interval and d move by less than that; one pass alone
+    moves C2n by 0.2–0.5 % on a simulated test day."""
+    import app.results.marginal_fit as marginal_fit
+
+    drives = [_sloped_pad(0.02, math.radians(40.0), 0.45, 14.0, 1.1)]
+    for seed in (1, 3):  # a simulated test day's drives: their first pass moves C2n by 0.1–0.5 %
+        drives.append(
+            run_pipeline(replace(load_config(), priors=MARGINAL), cached_drive("radii", seed)).regression
+        )
+    passes = marginal_fit._Passes
+    one_pass_off = 0.0
+    for regression in drives:
+        fit = regression.fit()
+        with monkeypatch.context() as patched:  # every fit's passes on to a change of 1e-11
+            patched.setattr(marginal_fit, "_SETTLED", 1e-11)
+            patched.setattr(marginal_fit, "_PASSES", 40)
+            patched.setattr(marginal_fit, "_Passes", lambda post, bias, nxt, _: passes(post, bias, nxt, None))
+            settled = regression.fit()
+        with monkeypatch.context() as patched:
+            patched.setattr(marginal_fit, "_PASSES", 1)
+            one_pass = regression.fit()
+        assert fit is not None and settled is not None and one_pass is not None
+        one_pass_off = max(one_pass_off, abs(one_pass.c2n / settled.c2n - 1.0))
+        for made, exact in (
+            (fit.c2n, settled.c2n),
+            *zip(fit.c2n_ci95, settled.c2n_ci95, strict=True),
+            (fit.d.m, settled.d.m),
+        ):
+            assert made == pytest.approx(exact, rel=marginal_fit._SETTLED)
+    assert one_pass_off > 10 * marginal_fit._SETTLED  # the drives need their passes
 
 
 def _wide_posterior(d_hat: float, v: float, tape: float, wide_sd: float) -> Posterior:

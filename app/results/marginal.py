@@ -21,10 +21,11 @@ mixture (``mixture``): its median, and its central interval.
 
 Several priors are on a ratio to a_y's coefficient (the slope's pull is g_y/(g·C2n), the softening
 s·a_y² multiplies it): they are scaled with a_y's coefficient from the fit before, and the fit is
-repeated until it settles (three passes take it to 1e-6 on the benches' drives). A slope's load
-transfer is its pull turned by 90° and scaled by L/g (one slope makes both): its prior follows the
-pull the pass before found, so a level pad leaves it no room to take a heading-borne misfit
-(CommonRoad's sweeps read +0.45 % median through it before, −0.18 % after).
+repeated until it settles (three passes take it to 1e-6 on the benches' drives; the wide d
+prior's fit, started from the tape's, mostly one). A slope's load transfer is its pull turned by
+90° and scaled by L/g (one slope makes both): its prior follows the pull the pass before found, so
+a level pad leaves it no room to take a heading-borne misfit (CommonRoad's sweeps read +0.45 %
+median through it before, −0.18 % after).
 """
 
 import math
@@ -44,22 +45,23 @@ def well_conditioned_inverse(a: np.ndarray, equilibrated: bool = False) -> np.nd
     κ is 10⁻²) set no condition a rescaling would remove — the marginal posterior's, whose priors
     keep every column's scale in hand; the cascade's least squares keep the raw test, which also
     turns away a broken signal's column of 10⁹."""
-    scale = np.ones(len(a))
+    outer = None
+    scaled = a
     if equilibrated:
-        diagonal = np.diag(a)
-        if not np.all(np.isfinite(diagonal)) or not np.all(diagonal > 0.0):
+        diagonal = a.diagonal()
+        if not (diagonal.min() > 0.0 and diagonal.max() < math.inf):  # NaN fails both
             return None
         scale = 1.0 / np.sqrt(diagonal)
-    scaled = a * np.outer(scale, scale)
+        outer = scale[:, None] * scale
+        scaled = a * outer
     try:
         inverse = np.linalg.inv(scaled)
     except np.linalg.LinAlgError:
         return None
-    if not np.all(np.isfinite(inverse)):
+    # a NaN or an infinity in either matrix makes the product NaN or infinite, which fails too
+    if not np.abs(scaled).sum(axis=0).max() * np.abs(inverse).sum(axis=0).max() <= 1e14:
         return None
-    if np.abs(scaled).sum(axis=0).max() * np.abs(inverse).sum(axis=0).max() > 1e14:
-        return None
-    return inverse * np.outer(scale, scale)
+    return inverse if outer is None else inverse * outer
 
 
 class Term(IntEnum):
@@ -85,13 +87,15 @@ class Term(IntEnum):
 @dataclass(frozen=True)
 class Posterior:
     """The coefficients' posterior mean and covariance over ``terms`` (indices into the statistics'
-    columns), the noise variance, and the degrees of freedom left."""
+    columns), the noise variance, the degrees of freedom left, and the matrix that made the mean
+    (XᵀX + σ²·Λ)⁻¹, which a term left out is taken through (``left_out``)."""
 
     terms: list[int]
     coef: np.ndarray
     cov: np.ndarray
     sigma2: float
     dof: float
+    inverse: np.ndarray | None = field(default=None, repr=False)
 
     def index(self, term: int) -> int:
         return self.terms.index(term)
@@ -129,10 +133,14 @@ class Blocks:
     run: np.ndarray
     n: int
     total: np.ndarray = field(init=False, repr=False)
+    total_xty: np.ndarray = field(init=False, repr=False)
+    total_yty: float = field(init=False, repr=False)
     neighbours: np.ndarray = field(init=False, repr=False)  # 1 where a block follows one in its run
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "total", self.xtx.sum(axis=0))
+        object.__setattr__(self, "total_xty", self.xty.sum(axis=0))
+        object.__setattr__(self, "total_yty", float(self.yty.sum()))
         object.__setattr__(self, "neighbours", (self.run[1:] == self.run[:-1]).astype(float)[:, None])
 
     def times(self, coef: np.ndarray) -> np.ndarray:
@@ -166,7 +174,7 @@ def posterior(
     bound), stepped until it settles. None where the posterior is improper."""
     n = blocks.n
     data, block_xty = weights.T @ blocks.total @ weights, blocks.xty @ weights
-    rhs, yy = block_xty.sum(axis=0), float(blocks.yty.sum())
+    rhs, yy = blocks.total_xty @ weights, blocks.total_yty
     precision = _precision(prior_sd)
     sigma2 = max(yy / n, 1e-30) if sigma2 is None else sigma2
     for _ in range(3):  # σ² from the residuals, then its autocorrelation, then once more
@@ -176,15 +184,17 @@ def posterior(
         inverse = found
         coef, used = inverse @ (rhs + sigma2 * precision * prior_mean), sigma2
         residual = yy - 2.0 * coef @ rhs + coef @ data @ coef
-        dof = max(n - float(np.trace(data @ inverse)), 1.0)
+        # tr(AB) of symmetric matrices: Σ A∘B, without the product
+        leverage = float(np.vdot(data, inverse))
+        dof = max(n - leverage, 1.0)
         white = max(residual / dof, 1e-30)
         meat = blocks.newey_west(block_xty - blocks.times(weights @ coef) @ weights)  # of the scores
-        inflation = float(np.trace(inverse @ meat)) / (white * float(np.trace(inverse @ data)))
+        inflation = float(np.vdot(inverse, meat)) / (white * leverage)
         sigma2 = white * max(inflation, 1.0)
         if abs(sigma2 - used) <= _SIGMA_SETTLED * used:  # a fit before's σ², or settled
             break
     cov = inverse @ (meat * n / dof + used * used * np.diag(precision)) @ inverse
-    return Posterior(terms, coef, cov, used, dof)
+    return Posterior(terms, coef, cov, used, dof, inverse)
 
 
 _SIGMA_SETTLED = 1e-3  # σ² settled: the standard errors move by 0.05 % of themselves
@@ -196,17 +206,13 @@ def _precision(prior_sd: np.ndarray) -> np.ndarray:
     return np.where(finite, 1.0 / np.square(np.where(finite, prior_sd, 1.0)), 0.0)
 
 
-def left_out(
-    blocks: Blocks, weights: np.ndarray, prior_sd: np.ndarray, sigma2: float, column: int
-) -> np.ndarray | None:
-    """How each coefficient of ``posterior``'s fit (its ``weights``, priors' ``prior_sd`` and
-    noise ``sigma2``) moves per unit of a statistics' ``column`` left out of it: the posterior
-    mean's matrix applied to that column's cross-products. None where it cannot be told."""
-    total = blocks.total
-    inverse = well_conditioned_inverse(
-        weights.T @ total @ weights + sigma2 * np.diag(_precision(prior_sd)), equilibrated=True
-    )
-    return None if inverse is None else inverse @ (weights.T @ total[:, column])
+def left_out(blocks: Blocks, weights: np.ndarray, post: Posterior, column: int) -> np.ndarray | None:
+    """How each coefficient of ``post`` (a fit on the terms ``weights`` makes) moves per unit of
+    a statistics' ``column`` left out of it: the posterior mean's matrix applied to that column's
+    cross-products. None where it cannot be told."""
+    if post.inverse is None:
+        return None
+    return np.asarray(post.inverse @ (weights.T @ blocks.total[:, column]))
 
 
 def data_alone(post: Posterior, term: int, prior_mean: float, prior_sd: float) -> tuple[float, float] | None:

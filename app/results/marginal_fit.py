@@ -7,6 +7,7 @@ maths are ``marginal.py``'s."""
 
 import math
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -73,22 +74,15 @@ def fit_marginal(model: Samples, priors: Priors, statistics: Statistics) -> Regr
     if made is None:
         return None
     design, b_ay, covered = made
-    blocks, logs = len(statistics.run), len(np.unique(statistics.log))
+    blocks, logs = len(statistics.run), design.logs
     if model.d_tape_m is None:
         found = _posterior(model, priors, design, b_ay, math.inf)
         return None if found is None else _result(model, priors, [found], [1.0], blocks, logs, covered)
     tape_sd = max(model.d_tape_se_m, D_EXACT_SD_M)
     wide_sd = priors.d_gross_wheelbases * model.wheelbase_m
     tape = _posterior(model, priors, design, b_ay, tape_sd)
-    # the wide prior's fit starts from the tape's a_y, noise and pull
-    wide = _posterior(
-        model,
-        priors,
-        design,
-        b_ay if tape is None else tape[0].value(Term.AY),
-        wide_sd,
-        None if tape is None else tape[0],
-    )
+    # the wide prior's fit starts from the tape's a_y, noise, pull and passes' contraction
+    wide = _posterior(model, priors, design, tape.post.value(Term.AY) if tape else b_ay, wide_sd, tape)
     if tape is None or wide is None:
         found = tape or wide
         return None if found is None else _result(model, priors, [found], [1.0], blocks, logs, covered)
@@ -98,12 +92,12 @@ def fit_marginal(model: Samples, priors: Priors, statistics: Statistics) -> Regr
     # d 0.76 m behind the axle)
     apart = model.speeds_apart
     share = (
-        wide_share(wide[0], model.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
+        wide_share(wide.post, model.d_tape_m, tape_sd, wide_sd, priors.d_gross_share)
         if apart
         else priors.d_gross_share
     )
     fit = _result(model, priors, [tape, wide], [1.0 - share, share], blocks, logs, covered)
-    return None if fit is None else _with_own_d(model, fit, wide[0], wide_sd, apart, priors.confidence)
+    return None if fit is None else _with_own_d(model, fit, wide.post, wide_sd, apart, priors.confidence)
 
 
 def _design(
@@ -117,7 +111,8 @@ def _design(
     speeds: list[tuple[int, int]] = [(Term.U, Term.INV_U)]
     if logs > 1:
         xtx, xty, offsets, speeds = per_log(xtx, xty, log)
-    total, rhs = xtx.sum(axis=0), xty.sum(axis=0)
+    blocks = Blocks(xtx, xty, yty, run, n)
+    total, rhs = blocks.total, blocks.total_xty
     b_ay = _least_squares_ay(total, rhs, [*offsets, Term.D, Term.AY])
     if b_ay is None and model.d_tape_m is not None:  # one speed: d at the tape's to start
         b_ay = _least_squares_ay(total, rhs - model.d_tape_m * total[:, Term.D], [*offsets, Term.AY])
@@ -131,7 +126,7 @@ def _design(
     turn = [Term.TURN] if priors.turn_force_pct > 0 else []
     fifth = [Term.AY5] if priors.softening_ratio or priors.softening_ratio_sd else []
     own = [Term.D, Term.AY, Term.AY3, *fifth, *slope_terms, Term.R_DOT, Term.AY_U_DOT, *turn, Term.K2_AY]
-    design = _Design(Blocks(xtx, xty, yty, run, n), offsets, speeds, [int(t) for t in own])
+    design = _Design(blocks, offsets, speeds, [int(t) for t in own], logs)
     # a slope is reported (and its pull taken out of the crossings) where the headings cover it,
     # as the cascade tries one: one direction on one circle holds a 2 % "slope" at Wald's 95 %
     # that C2n's width carries but no crossing should be moved by; a turn force likewise where
@@ -144,7 +139,7 @@ def _design(
             (Term.SIN, [Term.SIN, Term.COS], SLOPE_SPREAD),
             (Term.TURN, [Term.TURN], TURN_SPREAD),
         )
-        if term in own and term_spread(design.blocks.total, base, [int(t) for t in layout], n) >= least
+        if term in own and term_spread(total, base, [int(t) for t in layout], n) >= least
     )
     return design, b_ay, covered
 
@@ -177,23 +172,40 @@ def _with_own_d(
     return replace(fit, d=replace(fit.d, information=information, free_m=free_m))
 
 
+class _Passes(NamedTuple):
+    """A posterior whose priors' scale has settled: the yaw-rate bias's columns, a_y⁵'s reach
+    (``_next_term``), and by how much a pass shrank a_y's coefficient's change (None where fewer
+    than two passes followed the one before, or a pass did not shrink it)."""
+
+    post: Posterior
+    bias_terms: list[int]
+    next_term: float
+    contraction: float | None
+
+
 def _posterior(
     model: Samples,
     priors: Priors,
     design: "_Design",
     b_ay: float,
     d_sd: float,
-    start: Posterior | None = None,
-) -> tuple[Posterior, list[int], float] | None:
-    """The posterior with d's prior N(tape, d_sd²) (flat without a tape), and the yaw-rate
-    bias's columns; the priors' scale follows a_y's coefficient until it settles, each pass
-    from the noise and the pull the one before found (the first from ``start``'s, a fit under
-    the other prior on d)."""
-    post: Posterior | None = start
+    start: _Passes | None = None,
+) -> _Passes | None:
+    """The posterior with d's prior N(tape, d_sd²) (flat without a tape); the priors' scale
+    follows a_y's coefficient until it settles, each pass from the noise and the pull the one
+    before found (the first from ``start``'s, a fit under the other prior on d).
+
+    Settled: a pass moved a_y's coefficient by under ``_SETTLED`` of itself; or, given the
+    passes' contraction ρ (``start``'s, measured on the same samples), the fixed point lies
+    within that of this pass's result, which a change Δ bounds by Δ·ρ/(1 − ρ): the wide prior's
+    fit, started from the tape's, then takes one pass instead of two."""
+    post: Posterior | None = None if start is None else start.post
+    contraction = None if start is None else start.contraction
+    changes: list[float] = []  # a_y's coefficient's change in the passes that followed one before
     bias_terms: list[int] = []
-    used: tuple[np.ndarray, np.ndarray] | None = None  # the last pass's weights and priors' spread
-    pull = None if start is None else _Pull.of(start)
-    softening = None if start is None else _softening2(start)
+    used: np.ndarray | None = None  # the last pass's weights
+    pull = None if post is None else _Pull.of(post)
+    softening = None if post is None else _softening2(post)
     own_terms = [*design.offsets, *design.own]
     own_weights = design.blocks.columns(own_terms)
     k = len(own_weights)
@@ -221,33 +233,39 @@ def _posterior(
         post = posterior(design.blocks, weights, [int(t) for t in terms], mean, spread, sigma2)
         if post is None:
             return None
-        used = (weights, spread)
-        # settled: the priors' scale was a_y's coefficient's own, and the load transfer's
-        # prior the pull's this pass found
-        settled = abs(post.value(Term.AY) - b_ay) <= _SETTLED * abs(b_ay)
-        settled = settled and (pull is not None or Term.SIN not in post.terms)
-        settled = settled and (softening is not None or Term.AY5 not in post.terms)
+        used = weights
+        # a pass follows the one before where the load transfer's prior was the pull a fit
+        # found, and the next softening term's the softening's
+        follows = (pull is not None or Term.SIN not in post.terms) and (
+            softening is not None or Term.AY5 not in post.terms
+        )
+        change = abs(post.value(Term.AY) - b_ay) / abs(b_ay)
+        reach = change if contraction is None else min(change, change * contraction / (1.0 - contraction))
         b_ay, pull, softening = post.value(Term.AY), _Pull.of(post), _softening2(post)
-        if settled:
-            break
+        if follows:
+            changes.append(change)
+            if reach <= _SETTLED:
+                break
     assert post is not None and used is not None
-    return post, bias_terms, _next_term(design, post, *used)
+    if len(changes) >= 2 and 0.0 < changes[-1] < changes[-2]:
+        contraction = changes[-1] / changes[-2]
+    return _Passes(post, bias_terms, _next_term(design, post, used), contraction)
 
 
-def _next_term(design: "_Design", post: Posterior, weights: np.ndarray, spread: np.ndarray) -> float:
+def _next_term(design: "_Design", post: Posterior, weights: np.ndarray) -> float:
     """How far a_y's coefficient moves, as a share of itself, per unit of a_y⁵'s coefficient (as
     a share of a_y's) left out of the model: λ in Δb/b = λ·c5/b, from the statistics' a_y⁵
     column — 0 where the term is in the model (it carries itself) or cannot be told."""
     if Term.AY5 in post.terms:
         return 0.0
-    moved = left_out(design.blocks, weights, spread, post.sigma2, Term.AY5)
+    moved = left_out(design.blocks, weights, post, Term.AY5)
     return 0.0 if moved is None else float(moved[post.index(Term.AY)])
 
 
 def _result(
     model: Samples,
     priors: Priors,
-    found: list[tuple[Posterior, list[int], float]],
+    found: list[_Passes],
     weights: list[float],
     blocks: int,
     logs: int,
@@ -258,17 +276,18 @@ def _result(
     reported only where the drive's layout covers them (``covered``: headings, turns' directions)."""
     # a_y's coefficient above zero is kept, C2n below zero: a role the wrong way round, which
     # Snapshot.sign_problem explains from d and the signs (the cascade's fits do the same)
-    kept = [(f, w) for f, w in zip(found, weights, strict=True) if f[0].value(Term.AY) != 0]
+    kept = [(f, w) for f, w in zip(found, weights, strict=True) if f.post.value(Term.AY) != 0]
     if not kept:
         return None
-    post, bias_terms, next_term = max(kept, key=lambda fw: fw[1])[0]
+    heaviest = max(kept, key=lambda fw: fw[1])[0]
+    post, bias_terms, next_term = heaviest.post, heaviest.bias_terms, heaviest.next_term
     from scipy.special import stdtrit
 
     dof = max(blocks - len(post.terms), 1)
     q = float(stdtrit(dof, 0.5 + priors.confidence / 2.0))
     shares = [w for _, w in kept]
-    c2ns = [-1.0 / (model.g * f[0].value(Term.AY)) for f, _ in kept]
-    data_ses = [f[0].se(Term.AY) * model.g * c * c for (f, _), c in zip(kept, c2ns, strict=True)]
+    c2ns = [-1.0 / (model.g * f.post.value(Term.AY)) for f, _ in kept]
+    data_ses = [f.post.se(Term.AY) * model.g * c * c for (f, _), c in zip(kept, c2ns, strict=True)]
     c2n_ses = [math.hypot(se, model.scale_se * abs(c)) for se, c in zip(data_ses, c2ns, strict=True)]
     c2n, c2n_ci = reciprocal_mixture(c2ns, c2n_ses, shares, dof, priors.confidence)
     data_ci = c2n_ci
@@ -282,8 +301,8 @@ def _result(
     c2n_ci, data_ci = ((low - c2n * next_pct / 100.0, high) for low, high in (c2n_ci, data_ci))
     c2n_se = (c2n_ci[1] - c2n_ci[0]) / (2.0 * q)
     d_m, d_ci = mixture(
-        [f[0].value(Term.D) for f, _ in kept],
-        [f[0].se(Term.D) for f, _ in kept],
+        [f.post.value(Term.D) for f, _ in kept],
+        [f.post.se(Term.D) for f, _ in kept],
         shares,
         dof,
         priors.confidence,
@@ -341,12 +360,14 @@ def _result(
 
 @dataclass(frozen=True)
 class _Design:
-    """The marginal fit's statistics and columns: ψ0's, the speed pairs, the drive's own terms."""
+    """The marginal fit's statistics and columns: ψ0's, the speed pairs, the drive's own terms;
+    and how many drives the samples hold."""
 
     blocks: Blocks
     offsets: list[int]
     speeds: list[tuple[int, int]]
     own: list[int]
+    logs: int
 
 
 def _least_squares_ay(total: np.ndarray, rhs: np.ndarray, terms: list[int]) -> float | None:

@@ -64,9 +64,11 @@ def test_crossings_that_do_not_bound_c2n_say_what_held_it_open() -> None:
     why = unbounded_crossings(one_way, None)
     assert why is not None and why.startswith("1 crossing reads C2n 15.05 but does not bound it: its 95 % ")
     assert "no upper end" in why and "head_yaw_deg" in why and "one sweep direction" in why
+    assert "no upper end, where the crossing's own line counts its u0 alone (" in why  # printed narrower
     measured = replace(one_way, misalignment_rad=0.001, misalignment_se=0.01, lag_s=0.1, lag_se=2.0, n=4)
     why = unbounded_crossings(measured, None)
     assert why is not None and "4 crossings read" in why and "scatter as widely as C2n itself" in why
+    assert "where each crossing's own line counts its u0 alone" in why
     assert unbounded_crossings(replace(one_way, se=1.0), None) is None  # bounded
     assert unbounded_crossings(replace(one_way, c2n=-3.0), None) is None  # no stiffness: a sign's matter
     assert unbounded_crossings(None, Combined(15.0, 10.0, 2, 3.0)) is not None

@@ -63,9 +63,15 @@ def unbounded_crossings(paired: Paired | None, combined: Combined | None) -> str
     why = "; ".join(held) if held else "the crossings scatter as widely as C2n itself"
     count = f"{crossings.n} crossings read" if crossings.n != 1 else "1 crossing reads"
     bind = "do" if crossings.n != 1 else "does"
+    own = (
+        "each crossing's own line counts its u0"
+        if crossings.n != 1
+        else "the crossing's own line counts its u0"
+    )
     return (
         f"{count} C2n {crossings.c2n:.2f} but {bind} not bound it: its 95 % interval runs from "
-        f"{crossings.ci95[0]:.2f} with no upper end ({why}) — drive circles both ways with the speed "
+        f"{crossings.ci95[0]:.2f} with no upper end, where {own} alone ({why}) — drive circles both "
+        "ways with the speed "
         "swept up and down through the sign change, or long enough for the regression (200 steady "
         "samples over 0.5 m/s² of a_y)"
     )

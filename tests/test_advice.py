@@ -226,6 +226,28 @@ def test_refusal_names_the_manoeuvre_lacked() -> None:
     assert refusal.refusal("sign", "apart", None, None, Cornering()) == "sign"  # the sign first
 
 
+def test_quasi_steady_cornering_at_one_a_y_is_told_as_that_not_as_too_little() -> None:
+    """A 30 s window of circles at one speed: 29 s quasi-steady, but all at one a_y, where C2n is
+    the slope over a_y: it said "too little quasi-steady cornering … 29 s quasi-steady"."""
+    one_ay = Cornering(
+        turning_s=30.0, transient_s=1.0, usable_s=29.0, usable_ay_mps2=(2.93, 3.08), usable_samples=2900
+    )
+    said = refusal.refusal(None, None, None, None, one_ay)
+    assert said.startswith("no sideslip sign change and quasi-steady cornering at one a_y only: of 30 s")
+    assert (
+        "29 s quasi-steady, all at a_y 2.9–3.1 m/s² where a fit needs 0.5 m/s² between its least and most"
+        in said
+    )
+    assert "too little" not in said
+    for short in (  # a_y enough, samples not; and a few samples, at one a_y as few are
+        replace(one_ay, usable_s=1.5, usable_ay_mps2=(1.0, 3.0), usable_samples=150),
+        replace(one_ay, usable_s=0.2, usable_samples=20),
+    ):
+        assert refusal.refusal(None, None, None, None, short).startswith(
+            "no sideslip sign change and too little quasi-steady cornering: of 30 s"
+        )
+
+
 def test_replay_hint() -> None:
     said = refusal.replay_hint(10.0, 10_000)
     assert said is not None and said.startswith("optical frames arrive at 1000 Hz")
@@ -241,3 +263,17 @@ def test_resting_fit_and_standing_headline() -> None:
     assert refusal.standing_headline(None, "apart", None, quasi, FIT, quasi, None, None) is None
     head = refusal.standing_headline(None, None, None, FIT, FIT, None, None, None)
     assert head == Headline(14.0, (13.8, 14.2), Method.REGRESSION)
+
+
+def test_one_frame_is_one_frame_in_the_warnings(config: Config) -> None:
+    """A count of one reads in the singular (it said "1 frames' values dropped")."""
+    from app.estimate.motion_model import FilterCounts
+
+    frames = FrameCounts(bad_length=1, bad_time=1, rejected=Counter({"no sensor status yet (vx)": 1}))
+    one = Findings(config=config, frames=frames, filter_counts=FilterCounts(time_jumps=1))
+    assert advice.values_dropped(one) == ("1 frame's values dropped: no sensor status yet (vx)",)
+    assert (advice.bad_length(one) or "").startswith("1 frame not decoded")
+    assert (advice.bad_time(one) or "").startswith("1 frame without a usable timestamp")
+    assert advice.time_jumps(one) == "timestamps went backwards once: the filter restarted"
+    two = replace(one, frames=replace(frames, rejected=Counter({"no sensor status yet (vx)": 2})))
+    assert advice.values_dropped(two) == ("2 frames' values dropped: no sensor status yet (vx)",)

@@ -312,6 +312,12 @@ def test_the_gate_over_arrays_decides_as_sample_by_sample() -> None:
     assert blocks.cornering.turning_s == pytest.approx(one.cornering.turning_s, abs=1e-9)
     assert blocks.cornering.tight_s == pytest.approx(one.cornering.tight_s, abs=1e-9)
     assert one.cornering.tight_s > 0
+    quasi_ay = np.abs(
+        estimates[np.array(expected), 8]
+    )  # the quasi-steady samples' a_y, as the refusal quotes it
+    assert blocks.cornering.usable_ay_mps2 == one.cornering.usable_ay_mps2
+    assert one.cornering.usable_ay_mps2 == pytest.approx((quasi_ay.min(), quasi_ay.max()), abs=1e-12)
+    assert blocks.cornering.usable_samples == one.cornering.usable_samples == sum(expected)
 
 
 # -- track laps through the pipeline and the command --------------------------------------------

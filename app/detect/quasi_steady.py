@@ -17,6 +17,7 @@ It also keeps the tally a refusal needs: how long the car cornered, and why thos
 not usable (``Cornering``).
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +44,8 @@ class Cornering:
     transient_s: float = 0.0  # of which speed or steering changing too fast, or settling
     usable_s: float = 0.0  # of which quasi-steady
     tight_s: float = 0.0  # of which on a radius under eight wheelbases (``tightest_curvature``)
+    usable_ay_mps2: tuple[float, float] | None = None  # the quasi-steady samples' |a_y|: least, most
+    usable_samples: int = 0  # the quasi-steady samples
 
 
 NO_CORNERING = Cornering()
@@ -56,10 +59,15 @@ class QuasiSteadyGate:
         self._since: float | None = None  # when every condition began to hold
         self._t: float | None = None  # the last sample's time
         self._seconds = [0.0, 0.0, 0.0, 0.0, 0.0]  # Cornering's fields, in order
+        self._usable_ay = [math.inf, 0.0]  # the quasi-steady samples' least and most |a_y|
+        self._usable_n = 0
 
     @property
     def cornering(self) -> Cornering:
-        return Cornering(*self._seconds)
+        low, high = self._usable_ay
+        turning, ay_high, transient, usable, tight = self._seconds
+        spread = (low, high) if low <= high else None
+        return Cornering(turning, ay_high, transient, usable, tight, spread, self._usable_n)
 
     def new_log(self) -> None:
         """Another drive follows: nothing of this one carries over but the tally."""
@@ -92,6 +100,11 @@ class QuasiSteadyGate:
             tally = self._seconds
             tally[0] += dt
             tally[1 if not ay_ok else 4 if not wide else 3 if quasi else 2] += dt
+        if quasi:
+            assert ay is not None  # a quasi-steady sample is turning: it has an a_y
+            spread = self._usable_ay
+            spread[0], spread[1] = min(spread[0], abs(ay)), max(spread[1], abs(ay))
+            self._usable_n += 1
         return quasi
 
     def steps(self, t: np.ndarray, estimates: np.ndarray, sensor_ok: np.ndarray) -> np.ndarray:
@@ -129,4 +142,9 @@ class QuasiSteadyGate:
         tally[2] += float(dt[turning & ay_ok & wide & ~quasi].sum())
         tally[3] += float(dt[quasi].sum())
         tally[4] += float(dt[turning & ay_ok & ~wide].sum())
+        if quasi.any():
+            usable = np.abs(ay[quasi])
+            spread = self._usable_ay
+            spread[0], spread[1] = min(spread[0], float(usable.min())), max(spread[1], float(usable.max()))
+            self._usable_n += len(usable)
         return np.asarray(quasi, bool)

@@ -157,25 +157,36 @@ def bad_length(f: Findings) -> str | None:
         return None
     cut = sum(n for (_, kind), n in counts.bad_by_id.items() if kind == "cut")
     how = f" ({cut} with a data field cut short in a text log's line)" if cut else ""
-    return f"{counts.bad_length} frames not decoded: their length is not their DBC message's{how}"
+    return f"{_frames(counts.bad_length)} not decoded: their length is not their DBC message's{how}"
 
 
 def bad_time(f: Findings) -> str | None:
     if not f.frames.bad_time:
         return None
     return (
-        f"{f.frames.bad_time} frames without a usable timestamp (NaN, infinite, or beyond ±10¹⁵ s: a clock "
+        f"{_frames(f.frames.bad_time)} without a usable timestamp (NaN, infinite, or beyond ±10¹⁵ s: a clock "
         "in µs or ns since 1970?): not used"
     )
 
 
 def values_dropped(f: Findings) -> tuple[str, ...]:
-    return tuple(f"{n} frames' values dropped: {reason}" for reason, n in f.frames.rejected.most_common())
+    return tuple(
+        f"{_frames_whose(n)} values dropped: {reason}" for reason, n in f.frames.rejected.most_common()
+    )
+
+
+def _frames(n: int) -> str:
+    return "1 frame" if n == 1 else f"{n} frames"
+
+
+def _frames_whose(n: int) -> str:
+    return "1 frame's" if n == 1 else f"{n} frames'"
 
 
 def time_jumps(f: Findings) -> str | None:
     jumps = f.filter_counts.time_jumps
-    return f"timestamps went backwards {jumps} times: the filter restarted" if jumps else None
+    times = "once" if jumps == 1 else f"{jumps} times"
+    return f"timestamps went backwards {times}: the filter restarted" if jumps else None
 
 
 def optical_gaps(f: Findings) -> str | None:

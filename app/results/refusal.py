@@ -19,7 +19,7 @@ from app.results.agreement import DriveResult, disagreement
 from app.results.combine import Combined
 from app.results.headline import Headline, headline, positive
 from app.results.pairing import Paired
-from app.results.regression import RegressionFit
+from app.results.regression import AY_SPAN_MPS2, MIN_SAMPLES, RegressionFit
 
 SENSOR_MAX_HZ = 400.0  # an optical sensor sends at 50–250 Hz; far beyond that is not its own pace
 HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
@@ -153,12 +153,22 @@ def refusal(
             "slowly through the sign change"
         )
     tight = f"{c.tight_s:.0f} s on radii under eight wheelbases, " if c.tight_s >= 0.5 else ""
+    seconds = (
+        f"of {c.turning_s:.0f} s cornering, {c.ay_high_s:.0f} s beyond the tyres' linear range of a_y, "
+        f"{c.transient_s:.0f} s speed or steering changing too fast, {tight}{c.usable_s:.0f} s quasi-steady"
+    )
+    span = c.usable_ay_mps2
+    if span is not None and span[1] - span[0] < AY_SPAN_MPS2 and c.usable_samples >= MIN_SAMPLES:
+        what, seconds = (
+            "quasi-steady cornering at one a_y only",
+            f"{seconds}, all at a_y {span[0]:.1f}–{span[1]:.1f} m/s² where a fit needs "
+            f"{AY_SPAN_MPS2:g} m/s² between its least and most",
+        )
+    else:
+        what = "too little quasi-steady cornering"
     return (
-        f"no sideslip sign change and too little quasi-steady cornering: of {c.turning_s:.0f} s "
-        f"cornering, {c.ay_high_s:.0f} s beyond the tyres' linear range of a_y, {c.transient_s:.0f} s "
-        f"speed or steering changing too fast, {tight}{c.usable_s:.0f} s quasi-steady — drive steady "
-        "circles at 2–4 m/s² with the speed swept slowly through the sign change, or corners held "
-        "at 1–4 m/s² at several speeds"
+        f"no sideslip sign change and {what}: {seconds} — drive steady circles at 2–4 m/s² with the "
+        "speed swept slowly through the sign change, or corners held at 1–4 m/s² at several speeds"
     )
 
 

@@ -119,6 +119,8 @@ _TERMS = (  # the columns each block keeps (``Term``'s names); a fit takes a sub
     "ay5",  # a_y⁵: the softening's next term
 )
 _GAP_S = 0.5  # a longer pause in steady samples starts a new run (no autocorrelation across it)
+AY_SPAN_MPS2 = 0.5  # a fit needs its samples this far apart in |a_y|: C2n is their slope
+MIN_SAMPLES = 200  # and this many of them, in ten blocks
 D_TAPE_SE_M = 0.01 / Z95  # the tape's d to ±1 cm at 95 % (the config's default): in C2n's interval
 TIGHT_WHEELBASES = 20.0  # most samples on radii under this many wheelbases: d is held at the tape's
 # (the bicycle model's one-wheel axle misreads the two wheels of a tight turn by a share that d·κ
@@ -134,7 +136,7 @@ class SampleRegression:
         block_s: float = 0.25,
         max_blocks: int = 32768,
         softening_t: float = 2.0,
-        min_samples: int = 200,
+        min_samples: int = MIN_SAMPLES,
         d_tape_m: float | None = None,
         d_tape_se_m: float = D_TAPE_SE_M,
         transient: bool = False,
@@ -318,6 +320,6 @@ class SampleRegression:
             self._xtx[b], self._xty[b], self._yty[b] = self._open_stats()
             self._run[b], self._log[b] = self._run_id, self._log_id
             b += 1
-        if self.n_samples < self.min_samples or b < 10 or self._ay_max - self._ay_min < 0.5:
+        if self.n_samples < self.min_samples or b < 10 or self._ay_max - self._ay_min < AY_SPAN_MPS2:
             return None
         return Statistics(self._xtx[:b], self._xty[:b], self._yty[:b], self._run[:b], self._log[:b])

@@ -7,7 +7,7 @@ says. ``build`` makes it from a Snapshot; ``to_json`` gives the file's content.
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, astuple, dataclass, field, replace
+from dataclasses import asdict, astuple, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -233,7 +233,7 @@ def build(
         crossings=tuple(_crossing(c, t0) for c in snapshot.crossings),
         regression=_regression(snapshot.regression),
         quasi_steady=_regression(snapshot.quasi),
-        cornering=CorneringRow(*(round(x, 1) for x in astuple(snapshot.cornering)))
+        cornering=CorneringRow(*(round(getattr(snapshot.cornering, f.name), 1) for f in fields(CorneringRow)))
         if snapshot.t_first is not None
         else None,
         quasi_steady_drives=tuple(_regression(fit) for fit in snapshot.quasi_drives)

@@ -60,25 +60,39 @@ def _each_alone(
     logs: list[Path], config: "Config", how: Literal["pool", "merge", "one"], console: Console
 ) -> None:
     """Each log analysed alone first: drives pooled, or given as one, must agree
-    (``app.results.agreement``), and files merged must be channels of one drive, not whole drives
-    of their own."""
+    (``app.results.agreement``), files merged must be channels of one drive, not whole drives
+    of their own, and no two may hold one stretch of driving (``app.sources.overlap``: it would
+    count twice)."""
     from app.pipeline import Pipeline
     from app.results.agreement import DriveResult, disagreement
+    from app.results.log_clock import sensor_messages
     from app.run_loop import run as run_pipeline
     from app.sources.logs import LogSource
+    from app.sources.overlap import SensorPrints, overlapping
 
     alone = []
+    recordings: list[tuple[str, SensorPrints]] = []
     quasi_only = True
+    sensor = frozenset(sensor_messages(config))
     with console.status("each log alone first…"):
         for log in logs:
             pipeline = Pipeline(config)
-            run_pipeline(
-                LogSource([log], triage=pipeline.decoder).items(blocks=True), pipeline, [], blocks=True
-            )
+            source = LogSource([log], triage=pipeline.decoder, spaced=sensor, prints=True)
+            run_pipeline(source.items(blocks=True), pipeline, [], blocks=True)
+            recordings += [(r.path.name, r.prints) for r in source.reports if r.prints is not None]
             headline = pipeline.snapshot().headline
             if headline is not None:
                 alone.append(DriveResult(str(log), headline.c2n, headline.ci95))
                 quasi_only = quasi_only and headline.method is Method.QUASI_STEADY
+    twice = overlapping(recordings)
+    if twice is not None:
+        first, second, share = twice
+        raise NoResultError(
+            f"{printable(first)} and {printable(second)} hold the same driving (the optical sensor's "
+            f"frames alike, run for run, over {100 * share:.0f} % of the shorter): one drive recorded "
+            "twice — a second logger on the bus, a copy cut or thinned, or two simulations of one --seed "
+            "— which would count twice; analyse one of them"
+        )
     if how == "merge" and len(alone) < 2:
         return
     if quasi_only and how == "pool":  # the pooled run fits each drive's quasi-steady samples alone

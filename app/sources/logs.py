@@ -28,6 +28,7 @@ from app.errors import LogFileError, need, one_line
 from app.sources.blf_bulk import TriagedBLFReader
 from app.sources.blocks import FrameBlock
 from app.sources.identity import DriveIdentity, identity_of
+from app.sources.overlap import SensorPrints
 from app.sources.spacing import FrameSpacing
 from app.sources.triage import NotInBulk, Triage
 
@@ -49,6 +50,7 @@ class LogReport:
     reader: object = None  # the python-can reader while the file is open
     span_s: tuple[float, float] | None = None  # the times of the first frame read and the last
     spacing: FrameSpacing = field(default_factory=FrameSpacing)  # of the frames of the ids it watches
+    prints: SensorPrints | None = None  # the runs of those frames' payloads, where asked (``overlap``)
 
     def bytes_read(self) -> int | None:
         """How far into the file the reader is (None where the reader does not say)."""
@@ -286,10 +288,14 @@ def read_log(
                 report.frames += len(message)
                 if spaced:
                     report.spacing.add(message)
+                    if report.prints is not None:
+                        report.prints.add(message)
             else:
                 report.frames += 1
                 if spaced and message.arbitration_id in spaced:
                     report.spacing.add(message)
+                    if report.prints is not None:
+                        report.prints.add(message)
             yield message
     finally:
         report.done, report.reader = True, None
@@ -469,7 +475,8 @@ class LogSource:
     per-channel recordings of one drive (e.g. two candump files). Given the decoder as
     ``triage``, BLF and MF4 files are read in bulk (``read_log``). Each file's report keeps the
     spacing of the frames of the ids in ``spaced`` (the optical sensor's: the log's clock shows
-    in it, ``results/log_clock.py``) and where they paused beyond ``pause_s``."""
+    in it, ``results/log_clock.py``) and where they paused beyond ``pause_s``; with ``prints``,
+    the runs of their payloads too (``overlap.py``: two recordings of one stretch of driving)."""
 
     def __init__(
         self,
@@ -478,13 +485,19 @@ class LogSource:
         triage: Triage | None = None,
         spaced: frozenset[int] = frozenset(),
         pause_s: float = math.inf,
+        prints: bool = False,
     ) -> None:
         for path in paths:  # fail before any work on a missing, unknown or unreadable file
             check_readable(path)
         self.paths, self.repeated = distinct(paths)
         self.merge = merge
         self.triage = triage
-        self.reports = [LogReport(p, spacing=FrameSpacing(spaced, pause_s)) for p in self.paths]
+        self.reports = [
+            LogReport(
+                p, spacing=FrameSpacing(spaced, pause_s), prints=SensorPrints(spaced) if prints else None
+            )
+            for p in self.paths
+        ]
 
     @property
     def notes(self) -> list[LogReport]:

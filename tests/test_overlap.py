@@ -93,3 +93,28 @@ def test_analyze_does_not_count_a_drive_and_its_second_loggers_copy_twice(tmp_pa
     out = tmp_path / "pooled.json"
     code, _, err = run_cli(["analyze", "--pool", str(blf), str(other), "--json", str(out)])
     assert code == 0 and json.loads(out.read_text())["c2n"] is not None, err
+
+
+def test_a_campaign_counts_one_stretch_of_driving_once(tmp_path: Path) -> None:
+    """A campaign listing a drive, a second logger's copy of it and another drive: the copy's row
+    names the drive that counts (it was two sessions of one tyre set, its group's interval
+    narrowed by √2); the other drive counts."""
+    import csv
+
+    messages = cached_drive("constant_radius", 1, 14.9).messages
+    _write(tmp_path / "car.blf", messages)
+    _write(tmp_path / "second logger.log", _second_logger(messages, 0.02))
+    _write(tmp_path / "next day.log", cached_drive("constant_radius", 2, 14.9).messages)
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("log,tyre_set\ncar.blf,A\nsecond logger.log,A\nnext day.log,A\n")
+    out = tmp_path / "campaign"
+    code, _, err = run_cli(["campaign", str(manifest), "--workers", "1", "--out", str(out)])
+    assert code == 0, err
+    rows = {row["log"]: row for row in csv.DictReader((out / "results.csv").open(encoding="utf-8-sig"))}
+    assert rows["car.blf"]["error"] == rows["next day.log"]["error"] == ""
+    said = rows["second logger.log"]["error"]
+    assert "second logger.log: the same driving as " in said and said.endswith(
+        "car.blf (line 2): counted once"
+    )
+    comparison = json.loads((out / "comparison.json").read_text())
+    assert comparison["groups"]["all"]["n_sessions"] == 2  # the two drives that count

@@ -107,13 +107,15 @@ def analyse(job: Job) -> SessionRow:
 
 def _analysed(raws: list[Path], config: Config) -> SessionRow:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
+    from app.results.log_clock import sensor_messages
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
     from app.sources.logs import LogSource, drive_identity
+    from app.sources.overlap import sample
 
     pipeline = Pipeline(config)
     raw = raws[0]  # the drive's name in its errors: the log, or a session's first part
-    source = LogSource(raws, triage=pipeline.decoder)
+    source = LogSource(raws, triage=pipeline.decoder, spaced=frozenset(sensor_messages(config)), prints=True)
     run_pipeline(source.items(blocks=True), pipeline, [], blocks=True)
     snapshot = pipeline.snapshot()
     written = summary.build(snapshot, config, [str(r) for r in raws], source.notes)
@@ -126,6 +128,7 @@ def _analysed(raws: list[Path], config: Config) -> SessionRow:
         result=None if error else session_result(snapshot, written),
         error=error,
         drive=drive_identity(raw).text,  # a copy of this drive elsewhere counts once
+        runs=sample(r.prints for r in source.reports if r.prints is not None),  # a near-copy too
         frames=snapshot.frames.total,
     )
 

@@ -1,8 +1,10 @@
-"""A drive listed twice in a campaign (a copy, or the same drive in another format) counts once.
+"""A drive listed twice in a campaign (a copy, or the same drive in another format) counts once,
+and so does one stretch of driving recorded twice (a second logger's copy, a log cut from another).
 
-Each worker's row carries its drive's content identity (``drive``: ``app.sources.identity``); a
-later row of the same drive becomes a row with its error, so it takes no part in any group,
-difference or trend, and the terminal names it beside the one that counts."""
+Each worker's row carries its drive's content identity (``drive``: ``app.sources.identity``) and a
+sample of its optical sensor's runs (``runs``: ``app.sources.overlap``); a later row of the same
+drive, or mostly of the same stretch, becomes a row with its error, so it takes no part in any
+group, difference or trend, and the terminal names it beside the one that counts."""
 
 from collections.abc import Sequence
 from dataclasses import replace
@@ -11,6 +13,7 @@ from pathlib import Path
 from app.campaign.manifest import Manifest
 from app.campaign.row import SessionRow
 from app.sources.identity import DriveIdentity
+from app.sources.overlap import SensorPrints, alike_earlier, of_runs
 
 
 def counted_once(manifest: Manifest, rows: Sequence[SessionRow]) -> tuple[list[SessionRow], list[str]]:
@@ -18,17 +21,25 @@ def counted_once(manifest: Manifest, rows: Sequence[SessionRow]) -> tuple[list[S
     out: list[SessionRow] = []
     said: list[str] = []
     seen: list[tuple[DriveIdentity, Path]] = []
+    recorded: list[SensorPrints] = []  # the runs of the rows that count, in order
+    recorded_logs: list[Path] = []
+    holder: dict[int, int] = {}
     for entry, row in zip(manifest.entries, rows, strict=True):
         identity = DriveIdentity.parse(row.drive)
-        first = None
+        first, same = None, "the same drive as"
         if identity is not None and not row.error:
             first = next((log for known, log in seen if known.same_drive(identity)), None)
             if first is None:
                 seen.append((identity, entry.log))
+        if first is None and row.runs and not row.error:
+            earlier = alike_earlier(of_runs(row.runs), recorded, holder)
+            recorded_logs.append(entry.log)
+            if earlier is not None:
+                first, same = recorded_logs[earlier], "the same driving as"
         if first is None:
             out.append(row)
             continue
-        line = f"{entry.log}: the same drive as {first} (line {_line(manifest, first)}): counted once"
+        line = f"{entry.log}: {same} {first} (line {_line(manifest, first)}): counted once"
         out.append(replace(row, error=line))
         said.append(line)
     return out, said

@@ -16,7 +16,7 @@ from typing import Any
 from app.campaign.compare import Estimate, Fits, Model
 from app.output.files import json_ready
 
-ROW_FORMAT = 2  # the cache file's layout: a row of another layout is analysed again
+ROW_FORMAT = 3  # the cache file's layout: a row of another layout is analysed again
 # the row's own columns, after the summary's
 OWN_COLUMNS = ("drive", "error", "frames", "seconds", "worker_peak_mib", "key", "cached")
 
@@ -39,6 +39,7 @@ class SessionRow:
     result: SessionResult | None = None  # None: no C2n (``error`` says why, or the comparison does)
     error: str | None = None
     drive: str | None = None  # the drive's content identity: a copy elsewhere counts once
+    runs: tuple[tuple[int, float], ...] = ()  # a sample of its sensor's runs: a near-copy counts once
     frames: int = 0
     seconds: float = 0.0
     worker_peak_mib: float | None = None  # the worker's peak memory so far
@@ -95,6 +96,7 @@ class SessionRow:
                 result=result,
                 error=_text(data["error"]),
                 drive=_text(data["drive"]),
+                runs=tuple((int(h), float(t)) for h, t in data["runs"]),
                 frames=int(data["frames"]),
                 seconds=float(data["seconds"]),
                 worker_peak_mib=_number(data["worker_peak_mib"]),

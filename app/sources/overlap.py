@@ -102,6 +102,22 @@ class SensorPrints:
             self.runs.setdefault(h, t)
 
 
+SAMPLED = 16  # a campaign row carries one run in 16 (by its hash: every copy keeps the same ones)
+
+
+def sample(prints: "Iterable[SensorPrints]") -> tuple[tuple[int, float], ...]:
+    """The runs of a drive's recordings (a session's parts) a campaign row carries: one in
+    ``SAMPLED``, chosen by hash, so that two copies' samples hold the same runs."""
+    return tuple(sorted((h, t) for p in prints for h, t in p.runs.items() if h % SAMPLED == 0))
+
+
+def of_runs(runs: "Iterable[tuple[int, float]]") -> SensorPrints:
+    """A recording's prints from its runs (a campaign row's sample)."""
+    prints = SensorPrints()
+    prints.runs.update(runs)
+    return prints
+
+
 def spanned(a: SensorPrints, b: SensorPrints) -> float:
     """How much of the shorter recording (by its runs' times, first to last) the runs both hold
     span, first to last: 0 to 1, 0 where they share fewer than ``MIN_SHARED``."""
@@ -139,3 +155,14 @@ def overlapping(recordings: "list[tuple[str, SensorPrints]]") -> tuple[str, str,
             if share > MOST:
                 return first, second, share
     return None
+
+
+def alike_earlier(prints: SensorPrints, earlier: "list[SensorPrints]", holder: dict[int, int]) -> int | None:
+    """The first of the ``earlier`` recordings whose stretch of driving ``prints`` holds too
+    (``spanned`` over ``MOST``), by ``holder`` (each run's first holder among them, kept up to
+    date here: ``prints`` is added as the next); None where none."""
+    mine = len(earlier)
+    alike = sorted({i for run in prints.runs if (i := holder.setdefault(run, mine)) != mine})
+    found = next((i for i in alike if spanned(earlier[i], prints) > MOST), None)
+    earlier.append(prints)
+    return found

@@ -33,6 +33,8 @@ if TYPE_CHECKING:  # the analysis's own modules load where a drive is analysed
 log = logging.getLogger(__name__)
 
 _CHUNK = 1 << 20
+# Where the parts of one log between its optical sensor's pauses disagree, each alone
+WITHIN_FIX = "cut the log at the pause and list each part in the manifest as a drive of its own"
 
 
 @dataclass(frozen=True)
@@ -108,6 +110,7 @@ def analyse(job: Job) -> SessionRow:
 def _analysed(raws: list[Path], config: Config) -> SessionRow:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.results.log_clock import sensor_messages
+    from app.results.within_file import parts_disagree
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
     from app.sources.logs import LogSource, drive_identity
@@ -115,9 +118,22 @@ def _analysed(raws: list[Path], config: Config) -> SessionRow:
 
     pipeline = Pipeline(config)
     raw = raws[0]  # the drive's name in its errors: the log, or a session's first part
-    source = LogSource(raws, triage=pipeline.decoder, spaced=frozenset(sensor_messages(config)), prints=True)
+    source = LogSource(
+        raws,
+        triage=pipeline.decoder,
+        spaced=frozenset(sensor_messages(config)),
+        pause_s=config.filter.gap_reset_s,
+        prints=True,
+    )
     run_pipeline(source.items(blocks=True), pipeline, [], blocks=True)
     snapshot = pipeline.snapshot()
+    identity = drive_identity(raw).text  # a copy of this drive elsewhere counts once
+    runs = sample(r.prints for r in source.reports if r.prints is not None)  # a near-copy too
+    for report in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
+        why = parts_disagree(report, config, Pipeline)
+        if why is not None:  # no summary, as analyze writes none: its C2n lies between the parts'
+            said = printable(f"{raw}: no C2n — {why} — {WITHIN_FIX}")
+            return SessionRow(error=said, drive=identity, runs=runs, frames=snapshot.frames.total)
     written = summary.build(snapshot, config, [str(r) for r in raws], source.notes)
     missing = summary.missing_required(snapshot, config)
     error = printable(f"{raw}: {missing}") if missing else None
@@ -127,8 +143,8 @@ def _analysed(raws: list[Path], config: Config) -> SessionRow:
         summary=written.to_json(),
         result=None if error else session_result(snapshot, written),
         error=error,
-        drive=drive_identity(raw).text,  # a copy of this drive elsewhere counts once
-        runs=sample(r.prints for r in source.reports if r.prints is not None),  # a near-copy too
+        drive=identity,
+        runs=runs,
         frames=snapshot.frames.total,
     )
 

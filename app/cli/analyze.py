@@ -2,14 +2,13 @@
 
 import argparse
 import itertools
-import math
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from rich.console import Console
 
-from app.cli.common import add_config, add_force, error_console, no_role_decoded
+from app.cli.common import add_config, add_force, error_console, no_role_decoded, parts_disagree
 from app.config import load_config
 from app.errors import NoResultError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
@@ -118,9 +117,10 @@ def _one_drive(reports: "list[LogReport]", config: "Config", console: Console) -
     from app.sources.logs import LogReport
 
     bridged = config.filter.gap_reset_s
-    for report in reports:
-        if report.spacing.pauses:
-            _parts_alone(report, config, console)
+    for report in reports:  # a file that paused: its parts alone (``app.results.within_file``)
+        why = parts_disagree(report, config, console)
+        if why is not None:
+            raise NoResultError(f"{why} — {_FIX['within']}")
     for before, after in itertools.pairwise(r for r in reports if r.span_s is not None):
         assert before.span_s is not None and after.span_s is not None
         gap = after.span_s[0] - before.span_s[1]
@@ -138,48 +138,6 @@ def _one_drive(reports: "list[LogReport]", config: "Config", console: Console) -
         )
         return [LogReport(after.path, stopped=note, done=True)]
     return []
-
-
-def _parts_alone(report: "LogReport", config: "Config", console: Console) -> None:
-    """A file in which the sensor's frames pause beyond ``gap_reset_s`` (``LogReport.spacing``:
-    the logger or the sensor stopped) holds parts the filter does not bridge, as separate files
-    do: each part is analysed alone, and parts that disagree have no one C2n — a logger left
-    recording through a tyre change read one C2n between the two sets. Parts that agree run on
-    as one, as before, without a word: a sensor's dropout of seconds in a sweep splits a drive
-    into parts too short to give a C2n of their own, or into parts that agree. One more read
-    of the file, where it paused."""
-    import numpy as np
-
-    from app.pipeline import Pipeline
-    from app.results.agreement import DriveResult, disagreement
-    from app.sources.blocks import FrameBlock, rows
-    from app.sources.logs import LogSource
-
-    pauses = report.spacing.pauses
-    starts = np.array([after for _, after in pauses])
-    parts = [Pipeline(config) for _ in range(len(pauses) + 1)]
-    with console.status(f"the {len(parts)} parts of {report.path.name} between its pauses, each alone…"):
-        for item in LogSource([report.path], triage=parts[0].decoder).items(blocks=True):
-            if isinstance(item, FrameBlock):
-                part = np.searchsorted(starts, item.t, side="right")
-                edges = [0, *(np.flatnonzero(np.diff(part)) + 1), len(part)]
-                for begin, end in itertools.pairwise(edges):
-                    parts[int(part[begin])].process_block(rows(item, begin, end))
-            elif item is not None:
-                parts[int(np.searchsorted(starts, item.timestamp, side="right"))].process(item)
-    t0 = report.span_s[0] if report.span_s is not None else 0.0
-    bounds = [t0, *(t for pause in pauses for t in pause), report.span_s[1] if report.span_s else math.nan]
-    alone = []
-    for k, pipeline in enumerate(parts):
-        pipeline.finish()
-        headline = pipeline.snapshot().headline
-        if headline is not None:
-            begin, end = bounds[2 * k] - t0, bounds[2 * k + 1] - t0
-            name = f"{report.path.name} {begin:.0f}–{end:.0f} s"
-            alone.append(DriveResult(name, headline.c2n, headline.ci95))
-    why = disagreement(alone)
-    if why is not None:
-        raise NoResultError(f"{why} — {_FIX['within']}")
 
 
 def _side_by_side(reports: "list[LogReport]") -> "list[LogReport]":

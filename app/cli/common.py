@@ -18,6 +18,7 @@ from app.errors import UsageError, printable
 
 if TYPE_CHECKING:
     from app.snapshot import Snapshot
+    from app.sources.logs import LogReport
 
 
 def add_config(parser: argparse.ArgumentParser) -> None:
@@ -112,6 +113,20 @@ def no_role_decoded(snapshot: "Snapshot", config: Config, logs: Sequence[Path]) 
         f"{', '.join(str(p) for p in logs)}: no frames for any role of {config.path} — wrong DBC or "
         "config for this log? give the car's with --config"
     )
+
+
+def parts_disagree(report: "LogReport", config: Config, console: Console) -> str | None:
+    """Where the optical sensor's frames paused in ``report``'s file, its parts between the
+    pauses each analysed alone (``app.results.within_file``, under a spinner): one line naming
+    each part's result where they disagree; None where they agree or the file did not pause."""
+    if not report.spacing.pauses:
+        return None
+    from app.pipeline import Pipeline
+    from app.results.within_file import parts_disagree as disagree
+
+    parts = len(report.spacing.pauses) + 1
+    with console.status(f"the {parts} parts of {report.path.name} between its pauses, each alone…"):
+        return disagree(report, config, Pipeline)
 
 
 def number(

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from rich.console import Console
 
-from app.cli.common import error_console, no_role_decoded
+from app.cli.common import error_console, no_role_decoded, parts_disagree
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import NoResultError, need, printable
 from app.output.files import folder_atomically
@@ -98,6 +98,10 @@ def _nothing_to_export(snapshot: "Snapshot", config: Config, logs: list[Path], o
     return None if nothing is None else f"{nothing} (nothing written to {out})"
 
 
+# Where the parts of one log between its optical sensor's pauses disagree, each alone
+_WITHIN_FIX = "cut the log at the pause and export each part alone"
+
+
 def _say_result(console: Console, snapshot: "Snapshot", result: "Summary", line: bool = True) -> None:
     """The result line (unless not ``line``), and the summary's warnings on standard error."""
     from app.sinks.event_printer import print_result
@@ -172,7 +176,12 @@ def run(args: argparse.Namespace, console: Console) -> int:
     check([Output("--out", out, _ours_by_content, folder=True)], [*logs, *config_files(config)])
     unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began
     pipeline = Pipeline(config)
-    source = LogSource(logs, triage=pipeline.decoder, spaced=frozenset(sensor_messages(config)))
+    source = LogSource(
+        logs,
+        triage=pipeline.decoder,
+        spaced=frozenset(sensor_messages(config)),
+        pause_s=config.filter.gap_reset_s,
+    )
     trace_recorder = TraceRecorder(config.roles)
     progress = ReadProgress(source, logs[0].name)
     run_pipeline(
@@ -186,6 +195,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     clock = clock_notes(source.reports, config)
     if clock:  # every channel is on the wrong time: nothing is written
         raise NoResultError(f"{clock[0].path}: {clock[0].stopped} (nothing written to {out})")
+    for read in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
+        why = parts_disagree(read, config, console)
+        if why is not None:  # the summary, events and plots would show one C2n between them
+            raise NoResultError(f"{why} — {_WITHIN_FIX} (nothing written to {out})")
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)

@@ -140,20 +140,13 @@ MOST = 0.5  # the runs both hold span more than half the shorter recording: it i
 
 def overlapping(recordings: "list[tuple[str, SensorPrints]]") -> tuple[str, str, float] | None:
     """The first two recordings of which the shorter is mostly the other's (``spanned`` over
-    ``MOST``), and how much of it; None where no two are. Each run's first holder is looked up,
-    so only recordings that share runs are compared."""
+    ``MOST``), and how much of it; None where no two are (``alike_earlier``, each in turn)."""
+    earlier: list[SensorPrints] = []
     holder: dict[int, int] = {}
-    for j, (second, prints) in enumerate(recordings):
-        alike: set[int] = set()
-        for run in prints.runs:
-            i = holder.setdefault(run, j)
-            if i != j:
-                alike.add(i)
-        for i in sorted(alike):
-            first, earlier = recordings[i]
-            share = spanned(earlier, prints)
-            if share > MOST:
-                return first, second, share
+    for second, prints in recordings:
+        i = alike_earlier(prints, earlier, holder)
+        if i is not None:
+            return recordings[i][0], second, spanned(earlier[i], prints)
     return None
 
 

@@ -172,6 +172,30 @@ def test_a_log_timed_in_milliseconds_or_microseconds_is_one_line_saying_so(
     assert code == 0 and "C2n = " in out and "apart (median)" not in err, out + err
 
 
+def test_a_campaign_row_of_a_log_timed_in_milliseconds_says_so(tmp_path: Path) -> None:
+    """A campaign's row of the CSV timed in milliseconds: the clock's own reason, as analyze
+    gives it (the row read `no C2n — no sideslip sign change and too little quasi-steady
+    cornering …`, blaming the drive); the same frames in seconds keep their C2n."""
+    import csv
+
+    frames = cached_drive("constant_radius", 41, 15.1).messages
+    ms = _write_log(tmp_path / "drive ms [a].csv", _timed_in(1e3, frames))
+    seconds = _write_log(tmp_path / "drive.csv", frames)
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text(f"log,tyre_set\n{ms},A\n{seconds},A\n", encoding="utf-8")
+    out = tmp_path / "campaign"
+    argv = ["campaign", str(manifest), "--workers", "1", "--by", "tyre_set", "--out", str(out)]
+    code, _, err = run_cli(argv)
+    assert code == 0, err
+    with (out / "results.csv").open(encoding="utf-8-sig", newline="") as file:
+        slow, plain = csv.DictReader(file)
+    assert slow["c2n"] == ""
+    assert slow["error"].startswith(f"{ms}: the optical sensor's frames (id 0x7E5) are 20 s")
+    assert "timestamps in milliseconds read as seconds" in slow["error"] and "cornering" not in slow["error"]
+    assert plain["error"] == "" and 14.6 < float(plain["c2n"]) < 15.6
+    assert "1 of 2 sessions failed" in err
+
+
 def test_an_export_of_a_vehicle_bus_without_the_sensor_still_converts_what_there_is(tmp_path: Path) -> None:
     """Only where no role at all decodes is export refused: the vehicle's speed alone is exported."""
     frames = _speed_frames()

@@ -109,7 +109,7 @@ def analyse(job: Job) -> SessionRow:
 
 def _analysed(raws: list[Path], config: Config) -> SessionRow:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
-    from app.results.log_clock import sensor_messages
+    from app.results.log_clock import clock_notes, sensor_messages
     from app.results.within_file import parts_disagree
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
@@ -129,6 +129,10 @@ def _analysed(raws: list[Path], config: Config) -> SessionRow:
     snapshot = pipeline.snapshot()
     identity = drive_identity(raw).text  # a copy of this drive elsewhere counts once
     runs = sample(r.prints for r in source.reports if r.prints is not None)  # a near-copy too
+    clock = clock_notes(source.reports, config)
+    if clock:  # every figure on the wrong time, and the refusal would blame the drive: as analyze says
+        said = printable(f"{clock[0].path}: {clock[0].stopped}")
+        return SessionRow(error=said, drive=identity, runs=runs, frames=snapshot.frames.total)
     for report in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
         why = parts_disagree(report, config, Pipeline)
         if why is not None:  # no summary, as analyze writes none: its C2n lies between the parts'

@@ -17,6 +17,7 @@ from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.combine import Combined
 from app.results.headline import Headline, Method
 from app.results.pairing import Paired
+from app.results.parts import Part
 from app.results.refusal import (
     d_witnessed,
     drives_disagree,
@@ -76,6 +77,10 @@ class Snapshot:
     cornering: Cornering = NO_CORNERING  # seconds of cornering, by what the quasi-steady gate made of them
     signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
     settle_s: float = 1.0  # the steady-state gate's settling time ([detector] settle_s)
+    # c2n live: the parts between the optical sensor's pauses, each alone (``app.parted_pipeline``),
+    # and why they give no one C2n where they disagree (``results.parts.parts_disagree``)
+    parts: tuple[Part, ...] = ()
+    parts_disagree: str | None = None
 
     @property
     def t0(self) -> float:
@@ -88,7 +93,10 @@ class Snapshot:
 
     @property
     def headline(self) -> Headline | None:
-        """The C2n to report, unless a refusal stands (``refusal.standing_headline``)."""
+        """The C2n to report, unless a refusal stands (``refusal.standing_headline``, or the run's
+        parts disagree)."""
+        if self.parts_disagree:
+            return None
         return standing_headline(
             self.sign_problem,
             self.drives_disagree,
@@ -110,7 +118,7 @@ class Snapshot:
         """Why there is no C2n: a wrong sign, or the manoeuvre the drive lacked (``refusal.refusal``)."""
         return refusal(
             self.sign_problem,
-            self.drives_disagree,
+            self.parts_disagree or self.drives_disagree,
             self.crossings_problem,
             self.regression,
             self.cornering,

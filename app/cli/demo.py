@@ -97,7 +97,7 @@ def _replay(
 ) -> int:
     import can
 
-    from app.pipeline import Pipeline
+    from app.parted_pipeline import PartedPipeline
     from app.run_loop import run as run_pipeline
     from app.sim.simulated_drive import write_drive
     from app.sinks.dashboard import Dashboard
@@ -114,7 +114,7 @@ def _replay(
             can.Bus(interface="virtual", channel=channel) as rx,
         ):
             player = Player(log, tx, args.speedup, stop)
-            pipeline = Pipeline(config)
+            pipeline = PartedPipeline(config)
             console.print(
                 f"replaying {shown(log.name)} ×{args.speedup:g} over virtual bus {channel}", style="dim"
             )

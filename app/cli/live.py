@@ -155,7 +155,7 @@ def run(
     ``clock``) while the recording and the pipeline carry on."""
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     import_python_can()  # first: the config's DBCs (cantools) import it too
-    from app.pipeline import Pipeline
+    from app.parted_pipeline import PartedPipeline
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
     from app.sinks.dashboard import Dashboard
@@ -179,7 +179,7 @@ def run(
     options: dict[str, Any] = bus_kwargs(args)
     buses = opener(args.interface, wanted, args.bitrate, **options)
     title = ", ".join(str(bus.channel_info) for bus in buses)
-    pipeline = Pipeline(config)
+    pipeline = PartedPipeline(config)  # a tyre change while the sensor was off: no one C2n
     recorder = None if args.no_record else _recorder(args.record, config, args.raw_format)
     stop = threading.Event()
     timer = threading.Timer(args.duration, stop.set) if args.duration else None

@@ -53,7 +53,7 @@ class Findings:
     sign_problem: str | None = None  # refusal.sign_problem
     unsteady_crossings: str | None = None  # support.unsteady_crossings
     odd_sign: str | None = None  # signs.odd_sign, where no sign problem stands
-    drives_disagree: str | None = None  # refusal.drives_disagree
+    drives_disagree: str | None = None  # refusal.drives_disagree, or results.parts.parts_disagree
     replay_hint: str | None = None  # refusal.replay_hint
     d_witnessed: bool = False  # refusal.d_witnessed
 

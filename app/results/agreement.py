@@ -31,9 +31,11 @@ class DriveResult:
         return (self.ci95[1] - self.ci95[0]) / (2 * Z95)
 
 
-def disagreement(drives: Sequence[DriveResult], alpha: float = FAMILY_ALPHA) -> str | None:
+def disagreement(
+    drives: Sequence[DriveResult], alpha: float = FAMILY_ALPHA, what: str = "the drives"
+) -> str | None:
     """None where the drives can be one C2n; else one line naming each drive's result and the
-    pair that differs most."""
+    pair that differs most (the drives called ``what``)."""
     pairs = []
     for a, b in itertools.combinations(drives, 2):
         se = math.hypot(a.se, b.se)
@@ -51,6 +53,6 @@ def disagreement(drives: Sequence[DriveResult], alpha: float = FAMILY_ALPHA) -> 
     _, a, b = rejected[0]
     each = "; ".join(f"{d.name} {d.c2n:.3f} [{d.ci95[0]:.3f}, {d.ci95[1]:.3f}]" for d in drives)
     return (
-        f"the drives disagree, each alone: {each} — {a.name} and {b.name} differ beyond their "
+        f"{what} disagree, each alone: {each} — {a.name} and {b.name} differ beyond their "
         f"intervals (Holm, 95 % over {m} pair{'s' if m > 1 else ''}): not one car on one set of tyres"
     )

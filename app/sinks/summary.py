@@ -19,6 +19,7 @@ from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results import advice
 from app.results.combine import Combined
 from app.results.pairing import Paired
+from app.results.parts import Part
 from app.results.regression import RegressionFit
 from app.snapshot import Snapshot
 from app.sources.logs import LogReport
@@ -107,6 +108,17 @@ class CorneringRow:
 
 
 @dataclass(frozen=True)
+class PartRow:
+    """A live run's part between its optical sensor's pauses, alone (``results/parts.py``)."""
+
+    from_s: float | None  # s since the first frame: its first frame, its sensor's last
+    to_s: float | None
+    c2n: float | None  # its own headline; null where it has none
+    c2n_ci95: Interval | None
+    c2n_method: str | None
+
+
+@dataclass(frozen=True)
 class SignVotesRow:
     """Cornering samples (one per 0.1 s) whose a_y and steering turn with the yaw rate, and against."""
 
@@ -190,6 +202,7 @@ class Summary:
     quasi_steady: RegressionRow | None = None  # the quasi-steady samples' fit, where no sweep crossed zero
     cornering: CorneringRow | None = None
     quasi_steady_drives: tuple[RegressionRow | None, ...] = ()  # drives pooled: each one's fit alone
+    parts: tuple[PartRow, ...] = ()  # c2n live: the parts between the optical sensor's pauses, each alone
     sign_votes: SignVotesRow | None = None  # do a_y and the steering turn with the yaw rate?
     d_m: float | None = None
     g_mps2: float | None = None
@@ -239,6 +252,7 @@ def build(
         quasi_steady_drives=tuple(_regression(fit) for fit in snapshot.quasi_drives)
         if snapshot.quasi is not None
         else (),
+        parts=tuple(_part(p, t0) for p in snapshot.parts),
         sign_votes=_sign_votes(snapshot.signs),
         paired=_paired(snapshot.paired),
         frames=Frames(**counts.as_dict()),
@@ -297,7 +311,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         sign_problem=snapshot.sign_problem,
         unsteady_crossings=snapshot.unsteady_crossings,
         odd_sign=snapshot.odd_sign,
-        drives_disagree=snapshot.drives_disagree,
+        drives_disagree=snapshot.parts_disagree or snapshot.drives_disagree,
         replay_hint=snapshot.replay_hint,
         d_witnessed=snapshot.d_witnessed,
     )
@@ -329,6 +343,17 @@ def _maybe(value: float | None, digits: int = 4, scale: float = 1.0) -> float | 
 
 def _pair(values: tuple[float, float], scale: float = 1.0, digits: int = 4) -> Interval:
     return (_round(values[0] * scale, digits), _round(values[1] * scale, digits))
+
+
+def _part(part: Part, t0: float) -> PartRow:
+    headline = part.headline
+    return PartRow(
+        from_s=_round(part.begin_t - t0, 3),
+        to_s=_round(part.end_t - t0, 3),
+        c2n=_round(headline.c2n) if headline else None,
+        c2n_ci95=_pair(headline.ci95) if headline else None,
+        c2n_method=headline.method.value if headline else None,
+    )
 
 
 def _crossing(c: Crossing, t0: float) -> CrossingRow:

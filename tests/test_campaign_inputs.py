@@ -218,3 +218,33 @@ def test_a_log_name_no_file_system_holds_is_one_line(tmp_path: Path) -> None:
         C2nError, match=r"line 2 names a{40}…, which cannot be looked up \(File name too long\)"
     ):
         read_manifest(manifest)
+
+
+def test_results_csv_answers_a_semicolon_manifest_in_its_own_dialect(tmp_path: Path) -> None:
+    """A manifest saved where the decimal mark is a comma gets results.csv the same way: ';'
+    between fields, its numbers (C2n, the pressures it gave) with a decimal comma, text as it
+    is (it was always ',' and '.': one column per row in that spreadsheet); ``--csv-dialect
+    excel`` asks for ',' and '.'; a second run replaces the campaign's own results.csv either
+    way."""
+    import csv
+
+    from app.sim.simulated_drive import write_drive
+    from tests.simulated import cached_drive
+
+    write_drive(cached_drive("constant_radius", 41, 15.1), tmp_path / "s 1.blf")
+    path = _manifest(tmp_path, "log;tyre_set;pressure_bar\ns 1.blf;A;2,5\ngone.blf;B;2,3\n")
+    out = tmp_path / "manifest-campaign"
+    for dialect, (delimiter, mark) in ((None, (";", ",")), ("excel", (",", "."))):
+        argv = ["campaign", str(path), "--workers", "1", *(["--csv-dialect", dialect] if dialect else [])]
+        code, _, err = run_cli(argv)
+        assert code == 0, err
+        text = (out / "results.csv").read_text(encoding="utf-8-sig")
+        assert text.startswith(f"log{delimiter}tyre_set{delimiter}pressure_bar{delimiter}")
+        drive, gone = csv.DictReader(text.splitlines(), delimiter=delimiter)
+        assert (drive["log"], drive["pressure_bar"], gone["pressure_bar"]) == (
+            "s 1.blf",
+            f"2{mark}5",
+            f"2{mark}3",
+        )
+        assert 14.6 < float(drive["c2n"].replace(mark, ".")) < 15.6 and mark in drive["c2n"]
+        assert gone["c2n"] == "" and "gone.blf" in gone["error"]

@@ -1,5 +1,5 @@
 """``c2n live`` left running through a tyre change: the parts between the optical sensor's pauses
-are run alone beside the whole (``app/parted_pipeline.py``), and parts that disagree leave the
+are run alone beside the whole (``app/pipeline.py (PartedPipeline)``), and parts that disagree leave the
 run no one C2n (``app/results/parts.py``); parts that agree, and a run that never paused, give
 what the one pipeline gives."""
 
@@ -14,8 +14,7 @@ import pytest
 from app.cli import main
 from app.cli.demo import Player
 from app.config import Config, load_config
-from app.parted_pipeline import PartedPipeline
-from app.pipeline import Pipeline
+from app.pipeline import PartedPipeline, Pipeline
 from app.results.log_clock import sensor_messages
 from app.run_loop import run
 from app.sinks import summary

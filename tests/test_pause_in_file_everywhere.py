@@ -43,7 +43,8 @@ def test_export_of_two_tyre_sets_in_one_file_is_refused_and_writes_nothing(
     )
     assert code == 1
     assert f"the drives disagree, each alone: {PARTS[0]}" in err and PARTS[1] in err
-    assert f"cut the log at the pause and export each part alone (nothing written to {out})" in err
+    fix = f"split the log at its pauses (c2n split {logs / 'day.log'}) and export each part alone"
+    assert f"{fix} (nothing written to {out})" in err
     assert not out.exists()
 
 
@@ -64,6 +65,7 @@ def test_a_campaign_row_of_two_tyre_sets_in_one_file_has_no_c2n_and_the_campaign
     assert day["c2n"] == "" and day["compared.c2n"] == ""
     assert f"{logs / 'day.log'}: no C2n — the drives disagree, each alone: {PARTS[0]}" in day["error"]
     assert PARTS[1] in day["error"] and "list each part in the manifest" in day["error"]
+    assert f"split the log at its pauses (c2n split {logs / 'day.log'})" in day["error"]
     assert plain["error"] == "" and 14.6 < float(plain["c2n"]) < 15.6
     assert f"{PARTS[0]}" in err and "1 of 2 sessions failed" in err
 

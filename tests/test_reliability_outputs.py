@@ -232,6 +232,7 @@ def test_every_output_option_of_every_command_runs_the_guard(day: Path) -> None:
         "live": ["-i", "virtual", "--config", car],
         "campaign": [str(day / "manifest.csv"), "--config", car],
         "gap-check": [str(pack)],
+        "split": [drive, "--config", car],
     }
     inputs = {"gap-check": str(pack / "case1" / "drive.blf")}
     (subparsers,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
@@ -247,7 +248,7 @@ def test_every_output_option_of_every_command_runs_the_guard(day: Path) -> None:
             assert code == 2 and "an input" in err and err.count("\n") == 1, (argv, err)
             assert _snapshot(day) == snapshot, argv
             found += 1
-    assert found >= 9  # analyze, gap ×2, export, simulate, live ×2, campaign, gap-check
+    assert found >= 10  # analyze, gap ×2, export, simulate, live ×2, campaign, gap-check, split
 
 
 # -- round four (2026-11-28): outputs that are not plain files, or that change while c2n writes --

@@ -108,7 +108,7 @@ def test_two_tyre_sets_in_one_file_across_a_pause_have_no_one_c2n(tmp_path: Path
     code, result, err = _analysed(tmp_path, [log])
     assert code == 1 and result is None
     assert f"the drives disagree, each alone: {log.name} 0–150 s 14.9" in err
-    assert f"{log.name} 750–900 s 15.9" in err and "cut the log at the pause" in err
+    assert f"{log.name} 750–900 s 15.9" in err and f"split the log at its pauses (c2n split {log})" in err
 
 
 def test_a_sensor_dropout_in_one_drive_leaves_its_c2n(tmp_path: Path) -> None:

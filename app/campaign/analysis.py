@@ -10,6 +10,7 @@ import hashlib
 import logging
 import os
 import resource
+import shlex
 import stat
 import time
 from collections.abc import Callable
@@ -34,7 +35,9 @@ log = logging.getLogger(__name__)
 
 _CHUNK = 1 << 20
 # Where the parts of one log between its optical sensor's pauses disagree, each alone
-WITHIN_FIX = "cut the log at the pause and list each part in the manifest as a drive of its own"
+WITHIN_FIX = (
+    "split the log at its pauses (c2n split {log}) and list each part in the manifest as a drive of its own"
+)
 
 
 @dataclass(frozen=True)
@@ -136,7 +139,8 @@ def _analysed(raws: list[Path], config: Config) -> SessionRow:
     for report in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
         why = parts_disagree(report, config, Pipeline)
         if why is not None:  # no summary, as analyze writes none: its C2n lies between the parts'
-            said = printable(f"{raw}: no C2n — {why} — {WITHIN_FIX}")
+            fix = WITHIN_FIX.format(log=shlex.quote(str(report.path)))
+            said = printable(f"{raw}: no C2n — {why} — {fix}")
             return SessionRow(error=said, drive=identity, runs=runs, frames=snapshot.frames.total)
     written = summary.build(snapshot, config, [str(r) for r in raws], source.notes)
     missing = summary.missing_required(snapshot, config)

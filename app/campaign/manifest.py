@@ -36,6 +36,7 @@ class Manifest:
     tag_names: tuple[str, ...]
     entries: tuple[Entry, ...]
     warnings: tuple[str, ...] = ()  # a column not read as its values suggest, one line each
+    delimiter: str = ","  # what separates its fields: Excel's ';' where the decimal mark is a comma
 
     def numeric_tags(self) -> list[str]:
         """The tags whose every value is a finite number (pressure, load, temperature …), bar
@@ -136,7 +137,7 @@ def read_manifest(path: Path) -> Manifest:
         for name in tag_names:
             entries, unread = _decimal_commas(entries, name)
             warnings += [f"{path}: {said}" for said in unread]
-    return Manifest(path, tag_names, tuple(entries), tuple(warnings))
+    return Manifest(path, tag_names, tuple(entries), tuple(warnings), delimiter)
 
 
 def _log(path: Path, line: int, named: str) -> Path:

@@ -6,7 +6,7 @@ import io
 import math
 import os
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -27,6 +27,7 @@ from app.campaign.compare import (
 from app.campaign.manifest import Entry, Manifest
 from app.campaign.row import OWN_COLUMNS, SessionResult, SessionRow
 from app.errors import OutputError
+from app.output.csv_dialects import CSV_DIALECTS
 from app.output.files import as_text, json_ready, write_atomically, write_json
 from app.output.paths import HTML_REPORT, json_with
 from app.sinks.html import fields, figure, none, page, paragraph, section, table, text, write_html
@@ -47,11 +48,11 @@ def ours(entry: Path) -> bool:
         return entry.is_dir() and is_cache(entry)
     if entry.name.startswith(".partial-"):
         return entry.is_dir()
-    starts = {"results.csv": b"\xef\xbb\xbflog,", "results.parquet": b"PAR1"}
+    starts = {"results.csv": (b"\xef\xbb\xbflog,", b"\xef\xbb\xbflog;"), "results.parquet": (b"PAR1",)}
     if entry.name in starts:
         try:
             with entry.open("rb") as file:
-                return file.read(len(starts[entry.name])) == starts[entry.name]
+                return file.read(len(starts[entry.name][0])) in starts[entry.name]
         except OSError:
             return False
     if entry.name == "comparison.json":
@@ -89,11 +90,22 @@ def table_rows(manifest: Manifest, rows: Sequence[SessionRow]) -> tuple[list[str
     return list(names), out
 
 
-def write_tables(folder: Path, columns: list[str], rows: list[dict[str, Any]]) -> None:
+def write_tables(
+    folder: Path,
+    columns: list[str],
+    rows: list[dict[str, Any]],
+    dialect: str = "excel",
+    numeric: Collection[str] = (),
+) -> None:
+    """results.csv in ``dialect`` (``CSV_DIALECTS``: its numbers, and the ``numeric`` tags' values,
+    with that decimal mark; its text as it is) and results.parquet."""
+    delimiter, decimal = CSV_DIALECTS[dialect]
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\r\n")
+    writer = csv.DictWriter(buffer, fieldnames=columns, delimiter=delimiter, lineterminator="\r\n")
     writer.writeheader()
-    writer.writerows({k: _cell(row.get(k)) for k in columns} for row in rows)
+    for row in rows:
+        cells = {k: _cell(row.get(k), decimal) for k in columns}
+        writer.writerow(cells | {k: cells[k].replace(".", decimal) for k in numeric if k in cells})
     # a byte-order mark: a spreadsheet then reads the units (m/s², 1/rad) as UTF-8
     write_atomically(
         folder / "results.csv", lambda tmp: tmp.write_text(buffer.getvalue(), "utf-8-sig"), "results.csv"
@@ -114,11 +126,11 @@ def _text(value: Any) -> Any:
     return as_text(value) if isinstance(value, str) else value
 
 
-def _cell(value: Any) -> Any:
+def _cell(value: Any, decimal: str = ".") -> Any:
     if value is None:
         return ""
     if isinstance(value, float):
-        return f"{value:.10g}"
+        return f"{value:.10g}".replace(".", decimal)
     return _text(value)
 
 

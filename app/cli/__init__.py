@@ -11,11 +11,11 @@ from typing import NoReturn, TextIO, cast
 from rich.console import Console
 
 from app import __version__
-from app.cli import analyze, campaign, demo, export, gap, gap_check, live, replay, simulate
+from app.cli import analyze, campaign, demo, export, gap, gap_check, live, replay, simulate, split
 from app.cli.terminal import LosableStream, say
 from app.errors import C2nError, UsageError, printable
 
-COMMANDS = (live, replay, analyze, export, simulate, gap, gap_check, campaign, demo)
+COMMANDS = (live, replay, analyze, export, split, simulate, gap, gap_check, campaign, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

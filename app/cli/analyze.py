@@ -2,6 +2,7 @@
 
 import argparse
 import itertools
+import shlex
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -51,7 +52,8 @@ _FIX = {
     "pool": "pool one set of tyres",
     "merge": "merge the channels of one drive, pool drives that agree",
     "one": "analyse each alone, or --pool drives of one set of tyres",
-    "within": "cut the log at the pause and analyse each part alone, or --pool the parts of one set of tyres",
+    "within": "split the log at its pauses (c2n split {log}) and analyse each part alone, or --pool the "
+    "parts of one set of tyres",
 }
 
 
@@ -120,7 +122,7 @@ def _one_drive(reports: "list[LogReport]", config: "Config", console: Console) -
     for report in reports:  # a file that paused: its parts alone (``app.results.within_file``)
         why = parts_disagree(report, config, console)
         if why is not None:
-            raise NoResultError(f"{why} — {_FIX['within']}")
+            raise NoResultError(f"{why} — {_FIX['within'].format(log=shlex.quote(str(report.path)))}")
     for before, after in itertools.pairwise(r for r in reports if r.span_s is not None):
         assert before.span_s is not None and after.span_s is not None
         gap = after.span_s[0] - before.span_s[1]

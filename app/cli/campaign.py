@@ -18,6 +18,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from app.cli.common import ENDING, error_console, interrupted_by, number
 from app.config import load_config
 from app.errors import UsageError, need, printable
+from app.output.csv_dialects import CSV_DIALECT_HELP, CSV_DIALECTS, dialect_of
 from app.output.files import files_together
 from app.output.paths import Output, check
 from app.user_text import shown
@@ -60,6 +61,12 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         type=Path,
         metavar="F",
         help="vehicle config for every log (default: a session's own copy, else config/mondeo.toml)",
+    )
+    parser.add_argument(
+        "--csv-dialect",
+        choices=tuple(CSV_DIALECTS),
+        help=f"results.csv's: {CSV_DIALECT_HELP} (default: the manifest's own — excel-semicolon where its "
+        "fields are separated by ';', else excel)",
     )
     parser.set_defaults(run=run)
     return parser
@@ -206,7 +213,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         columns, table = outputs.table_rows(manifest, rows)
         comparison = outputs.compare(manifest, rows, args.by)
         with files_together(out, outputs.FILES) as staging:  # an interrupt: the old set or the new
-            outputs.write_tables(staging, *outputs.with_compared(columns, table, comparison))
+            dialect = args.csv_dialect or dialect_of(manifest.delimiter)
+            compared = outputs.with_compared(columns, table, comparison)
+            outputs.write_tables(staging, *compared, dialect, numeric=manifest.numeric_tags())
             outputs.write_comparison(staging, comparison)
             outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
     cached = sum(1 for row in rows if row.cached)

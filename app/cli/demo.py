@@ -97,7 +97,7 @@ def _replay(
 ) -> int:
     import can
 
-    from app.parted_pipeline import PartedPipeline
+    from app.pipeline import PartedPipeline
     from app.run_loop import run as run_pipeline
     from app.sim.simulated_drive import write_drive
     from app.sinks.dashboard import Dashboard

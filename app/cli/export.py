@@ -2,6 +2,7 @@
 table, the summary, plots and one self-contained HTML report."""
 
 import argparse
+import shlex
 import stat
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -11,6 +12,7 @@ from rich.console import Console
 from app.cli.common import error_console, no_role_decoded, parts_disagree
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import NoResultError, need, printable
+from app.output.csv_dialects import CSV_DIALECT_HELP, CSV_DIALECTS
 from app.output.files import folder_atomically
 from app.output.paths import HTML_REPORT, SUMMARY_JSON, Output, check, config_files
 from app.user_text import shown
@@ -44,10 +46,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     parser.add_argument(
         "--csv-dialect",
-        choices=("excel", "excel-semicolon"),
+        choices=tuple(CSV_DIALECTS),
         default="excel",
-        help="excel: ',' between fields and '.' in numbers; excel-semicolon: ';' and ',' (a spreadsheet "
-        "set to a decimal comma); both UTF-8 with a byte-order mark",
+        help=CSV_DIALECT_HELP,
     )
     parser.add_argument(
         "--out", type=Path, metavar="DIR", help="output folder (default: SESSION/export or LOG-export)"
@@ -99,7 +100,7 @@ def _nothing_to_export(snapshot: "Snapshot", config: Config, logs: list[Path], o
 
 
 # Where the parts of one log between its optical sensor's pauses disagree, each alone
-_WITHIN_FIX = "cut the log at the pause and export each part alone"
+_WITHIN_FIX = "split the log at its pauses (c2n split {log}) and export each part alone"
 
 
 def _say_result(console: Console, snapshot: "Snapshot", result: "Summary", line: bool = True) -> None:
@@ -198,7 +199,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     for read in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
         why = parts_disagree(read, config, console)
         if why is not None:  # the summary, events and plots would show one C2n between them
-            raise NoResultError(f"{why} — {_WITHIN_FIX} (nothing written to {out})")
+            fix = _WITHIN_FIX.format(log=shlex.quote(str(read.path)))
+            raise NoResultError(f"{why} — {fix} (nothing written to {out})")
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)

@@ -155,7 +155,7 @@ def run(
     ``clock``) while the recording and the pipeline carry on."""
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     import_python_can()  # first: the config's DBCs (cantools) import it too
-    from app.parted_pipeline import PartedPipeline
+    from app.pipeline import PartedPipeline
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
     from app.sinks.dashboard import Dashboard

@@ -3,7 +3,7 @@
 ``c2n live`` left running through a tyre change (the car parked, the sensor off) pooled both sets
 of tyres into one C2n, between the two and outside both. Where the sensor's frames pause beyond
 ``gap_reset_s`` (the filter restarts there) the run is in parts, as ``c2n analyze`` reads a log
-that paused (``within_file.py``): each part is also run alone (``app.parted_pipeline``), and
+that paused (``within_file.py``): each part is also run alone (``app.pipeline.PartedPipeline``), and
 parts that disagree (``agreement.disagreement``, Holm) leave the run no one C2n, each part's own
 named instead. Parts that agree pool, without a word: a dropout of seconds in a sweep splits a
 drive into parts too short for a C2n of their own, or into parts that agree.

@@ -15,7 +15,7 @@ a floor above this one).
 
 import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import can
@@ -50,6 +50,18 @@ class Part(Protocol):
     def snapshot(self) -> PartResult: ...
 
 
+def cuts(pauses: Sequence[tuple[float, float]]) -> np.ndarray:
+    """Where a file is cut into parts: the middle of each of its sensor's pauses (``pauses``:
+    the last frame before and the first after). A frame of another id in a pause goes to the
+    drive it is nearer: the bus of the next drive waking before its sensor does is that drive's."""
+    return np.array([(before + after) / 2.0 for before, after in pauses])
+
+
+def part_of(cut: np.ndarray, t: np.ndarray | Sequence[float]) -> np.ndarray:
+    """The part each time in ``t`` falls in (0 the first), the file cut at ``cut`` (``cuts``)."""
+    return np.searchsorted(cut, t, side="right")
+
+
 def parts_disagree(report: LogReport, config: Config, part: Callable[[Config], Part]) -> str | None:
     """One line naming each part's result and the pair that differs most, where the parts of
     ``report``'s file between its pauses (``report.spacing.pauses``) disagree, each alone (each
@@ -59,16 +71,16 @@ def parts_disagree(report: LogReport, config: Config, part: Callable[[Config], P
     pauses = report.spacing.pauses
     if not pauses or clock_notes([report], config):
         return None
-    starts = np.array([after for _, after in pauses])
+    cut = cuts(pauses)
     parts = [part(config) for _ in range(len(pauses) + 1)]
     for item in LogSource([report.path], triage=parts[0].decoder).items(blocks=True):
         if isinstance(item, FrameBlock):
-            index = np.searchsorted(starts, item.t, side="right")
+            index = part_of(cut, item.t)
             edges = [0, *(np.flatnonzero(np.diff(index)) + 1), len(index)]
             for begin, end in itertools.pairwise(edges):
                 parts[int(index[begin])].process_block(rows(item, begin, end))
         elif item is not None:
-            parts[int(np.searchsorted(starts, item.timestamp, side="right"))].process(item)
+            parts[int(part_of(cut, [item.timestamp])[0])].process(item)
     t0 = report.span_s[0] if report.span_s is not None else 0.0
     bounds = [t0, *(t for pause in pauses for t in pause), report.span_s[1] if report.span_s else math.nan]
     alone = []

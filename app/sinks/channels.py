@@ -17,6 +17,7 @@ import numpy as np
 
 from app import __version__
 from app.errors import need
+from app.output.csv_dialects import CSV_DIALECTS
 from app.output.files import write_atomically
 from app.sinks.trace import TIME, Trace
 
@@ -56,11 +57,6 @@ def _table(trace: Trace, names: Callable[[str, str], str], rounded: bool = False
     ]
     schema = pa.schema(fields, metadata={"t0": repr(trace.t0), "source": f"c2n {__version__}"})
     return pa.Table.from_arrays(arrays, schema=schema)
-
-
-# CSV dialects: (delimiter, decimal mark). Excel reads a comma-separated file where the decimal
-# mark is a point; where it is a comma (most of Europe) it wants ';' between fields.
-CSV_DIALECTS = {"excel": (",", "."), "excel-semicolon": (";", ",")}
 
 
 def write_csv(trace: Trace, path: Path, dialect: str = "excel") -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import IO
 
 from app.errors import OutputError
+from app.output.csv_dialects import CSV_DIALECTS
 from app.output.files import write_atomically
 from app.records import Crossing, CrossingRejected
 
@@ -28,8 +29,6 @@ FIELDS = (
 )
 UNITS = ("s", "", "", "", "m/s", "km/h", "m/s²", "1/rad", "1/rad", "1/rad", "", "")
 _NUMBERS = (0, 4, 5, 6, 7, 8, 9)  # the columns holding a decimal number
-# (delimiter, decimal mark) of the dialects ``c2n export --csv-dialect`` offers (as the channels')
-DIALECTS = {"excel": (",", "."), "excel-semicolon": (";", ",")}
 
 
 def row(event: Crossing | CrossingRejected, t0: float) -> list[str | int]:
@@ -71,7 +70,7 @@ class EventsTable:
 
     def __init__(self, path: Path, dialect: str = "excel") -> None:
         self.path = path
-        delimiter, self._decimal = DIALECTS[dialect]
+        delimiter, self._decimal = CSV_DIALECTS[dialect]
         try:
             self._file: IO[str] = path.open("w", newline="", encoding="utf-8")
         except OSError as error:
@@ -94,7 +93,7 @@ class EventsTable:
 def write(
     path: Path, events: Iterable[Crossing | CrossingRejected], t0: float, dialect: str = "excel"
 ) -> None:
-    """The whole table at once, atomically (``app.output.files``), in ``dialect`` (``DIALECTS``)."""
+    """The whole table at once, atomically (``app.output.files``), in ``dialect`` (``CSV_DIALECTS``)."""
 
     def rows(tmp: Path) -> None:
         table = EventsTable(tmp, dialect)

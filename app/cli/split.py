@@ -1,0 +1,300 @@
+"""``c2n split LOG``: the log cut at its optical sensor's pauses, each part a log file of its own
+in the log's format, for ``c2n analyze`` (or ``c2n export``, a campaign) to take each part alone.
+
+A logger left recording through a tyre change holds two drives in one file, which those refuse
+where the parts disagree. Every frame of every id goes to one part: a part begins at the first
+frame of the sensor after a pause longer than the config's ``gap_reset_s``.
+"""
+
+import argparse
+import contextlib
+import re
+import shlex
+import struct
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rich.console import Console
+from rich.progress import BarColumn, DownloadColumn, Progress, TaskProgressColumn, TextColumn
+
+from app.cli.common import add_config, error_console
+from app.config import Config, load_config
+from app.errors import NoResultError, OutputError, one_line, printable
+from app.output.files import folder_atomically, new_folder
+from app.output.paths import Output, check, config_files
+from app.user_text import shown
+
+# loaded when the command runs, not at import: `c2n --help` needs none of them
+if TYPE_CHECKING:
+    import can
+    import numpy as np
+
+    from app.output.can_logs import Format, PartFile
+    from app.sources.logs import LogReport, LogSource
+
+
+def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "split", help="cut a log at its optical sensor's pauses, a file per part", description=__doc__
+    )
+    parser.add_argument("log", type=Path, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4")
+    add_config(parser)
+    parser.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="output folder, new or empty (default: a new folder LOG-parts beside the log)",
+    )
+    parser.set_defaults(run=run)
+    return parser
+
+
+_CHUNK = 4096  # frames assigned to their parts at once
+
+
+@dataclass(frozen=True)
+class Cut:
+    """Where a log is cut: ``at`` the middle of each pause (``within_file.cuts``), ``spans_s``
+    each part's sensor's seconds from the log's first frame, as ``within_file`` names them."""
+
+    at: "np.ndarray"
+    spans_s: list[tuple[float, float]]
+
+    def names(self, stem: str, suffix: str) -> list[str]:
+        count = len(self.spans_s)
+        return [
+            f"{stem} part {k} of {count} ({begin:.0f}–{end:.0f} s){suffix}"
+            for k, (begin, end) in enumerate(self.spans_s, 1)
+        ]
+
+
+def cut_of(report: "LogReport") -> Cut:
+    """The parts of ``report``'s log between its pauses, bounded as ``within_file`` bounds them."""
+    from app.results.within_file import cuts
+
+    pauses = report.spacing.pauses
+    t0, t1 = report.span_s if report.span_s is not None else (0.0, float("nan"))
+    bounds = [t0, *(t for pause in pauses for t in pause), t1]
+    spans = [(bounds[2 * k] - t0, bounds[2 * k + 1] - t0) for k in range(len(pauses) + 1)]
+    return Cut(cuts(pauses), spans)
+
+
+@dataclass
+class _Found:
+    """The first read of a log: its report (the sensor's pauses) and its sensor's frames."""
+
+    report: "LogReport"
+    sensor_frames: int = 0
+
+
+def _bar(console: Console, what: str, total: int) -> Progress:
+    """A transient progress bar over the file's bytes, drawn only on a terminal."""
+    progress = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TaskProgressColumn(),
+        DownloadColumn(),
+        console=console,
+        transient=True,
+        disable=not console.is_terminal,
+    )
+    progress.add_task(shown(what), total=total or None)  # a name's brackets are no markup
+    return progress
+
+
+def _advance(progress: Progress, source: "LogSource") -> None:
+    progress.update(progress.task_ids[0], completed=source.bytes_read() or 0)
+
+
+def find_pauses(log: Path, config: Config, console: Console) -> _Found:
+    """Read ``log`` as ``c2n analyze`` reads it (the decoder's triage, blocks where the reader
+    gives them) for the pauses of its optical sensor's frames and how many there are."""
+    import numpy as np
+
+    from app.decode.decoder import Decoder
+    from app.results.log_clock import sensor_messages
+    from app.sources.blocks import FrameBlock
+    from app.sources.logs import LogSource
+
+    sensor = frozenset(sensor_messages(config))
+    source = LogSource([log], triage=Decoder(config), spaced=sensor, pause_s=config.filter.gap_reset_s)
+    found = _Found(source.reports[0])
+    ids = np.array(sorted(sensor))
+    with _bar(console, f"finding the pauses of {log.name}", source.total_bytes) as progress:
+        for n, item in enumerate(source.items(blocks=True)):
+            if isinstance(item, FrameBlock):
+                found.sensor_frames += int(np.isin(item.frame_id, ids).sum())
+            elif item is not None and item.arbitration_id in sensor:
+                found.sensor_frames += 1
+            if not n % 1024:
+                _advance(progress, source)
+    return found
+
+
+def refusal(found: _Found, config: Config) -> str | None:
+    """Why the log is not split (nothing is written): no optical sensor's frame, a clock not in
+    seconds (a pause at every frame: ``log_clock`` says why), or no pause."""
+    from app.results.log_clock import clock_notes, sensor_messages
+
+    report = found.report
+    if not found.sensor_frames:
+        ids = ", ".join(f"0x{i:X}" for i in sorted(sensor_messages(config)))
+        return (
+            f"{report.path}: no frames of the optical sensor (id {ids}) of {config.path} — wrong DBC or "
+            "config for this log? give the car's with --config (nothing written)"
+        )
+    clock = clock_notes([report], config)
+    if clock:
+        return f"{report.path}: {clock[0].stopped} (nothing written)"
+    if not report.spacing.pauses:
+        return (
+            f"{report.path}: the optical sensor's frames never pause longer than gap_reset_s "
+            f"({config.filter.gap_reset_s:g} s) — one part, nothing to split (nothing written)"
+        )
+    return None
+
+
+def _chunks(messages: "Iterable[can.Message]") -> "Iterator[list[can.Message]]":
+    chunk: list[can.Message] = []
+    for msg in messages:
+        chunk.append(msg)
+        if len(chunk) == _CHUNK:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk
+
+
+def write_parts(
+    log: Path, cut: Cut, names: list[str], folder: Path, fmt: "Format", console: Console
+) -> "list[PartFile]":
+    """Every frame of ``log``, read as python-can reads it (every id, remote, error and CAN FD
+    frames too), written in file order into its part's file in ``folder``. Whatever stops the
+    writing takes every temporary with it; an OS error is an OutputError naming the file."""
+    from app.output.can_logs import PartFile, open_part
+    from app.results.within_file import part_of
+    from app.sources.logs import LogSource
+
+    source = LogSource([log])
+    report = source.reports[0]
+    parts: dict[int, PartFile] = {}
+    current: Path = folder / names[0]
+    try:
+        with _bar(console, f"writing the parts of {log.name}", source.total_bytes) as progress:
+            for chunk in _chunks(source):
+                for k, msg in zip(part_of(cut.at, [m.timestamp for m in chunk]).tolist(), chunk, strict=True):
+                    part = parts.get(k)
+                    if part is None:
+                        current = folder / names[k]
+                        start = getattr(report.reader, "start_time", None)  # an ASC's header date
+                        part = parts[k] = open_part(current, fmt, start)
+                    current = part.path
+                    part.add(msg)
+                _advance(progress, source)
+        for k in sorted(parts):
+            current = parts[k].path
+            parts[k].finish()
+    except OSError as error:
+        raise OutputError(f"{current}: cannot write the part ({error.strerror or error})") from error
+    except (ValueError, TypeError, struct.error) as error:  # a frame python-can cannot write
+        raise OutputError(f"{current}: python-can cannot write a frame ({one_line(error)})") from error
+    finally:
+        for part in parts.values():
+            part.abandon()
+    if report.stopped is not None:
+        error_console().print(f"c2n: warning: {printable(f'{log}: {report.stopped}')}", markup=False)
+    return [parts[k] for k in sorted(parts)]
+
+
+def _ours(stem: str) -> Callable[[Path], bool]:
+    """A file an earlier ``c2n split`` of this log wrote (an older split in ``--out`` is replaced
+    whole); anything else in the folder is the user's."""
+    pattern = re.compile(rf"{re.escape(stem)} part \d+ of \d+ \(.*\)\.[A-Za-z0-9.]+")
+
+    def ours(path: Path) -> bool:
+        return path.is_file() and pattern.fullmatch(path.name) is not None
+
+    return ours
+
+
+def claim_folder(log: Path, stem: str) -> Path:
+    """A new folder beside the log, ``<stem>-parts`` (``-parts-2`` … where taken): never one
+    that holds someone's files."""
+    candidates = (log.with_name(f"{stem}-parts{'' if k == 1 else f'-{k}'}") for k in range(1, 1000))
+    try:
+        folder = new_folder(candidates)
+    except OSError as error:
+        raise OutputError(
+            f"{log.parent}: cannot create a folder for the parts ({error.strerror or error}) — give --out"
+        ) from error
+    if folder is None:
+        raise OutputError(f"{log.with_name(f'{stem}-parts')}: taken up to -parts-999 — give --out")
+    return folder
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    from app.output.can_logs import format_of
+
+    config = load_config(args.config)
+    log: Path = args.log
+    stem, fmt = format_of(log)
+    ours = _ours(stem)
+    if args.out is not None:  # before any work: never the input, never a folder of someone's files
+        check([Output("--out", args.out, ours, folder=True)], [log, *config_files(config)])
+    found = find_pauses(log, config, console)
+    why = refusal(found, config)
+    if why is not None:
+        raise NoResultError(why)
+    cut = cut_of(found.report)
+    names = cut.names(stem, fmt.suffix)
+    claimed = args.out is None
+    out: Path = claim_folder(log, stem) if claimed else args.out
+    try:
+        with folder_atomically(out, ours, "c2n split", replace=not claimed) as staging:
+            parts = write_parts(log, cut, names, staging, fmt, console)
+    except BaseException as error:
+        if not claimed:
+            raise
+        with contextlib.suppress(OSError):
+            out.rmdir()  # claimed for this run, still empty
+        if isinstance(error, OutputError):  # the folder this run made is gone again
+            raise OutputError(
+                str(error).replace(f" — {out} is left as it was", " — nothing written")
+            ) from error
+        raise
+    _say(console, log, out, cut, parts, fmt, found.report)
+    return 0
+
+
+def _say(
+    console: Console,
+    log: Path,
+    out: Path,
+    cut: Cut,
+    parts: "list[PartFile]",
+    fmt: "Format",
+    report: "LogReport",
+) -> None:
+    """A line per part written (its file, seconds and frames) and how to go on."""
+    if fmt.note is not None:
+        error_console().print(f"c2n: note: {printable(f'{log}: {fmt.note}')}", markup=False)
+    t0 = report.span_s[0] if report.span_s is not None else 0.0
+    console.print(
+        printable(f"{log}: {len(cut.spans_s)} parts between the optical sensor's pauses → {out}"),
+        markup=False,
+    )
+    for part in parts:
+        console.print(
+            printable(
+                f"  {part.path.name}  {part.first_s - t0:.1f}–{part.last_s - t0:.1f} s, "
+                f"{part.frames:,} frames"
+            ),
+            markup=False,
+        )
+    first = shlex.quote(str(out / parts[0].path.name))
+    console.print(
+        printable(f"analyse each part alone: c2n analyze {first} … (--pool the parts of one set of tyres)"),
+        markup=False,
+    )

@@ -1,0 +1,287 @@
+"""`c2n split LOG`: a log holding two tyre sets across a pause of its optical sensor, cut into a
+file per part (``app/cli/split.py``) — every frame once, in the input's format, each part its own
+C2n in `c2n analyze` — and what it refuses, writing nothing."""
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from app.config import load_config
+from app.results.log_clock import sensor_messages
+from app.sources.logs import LogReport, LogSource, read_log
+from tests.test_reliability_inputs import run_cli
+from tests.test_separate_recordings import _drive, _one_file
+
+REPO = Path(__file__).resolve().parents[1]
+TRUTH = (14.89, 15.91)  # the two tyre sets' C2n, before and after the pause
+NAME = "day [tyre change] 1"  # brackets and spaces in the input's name
+
+
+def _key(m: can.Message) -> tuple[object, ...]:
+    return (
+        m.timestamp,
+        m.arbitration_id,
+        m.is_extended_id,
+        bytes(m.data),
+        m.dlc,
+        m.channel,
+        m.is_remote_frame,
+        m.is_error_frame,
+        m.is_fd,
+    )
+
+
+def _frames(path: Path) -> list[tuple[object, ...]]:
+    return [_key(m) for m in read_log(path, LogReport(path))]
+
+
+@pytest.fixture(scope="module")
+def day(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A logger left recording through a tyre change (14.89, ten minutes' pause, 15.91), as a
+    candump .log and a .blf, each in a folder of its own; plain.log: one drive, no pause."""
+    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 5).messages
+    shift = before[-1].timestamp + 600.0 - after[0].timestamp
+    logs = {}
+    for suffix in (".log", ".blf"):
+        folder = tmp_path_factory.mktemp(suffix[1:])
+        logs[suffix] = _one_file(folder / f"{NAME}{suffix}", (before, 0.0), (after, shift))
+    logs["plain"] = _one_file(tmp_path_factory.mktemp("plain") / "plain.log", (_drive(15.1, 1).messages, 0.0))
+    return logs
+
+
+def _split(log: Path, *more: str) -> tuple[int, str, str]:
+    return run_cli(["split", str(log), *more])
+
+
+@pytest.fixture(scope="module")
+def said(day: dict[str, Path]) -> dict[str, str]:
+    """Each two-drive log split into its default folder, beside it: what the command said."""
+    words = {}
+    for suffix in (".log", ".blf"):
+        code, out, err = _split(day[suffix])
+        assert code == 0, err
+        words[suffix] = out
+    return words
+
+
+@pytest.fixture(scope="module")
+def parts(day: dict[str, Path], said: dict[str, str]) -> dict[str, list[Path]]:
+    """The part files of each split, in order."""
+    return {suffix: sorted(day[suffix].with_name(f"{NAME}-parts").iterdir()) for suffix in said}
+
+
+@pytest.mark.parametrize("suffix", [".log", ".blf"])
+def test_every_frame_is_in_exactly_one_part_in_order_as_read(
+    day: dict[str, Path], parts: dict[str, list[Path]], suffix: str
+) -> None:
+    """The parts, one after the other, hold the input's frames exactly (time, id, data, channel
+    …), none lost or doubled; each in the input's format, named by its part and seconds."""
+    names = [p.name for p in parts[suffix]]
+    assert names == [f"{NAME} part 1 of 2 (0–150 s){suffix}", f"{NAME} part 2 of 2 (750–900 s){suffix}"]
+    whole = _frames(day[suffix])
+    split = [_frames(p) for p in parts[suffix]]
+    assert sum(len(s) for s in split) == len(whole)
+    assert [frame for s in split for frame in s] == whole
+
+
+@pytest.mark.parametrize("suffix", [".log", ".blf"])
+def test_each_part_holds_its_own_drive_s_frames_as_within_file_cuts_them(
+    day: dict[str, Path], parts: dict[str, list[Path]], suffix: str
+) -> None:
+    """Each part holds the frames of its drive, every id, and no other's: the second drive's
+    vehicle bus, which wakes 0.2 s before its sensor, is in part 2 (cut at the sensor's first
+    frame after the pause, part 1 had ended with them). `within_file.part_of` — the parts
+    `c2n analyze` checks alone — puts every frame where the file is."""
+    from app.results.within_file import cuts, part_of
+
+    before = len(_drive(TRUTH[0], 5).messages)
+    whole = _frames(day[suffix])
+    assert [len(_frames(p)) for p in parts[suffix]] == [before, len(whole) - before]
+    config = load_config()
+    source = LogSource(
+        [day[suffix]], spaced=frozenset(sensor_messages(config)), pause_s=config.filter.gap_reset_s
+    )
+    times = np.array([m.timestamp for m in source])
+    assert np.bincount(part_of(cuts(source.reports[0].spacing.pauses), times)).tolist() == [
+        before,
+        len(whole) - before,
+    ]
+
+
+@pytest.mark.parametrize("suffix", [".log", ".blf"])
+def test_each_part_analysed_alone_gives_its_own_tyre_sets_c2n(
+    parts: dict[str, list[Path]], suffix: str, tmp_path: Path
+) -> None:
+    """`c2n analyze` of each part: a C2n whose interval holds that part's truth (the whole file
+    is refused: its parts disagree)."""
+    for part, truth in zip(parts[suffix], TRUTH, strict=True):
+        summary = tmp_path / f"{truth}.json"
+        code, _, err = run_cli(["analyze", str(part), "--json", str(summary)])
+        assert code == 0, err
+        low, high = json.loads(summary.read_text())["c2n_ci95"]
+        assert low <= truth <= high, (part.name, low, high)
+
+
+@pytest.fixture(scope="module")
+def short() -> list[can.Message]:
+    """Half a minute of each drive, ten minutes apart: enough frames for every format's writer."""
+    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 5).messages
+    head = [m for m in before if m.timestamp - before[0].timestamp < 30.0]
+    shift = head[-1].timestamp + 600.0 - after[0].timestamp
+    tail = [m for m in after if m.timestamp - after[0].timestamp < 30.0]
+    return [*head, *(_shifted(m, shift) for m in tail)]
+
+
+def _shifted(m: can.Message, shift_s: float) -> can.Message:
+    return can.Message(
+        timestamp=m.timestamp + shift_s,
+        arbitration_id=m.arbitration_id,
+        is_extended_id=m.is_extended_id,
+        data=m.data,
+        channel=m.channel,
+    )
+
+
+@pytest.mark.parametrize(
+    ("suffix", "written"),
+    [(".asc", ".asc"), (".csv", ".csv"), (".log.gz", ".log.gz"), (".trc", ".blf")],
+)
+def test_other_formats_are_split_frame_for_frame(
+    short: list[can.Message], tmp_path: Path, suffix: str, written: str
+) -> None:
+    """ASC (its header's date keeps milliseconds: each part counts from the input's start),
+    CSV and a gzipped candump log are written as read; TRC, which python-can's writer does not
+    give back as read (channels one higher, no remote, error or FD frames), as BLF, and said."""
+    log = _one_file(tmp_path / f"d{suffix}", (short, 0.0))
+    code, _, err = _split(log)
+    assert code == 0, err
+    files = sorted((tmp_path / "d-parts").iterdir())
+    assert [p.name for p in files] == [
+        f"d part 1 of 2 (0–30 s){written}",
+        f"d part 2 of 2 (630–660 s){written}",
+    ]
+    assert [frame for p in files for frame in _frames(p)] == _frames(log)
+    assert ("the parts are written as BLF" in err) == (suffix != written)
+
+
+def test_the_output_says_each_part_and_how_to_go_on(said: dict[str, str]) -> None:
+    words = said[".log"]
+    assert "2 parts between the optical sensor's pauses" in words
+    assert f"{NAME} part 1 of 2 (0–150 s).log 0.0–" in words and "frames" in words
+    assert f"{NAME} part 2 of 2 (750–900 s).log" in words
+    assert "c2n analyze" in words and "--pool the parts of one set of tyres" in words
+
+
+def test_a_second_split_goes_to_a_new_folder_never_into_the_first(
+    day: dict[str, Path], parts: dict[str, list[Path]]
+) -> None:
+    """The default folder is taken: `-parts-2`, the first split left as it was."""
+    first = {p: p.stat().st_mtime_ns for p in parts[".log"]}
+    code, _, err = _split(day[".log"])
+    assert code == 0, err
+    again = day[".log"].with_name(f"{NAME}-parts-2")
+    assert [p.name for p in sorted(again.iterdir())] == [p.name for p in parts[".log"]]
+    assert {p: p.stat().st_mtime_ns for p in parts[".log"]} == first
+
+
+def test_a_log_without_a_pause_is_not_split_and_nothing_is_written(day: dict[str, Path]) -> None:
+    code, _, err = _split(day["plain"])
+    assert code == 1
+    assert err.count("\n") == 1 and "never pause longer than gap_reset_s" in err
+    assert "nothing to split (nothing written)" in err
+    assert sorted(p.name for p in day["plain"].parent.iterdir()) == ["plain.log"]
+
+
+def test_out_naming_the_input_is_refused(day: dict[str, Path]) -> None:
+    code, _, err = _split(day["plain"], "--out", str(day["plain"]))
+    assert code == 2 and err.count("\n") == 1 and "that is an input of this command" in err
+
+
+def test_an_out_folder_holding_someone_elses_file_is_left_untouched(
+    day: dict[str, Path], tmp_path: Path
+) -> None:
+    """Refused before the log is read: the folder holds the user's file, as it was, and nothing
+    else."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("my notes")
+    code, _, err = _split(day[".log"], "--out", str(out))
+    assert code == 1 and err.count("\n") == 1
+    assert "holds files c2n did not write (notes.txt)" in err
+    assert [p.name for p in out.iterdir()] == ["notes.txt"] and (out / "notes.txt").read_text() == "my notes"
+
+
+def test_out_takes_a_new_folder_and_replaces_an_older_split_of_the_log(
+    day: dict[str, Path], parts: dict[str, list[Path]], tmp_path: Path
+) -> None:
+    out = tmp_path / "split"
+    for _ in range(2):
+        code, _, err = _split(day[".log"], "--out", str(out))
+        assert code == 0, err
+        assert [p.name for p in sorted(out.iterdir())] == [p.name for p in parts[".log"]]
+    assert [p.name for p in tmp_path.iterdir()] == ["split"]  # no temporary left
+
+
+def test_a_log_without_the_optical_sensor_is_refused(tmp_path: Path) -> None:
+    sensor = set(sensor_messages(load_config()))
+    kept = [m for m in _drive(15.1, 1).messages if m.arbitration_id not in sensor]
+    log = _one_file(tmp_path / "vehicle only.log", (kept, 0.0))
+    code, _, err = _split(log)
+    assert code == 1 and err.count("\n") == 1
+    assert "no frames of the optical sensor" in err and "--config" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["vehicle only.log"]
+
+
+def test_a_log_timed_in_milliseconds_gives_its_clocks_reason(tmp_path: Path) -> None:
+    """A pause at every frame: the clock's refusal, not a part per frame."""
+    drive = _drive(15.1, 1).messages[:20_000]
+    log = tmp_path / "ms.log"
+    with can.Logger(log) as writer:
+        for m in drive:
+            writer.on_message_received(
+                can.Message(
+                    timestamp=m.timestamp * 1000.0,
+                    arbitration_id=m.arbitration_id,
+                    is_extended_id=m.is_extended_id,
+                    data=m.data,
+                    channel=m.channel,
+                )
+            )
+    code, _, err = _split(log)
+    assert code == 1 and err.count("\n") == 1
+    assert "timestamps in milliseconds read as seconds" in err and "(nothing written)" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["ms.log"]
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_FSIZE caps a file's size, as a full disk does")
+def test_a_full_disk_is_one_line_naming_the_file_and_leaves_nothing(
+    day: dict[str, Path], tmp_path: Path
+) -> None:
+    """Files capped by the kernel at 1 MB (the parts are 3 MB): one line naming the part, exit
+    1, no folder, no temporary."""
+    log = tmp_path / day[".log"].name
+    log.write_bytes(day[".log"].read_bytes())
+    child = textwrap.dedent(
+        f"""
+        import resource, signal, sys
+        sys.path.insert(0, {str(REPO)!r})
+        from app.cli import main
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the cap fails, as on a full disk
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1_000_000, resource.RLIM_INFINITY))
+        sys.exit(main(["split", {str(log)!r}]))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", child], capture_output=True, text=True, timeout=300, cwd=REPO
+    )
+    assert done.returncode == 1, done.stderr
+    [line] = done.stderr.splitlines()
+    assert f"{NAME}-parts/{NAME} part 1 of 2 (0–150 s).log: cannot write the part (File too large)" in line
+    assert line.endswith("— nothing written")
+    assert [p.name for p in tmp_path.iterdir()] == [log.name]

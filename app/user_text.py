@@ -15,10 +15,13 @@ EMPTY = "(empty)"
 
 def shown(value: object) -> str:
     """``value`` as text a rich console prints literally: control characters written as their
-    escapes (``\\x1b``), markup brackets escaped; the empty string as ``(empty)``."""
+    escapes (``\\x1b``), markup brackets escaped; the empty string as ``(empty)``, and a text that
+    is ``(empty)`` itself in quotes (a tag so named is another group than the blank cells')."""
     text = printable(str(value))
     if not text:
         return EMPTY
+    if text == EMPTY:
+        return f"'{EMPTY}'"
     escaped = escape(text)
     # rich doubles a trailing backslash lest it escape a tag that follows; none does here (the
     # callers put no markup right after a user string), and the doubled one would be printed

@@ -298,7 +298,7 @@ def test_any_tags_in_a_manifest_are_compared_printed_literally_and_written_as_va
     printed = console.export_text()
     assert "\x1b" not in printed
     for name in comparison.groups:  # every group under its own name, brackets and all
-        shown = printable(name) or "(empty)"
+        shown = {"": "(empty)", "(empty)": "'(empty)'"}.get(printable(name), printable(name))
         assert f"{by} {shown}: C2n" in printed
     text = json.dumps(comparison.to_json(), allow_nan=False)  # raises on NaN or Infinity
     assert json.loads(text)["sessions"] == len(rows)

@@ -209,6 +209,7 @@ def test_replay_with_the_readmes_map_form_sends_each_channel_where_asked(tmp_pat
         ("[bold]x", "[bold]x"),
         ("a\x1b[2Jb", "a\\x1b[2Jb"),
         ("", "(empty)"),
+        ("(empty)", "'(empty)'"),  # a tag so named, not the blank cells' group
         ("back\\", "back\\"),
     ],
 )

@@ -60,7 +60,7 @@ from rich.console import Console
 
 from app.cli import main as c2n
 from app.config import Config, load_config
-from app.pipeline import Pipeline
+from app.pipeline import PartedPipeline, Pipeline
 from app.records import Record
 from app.run_loop import run
 from app.sim.simulated_drive import DriveOptions, simulate_drive
@@ -140,7 +140,7 @@ def live_throughput(messages: list[can.Message], floor: bool = False) -> float:
         tx.send(message)
     finished = threading.Event()
     finished.set()  # everything is on the bus already: end when it is drained
-    pipeline = Pipeline(config)
+    pipeline = PartedPipeline(config)  # c2n live's
     with tempfile.TemporaryDirectory() as tmp:
         recorder = SessionRecorder(Path(tmp) / "session", config)
         start = time.perf_counter()
@@ -197,7 +197,7 @@ def real_time(messages: list[can.Message]) -> tuple[float, list[float]]:
     terminal = open(slave, "w", buffering=1)  # noqa: SIM115 — closed below, after the run
     console = Console(file=terminal, force_terminal=True, width=120, height=50)
     rx = can.Bus(interface="virtual", channel="realtime")
-    pipeline = Pipeline(config)
+    pipeline = PartedPipeline(config)  # c2n live's
     latencies: list[float] = []
 
     class Latency(Sink):

@@ -19,30 +19,17 @@ from app.results.log_clock import sensor_messages
 from app.run_loop import run
 from app.sinks import summary
 from tests.test_reliability import wait_until
-from tests.test_separate_recordings import _drive, _one_file
+from tests.test_separate_recordings import _drive, _one_file, shifted
 
 BEFORE, AFTER = 14.89, 15.91  # the two sets' true C2n
 PAUSE_S = 600.0  # ten minutes parked, the sensor off
-
-
-def _shifted(messages: list[can.Message], shift_s: float) -> list[can.Message]:
-    return [
-        can.Message(
-            timestamp=m.timestamp + shift_s,
-            arbitration_id=m.arbitration_id,
-            is_extended_id=m.is_extended_id,
-            data=m.data,
-            channel=m.channel,
-        )
-        for m in messages
-    ]
 
 
 @pytest.fixture(scope="module")
 def day() -> list[can.Message]:
     """14.89 for 150 s, the sensor off for ten minutes, 15.91 for 150 s: one bus, one run."""
     before, after = _drive(BEFORE, 5).messages, _drive(AFTER, 5).messages
-    return [*before, *_shifted(after, before[-1].timestamp + PAUSE_S - after[0].timestamp)]
+    return [*before, *shifted(after, before[-1].timestamp + PAUSE_S - after[0].timestamp)]
 
 
 def _run(pipeline: Pipeline, frames: list[can.Message]) -> Pipeline:

@@ -80,20 +80,26 @@ def test_channels_merged_from_loggers_on_different_clocks_are_said(tmp_path: Pat
     assert said.startswith(f"{b}: its frames lie") and "before those of optical.log" in said
 
 
+def shifted(messages: list[can.Message], shift_s: float) -> list[can.Message]:
+    """The frames ``shift_s`` seconds later."""
+    return [
+        can.Message(
+            timestamp=m.timestamp + shift_s,
+            arbitration_id=m.arbitration_id,
+            is_extended_id=m.is_extended_id,
+            data=m.data,
+            channel=m.channel,
+        )
+        for m in messages
+    ]
+
+
 def _one_file(path: Path, *parts: tuple[list[can.Message], float]) -> Path:
     """Drives written one after another into one log, each shifted by its seconds."""
     with can.Logger(path) as writer:
         for messages, shift_s in parts:
-            for m in messages:
-                writer.on_message_received(
-                    can.Message(
-                        timestamp=m.timestamp + shift_s,
-                        arbitration_id=m.arbitration_id,
-                        is_extended_id=m.is_extended_id,
-                        data=m.data,
-                        channel=m.channel,
-                    )
-                )
+            for m in shifted(messages, shift_s):
+                writer.on_message_received(m)
     return path
 
 

@@ -468,6 +468,56 @@ def test_ctrl_c_during_the_backoff_ends_the_session_cleanly(tmp_path: Path) -> N
     assert not [t for t in threading.enumerate() if cable.channel[:6] in t.name]  # no receive thread left
 
 
+class InterruptedBus(can.BusABC):
+    """A python-can virtual bus whose first receives are interrupted by Ctrl-C: the signal
+    arrives in the main thread while it reads a frame, others waiting behind it."""
+
+    def __init__(self, channel: str, presses: int) -> None:
+        self.inner = can.Bus(interface="virtual", channel=channel)
+        super().__init__(channel=channel)
+        self.channel_info = f"interrupted {channel[:6]}"
+        self.presses = presses  # Ctrl-C pressed this many times, at the first frames read
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        msg = self.inner.recv(timeout)
+        if msg is not None and self.presses:
+            self.presses -= 1
+            os.kill(os.getpid(), signal.SIGINT)  # its handler runs here, before the frame is returned
+        return msg, False
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.inner.send(msg)
+
+    def shutdown(self) -> None:
+        self.inner.shutdown()
+        super().shutdown()
+
+
+@pytest.mark.parametrize("presses", [1, 2])
+def test_ctrl_c_while_a_frame_is_read_keeps_it_and_every_frame_waiting(tmp_path: Path, presses: int) -> None:
+    """Ctrl-C (or SIGTERM, a closed terminal) raised KeyboardInterrupt wherever the main thread
+    was: in the middle of a receive it lost the frame being read and every frame waiting behind
+    it (here all 3000: an empty recording). Now the signal stops the session, which reads what
+    arrived before it ends: all 3000 recorded and counted, exit 0. Pressed twice, the user will
+    not wait: the session ends at once, finished, its summary counting what is on the disk."""
+    frames = cached_drive("constant_radius", 41, 15.1).messages[:3000]
+    channel = f"interrupted-{uuid.uuid4().hex}"
+
+    def open_bus(interface: Any, channels: Sequence[Any], bitrate: Any, **options: Any) -> list[can.BusABC]:
+        bus = InterruptedBus(channel, presses)
+        with can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) as car:
+            for m in frames:  # waiting on the bus before the session reads its first
+                car.send(m)
+        return [bus]
+
+    console = Console(file=io.StringIO(), width=300)
+    assert live_command.run(live_args(channel, tmp_path), console, open_bus=open_bus) == 0
+    [session] = list((tmp_path / "sessions").glob("20*"))
+    recorded = len(list(can.LogReader(session / "frames.log")))
+    assert json.loads((session / "summary.json").read_text())["frames"]["total"] == recorded
+    assert recorded == 3000 if presses == 1 else recorded < 3000
+
+
 def socketcan_error(classes: int, detail: int = 0, t: float = 0.0) -> can.Message:
     """An error frame as SocketCAN delivers it: class bits in the id, controller detail in data[1]."""
     return can.Message(

@@ -311,8 +311,8 @@ def test_live_on_a_full_disk_says_what_was_kept_and_the_numbers_go_on(
         made = rec._BLFWriter.__init__
 
         def blf(self: rec._BLFWriter, path: Path) -> None:
-            made(self, path)
-            self.file = _FullDisk(self.file, room)
+            made(self, path)  # writes the file's 144-byte header: the disk holds `room` in all
+            self.file = _FullDisk(self.file, room - self.file.tell())
 
         monkeypatch.setattr(rec._BLFWriter, "__init__", blf)
     channel = f"full-{uuid.uuid4().hex}"

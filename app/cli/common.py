@@ -4,6 +4,7 @@ import argparse
 import math
 import signal
 import sys
+import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -171,17 +172,33 @@ def interrupt(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
-def take_over(signals: Iterable[signal.Signals]) -> dict[signal.Signals, Any]:
-    """Make each of ``signals`` raise KeyboardInterrupt, Ctrl-C's way out; returns the handlers
-    they had. SIGINT is taken also where it was inherited ignored (a shell starts background jobs
-    so, and Python then leaves it ignored); SIGHUP is not: ignored, it is `nohup`'s, a user's word
-    that the command outlives its terminal."""
+def take_over(
+    signals: Iterable[signal.Signals], handler: Callable[[int, FrameType | None], None] = interrupt
+) -> dict[signal.Signals, Any]:
+    """Make each of ``signals`` call ``handler`` (by default raise KeyboardInterrupt, Ctrl-C's way
+    out); returns the handlers they had. SIGINT is taken also where it was inherited ignored (a
+    shell starts background jobs so, and Python then leaves it ignored); SIGHUP is not: ignored,
+    it is `nohup`'s, a user's word that the command outlives its terminal."""
     hangup = getattr(signal, "SIGHUP", None)
     return {
-        sig: signal.signal(sig, interrupt)
+        sig: signal.signal(sig, handler)
         for sig in signals
         if not (sig == hangup and signal.getsignal(sig) == signal.SIG_IGN)
     }
+
+
+def stopping(stop: threading.Event) -> Callable[[int, FrameType | None], None]:
+    """A signal handler that sets ``stop`` — a live session then ends at its next frame, having
+    read what arrived before (``BusSource``: a KeyboardInterrupt raised mid-read lost the frame
+    being read and every frame waiting) — and raises KeyboardInterrupt at a second signal, for
+    a user who will not wait."""
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        if stop.is_set():
+            raise KeyboardInterrupt
+        stop.set()
+
+    return handler
 
 
 @contextmanager

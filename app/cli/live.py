@@ -24,6 +24,7 @@ from app.cli.common import (
     channels,
     error_console,
     number,
+    stopping,
     take_over,
 )
 from app.config import load_config
@@ -183,8 +184,9 @@ def run(
     recorder = None if args.no_record else _recorder(args.record, config, args.raw_format)
     stop = threading.Event()
     timer = threading.Timer(args.duration, stop.set) if args.duration else None
-    # Ctrl-C, SIGTERM and a closed terminal (SIGHUP, unless run under nohup) end the session cleanly
-    previous = take_over(ENDING)
+    # Ctrl-C, SIGTERM and a closed terminal (SIGHUP, unless run under nohup) end the session cleanly,
+    # once what arrived before is read; a second one at once
+    previous = take_over(ENDING, stopping(stop))
     console.print(f"c2n live on {shown(title)} — Ctrl-C ends the session", style="dim")
     if args.rate != 1.0:
         console.print(

@@ -1,6 +1,7 @@
 """Live and offline are one pipeline: a drive replayed over a python-can virtual bus gives the same
 crossings as the offline analysis of its log file."""
 
+import itertools
 import threading
 import time
 import uuid
@@ -242,6 +243,39 @@ def test_a_bus_faster_than_the_reader_ends_the_stop_and_says_what_is_unread(
     assert read > 100  # it read on after the stop
     [lost] = source.losses
     assert "faster than c2n reads" in lost and "not in the session" in lost
+
+
+@pytest.mark.parametrize("step_s", [0.0, 0.01])
+def test_a_stop_that_reads_for_long_says_so_once(step_s: float) -> None:
+    """A reader far behind its bus reads for seconds after Ctrl-C: past a second it says, once,
+    that it is stopping and how to end at once — a user who sees nothing happen presses Ctrl-C
+    again and loses what waits. A stop read in a moment says nothing. (The clock moves ``step_s``
+    at each look: 3000 frames read are 30 s of a far-behind reader, or none.)"""
+    channel = f"saying-{uuid.uuid4().hex}"
+    receiver = can.Bus(interface="virtual", channel=channel)
+    sender = can.Bus(interface="virtual", channel=channel)
+    ticks = itertools.count()
+    said: list[str] = []
+    try:
+        for i in range(3000):
+            sender.send(can.Message(arbitration_id=0x100, data=i.to_bytes(2, "big")))
+        stop = threading.Event()
+        source = BusSource([receiver], stop, clock=lambda: next(ticks) * step_s, on_change=said.append)
+        seen = 0
+        for msg in source:
+            if msg is not None:
+                seen += 1
+                stop.set()
+    finally:
+        receiver.shutdown()
+        sender.shutdown()
+    assert seen == 3000
+    if step_s:
+        [line] = said
+        assert line.startswith("stopping: reading the frames that arrived before the stop")
+        assert "Ctrl-C again ends the session now, without them" in line
+    else:
+        assert said == []
 
 
 @pytest.mark.parametrize("buses", [1, 2])

@@ -127,6 +127,7 @@ class _Lost:
 # well inside the 90 s a shutdown (systemd) waits after its SIGTERM. Only a bus sending faster
 # than the reader can keep it reading that long; what it still holds then is said to be lost.
 _DRAIN_S = 10.0
+_SAY_S = 1.0  # a stop still reading after this long says so: a screen silent for longer looks hung
 
 
 class BusSource:
@@ -273,10 +274,12 @@ class BusSource:
         goes on sending after the stop; then what it holds is not read, and ``losses`` says so."""
         deadline = time.monotonic() + _DRAIN_S
         last: float | None = None
+        say = self._saying_at(self.clock() + _SAY_S)
         while True:
             if time.monotonic() >= deadline:
                 self._left_unread(last)
                 return
+            say()
             try:
                 item = self._queue.get_nowait()
             except queue.Empty:
@@ -289,6 +292,7 @@ class BusSource:
                 if time.monotonic() >= deadline:
                     self._left_unread(last)
                     return
+                say()
                 try:
                     msg = bus.recv(0.0)
                 except Exception:  # a bus that fails now: the session has ended anyway
@@ -299,6 +303,23 @@ class BusSource:
                     msg.channel = bus.channel_info
                 last = msg.timestamp
                 yield msg
+
+    def _saying_at(self, when: float) -> Callable[[], None]:
+        """A check, made at each frame the stop reads, that says once, from ``when`` on, that the
+        session is stopping: a reader far behind its bus reads for seconds after Ctrl-C, and a
+        user who sees nothing happen presses it again and loses what waits."""
+        said = False
+
+        def say() -> None:
+            nonlocal said
+            if not said and self.clock() >= when:
+                said = True
+                self.on_change(
+                    f"stopping: reading the frames that arrived before the stop (for {_DRAIN_S:g} s "
+                    "at most) — Ctrl-C again ends the session now, without them"
+                )
+
+        return say
 
     def _left_unread(self, last: float | None) -> None:
         after = f" (after the frame at {last:.3f} s)" if last is not None else ""

@@ -285,3 +285,67 @@ def test_a_full_disk_is_one_line_naming_the_file_and_leaves_nothing(
     assert f"{NAME}-parts/{NAME} part 1 of 2 (0–150 s).log: cannot write the part (File too large)" in line
     assert line.endswith("— nothing written")
     assert [p.name for p in tmp_path.iterdir()] == [log.name]
+
+
+def _flaky(log: Path, late: bool = False) -> list[can.Message]:
+    """A sensor whose connector drops out every two seconds, 150 times, a vehicle frame going on
+    through every pause, written to ``log`` in time order — ``late``: and one frame of the
+    first part again at the end, as a log out of order across all its pauses would hold it."""
+    sensor = min(sensor_messages(load_config()))
+    frames = []
+    for p in range(150):
+        frames += [
+            can.Message(timestamp=2.0 * p + 0.01 * i, arbitration_id=sensor, data=bytes(8)) for i in range(20)
+        ]
+        frames += [
+            can.Message(timestamp=2.0 * p + 0.1 * i + 0.005, arbitration_id=0x7A0, data=bytes([p % 256]))
+            for i in range(20)
+        ]
+    frames.sort(key=lambda m: m.timestamp)
+    with can.CanutilsLogWriter(log) as writer:
+        for m in [*frames, *frames[:1]] if late else frames:
+            writer.on_message_received(m)
+    return frames
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="RLIMIT_NOFILE is POSIX's")
+def test_a_log_of_hundreds_of_pauses_is_split_within_the_open_file_limit(tmp_path: Path) -> None:
+    """150 parts split in a process allowed 96 open files (all 150 were held open at once: `Too
+    many open files`, nothing written). Every frame once, each part exactly its own."""
+    log = tmp_path / "flaky.log"
+    frames = _flaky(log)
+    child = textwrap.dedent(
+        f"""
+        import resource, sys
+        sys.path.insert(0, {str(REPO)!r})
+        from app.cli import main
+        resource.setrlimit(resource.RLIMIT_NOFILE, (96, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
+        sys.exit(main(["split", {str(log)!r}]))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", child], capture_output=True, text=True, timeout=300, cwd=REPO
+    )
+    assert done.returncode == 0, done.stderr
+    written = sorted((tmp_path / "flaky-parts").iterdir(), key=lambda f: int(f.name.split()[2]))
+    assert len(written) == 150
+    kept = [[m.timestamp for m in can.LogReader(part)] for part in written]
+    assert sorted(t for part in kept for t in part) == [round(m.timestamp, 6) for m in frames]  # as candump
+    for p, times in enumerate(kept):  # cut at the middle of each pause: 0.19 … 2.0 s
+        assert 2.0 * p - 0.905 < min(times) and (max(times) < 2.0 * p + 1.095 or p == 149)
+        assert sum(1 for t in times if 2.0 * p <= t < 2.0 * p + 0.2) == 20 + 2  # the sensor's, 2 others
+
+
+def test_a_frame_out_of_order_across_every_open_part_is_refused_and_nothing_written(tmp_path: Path) -> None:
+    """Its part's file is finished when the frame comes: refused in one line, nothing written."""
+    log = tmp_path / "late.log"
+    _flaky(log, late=True)
+    code, _, err = _split(log)
+    sensor = min(sensor_messages(load_config()))
+    assert code == 1 and "Traceback" not in err
+    assert (
+        f"the frame at 0.000 s (id 0x{sensor:X}) belongs to late part 1 of 150 (0–0 s).log, written already"
+        in err
+    )
+    assert err.rstrip().endswith("split a copy sorted by time (nothing written)")
+    assert [p.name for p in tmp_path.iterdir()] == [log.name]

@@ -52,6 +52,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
 _CHUNK = 4096  # frames assigned to their parts at once
+# part files open at once, a log of hundreds of pauses written in turn: well under the smallest
+# open-file limit in common use (macOS's 256 a process)
+_OPEN_AT_MOST = 64
 
 
 @dataclass(frozen=True)
@@ -180,22 +183,28 @@ def write_parts(
     source = LogSource([log])
     report = source.reports[0]
     parts: dict[int, PartFile] = {}
+    writing: dict[int, PartFile] = {}  # the parts open, at most _OPEN_AT_MOST
     current: Path = folder / names[0]
     try:
         with _bar(console, f"writing the parts of {log.name}", source.total_bytes) as progress:
             for chunk in _chunks(source):
                 for k, msg in zip(part_of(cut.at, [m.timestamp for m in chunk]).tolist(), chunk, strict=True):
-                    part = parts.get(k)
+                    part = writing.get(k)
                     if part is None:
+                        if k in parts:  # finished: a frame later in the file than a whole 63 parts
+                            raise NoResultError(_out_of_order(log, msg, names[k]))
+                        if len(writing) == _OPEN_AT_MOST:  # the earliest part is done with
+                            current = writing[min(writing)].path
+                            writing.pop(min(writing)).finish()
                         current = folder / names[k]
                         start = getattr(report.reader, "start_time", None)  # an ASC's header date
-                        part = parts[k] = open_part(current, fmt, start)
+                        part = parts[k] = writing[k] = open_part(current, fmt, start)
                     current = part.path
                     part.add(msg)
                 _advance(progress, source)
-        for k in sorted(parts):
-            current = parts[k].path
-            parts[k].finish()
+        for k in sorted(writing):
+            current = writing[k].path
+            writing[k].finish()
     except OSError as error:
         raise OutputError(f"{current}: cannot write the part ({error.strerror or error})") from error
     except (ValueError, TypeError, struct.error) as error:  # a frame python-can cannot write
@@ -206,6 +215,14 @@ def write_parts(
     if report.stopped is not None:
         error_console().print(f"c2n: warning: {printable(f'{log}: {report.stopped}')}", markup=False)
     return [parts[k] for k in sorted(parts)]
+
+
+def _out_of_order(log: Path, msg: "can.Message", name: str) -> str:
+    return (
+        f"{log}: the frame at {msg.timestamp:.3f} s (id 0x{msg.arbitration_id:X}) belongs to {name}, "
+        f"written already: {_OPEN_AT_MOST} later parts began before it in the file (its frames out of "
+        "time order across as many pauses) — split a copy sorted by time (nothing written)"
+    )
 
 
 def _ours(stem: str) -> Callable[[Path], bool]:

@@ -4,9 +4,11 @@ C2n in `c2n analyze` — and what it refuses, writing nothing."""
 
 import gzip
 import json
+import signal
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import can
@@ -56,6 +58,11 @@ def day(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return logs
 
 
+def _part_files(folder: Path) -> list[Path]:
+    """The part files a split wrote, by name: all but its parts.json."""
+    return sorted(p for p in folder.iterdir() if p.name != "parts.json")
+
+
 def _split(log: Path, *more: str) -> tuple[int, str, str]:
     return run_cli(["split", str(log), *more])
 
@@ -74,7 +81,7 @@ def said(day: dict[str, Path]) -> dict[str, str]:
 @pytest.fixture(scope="module")
 def parts(day: dict[str, Path], said: dict[str, str]) -> dict[str, list[Path]]:
     """The part files of each split, in order."""
-    return {suffix: sorted(day[suffix].with_name(f"{NAME}-parts").iterdir()) for suffix in said}
+    return {suffix: _part_files(day[suffix].with_name(f"{NAME}-parts")) for suffix in said}
 
 
 @pytest.mark.parametrize("suffix", [".log", ".blf"])
@@ -177,7 +184,7 @@ def test_other_formats_are_split_frame_for_frame(
         log = _one_file(tmp_path / f"d{suffix}", (short, 0.0))
     code, _, err = _split(log)
     assert code == 0, err
-    files = sorted((tmp_path / "d-parts").iterdir())
+    files = _part_files(tmp_path / "d-parts")
     assert [p.name for p in files] == [
         f"d part 1 of 2 (0–30 s){written}",
         f"d part 2 of 2 (630–660 s){written}",
@@ -203,7 +210,7 @@ def test_a_second_split_goes_to_a_new_folder_never_into_the_first(
     code, _, err = _split(day[".log"])
     assert code == 0, err
     again = day[".log"].with_name(f"{NAME}-parts-2")
-    assert [p.name for p in sorted(again.iterdir())] == [p.name for p in parts[".log"]]
+    assert [p.name for p in _part_files(again)] == [p.name for p in parts[".log"]]
     assert {p: p.stat().st_mtime_ns for p in parts[".log"]} == first
 
 
@@ -241,8 +248,52 @@ def test_out_takes_a_new_folder_and_replaces_an_older_split_of_the_log(
     for _ in range(2):
         code, _, err = _split(day[".log"], "--out", str(out))
         assert code == 0, err
-        assert [p.name for p in sorted(out.iterdir())] == [p.name for p in parts[".log"]]
+        assert [p.name for p in _part_files(out)] == [p.name for p in parts[".log"]]
     assert [p.name for p in tmp_path.iterdir()] == ["split"]  # no temporary left
+
+
+@pytest.mark.parametrize(
+    "theirs",
+    [
+        f"{NAME} part 1 of 1 (my notes on the tyre change).txt",  # named like a part
+        f"{NAME} part 7 of 9 (from the logger).log",
+    ],
+)
+def test_files_merely_named_like_parts_are_the_users_and_left_untouched(
+    day: dict[str, Path], tmp_path: Path, theirs: str
+) -> None:
+    """A part's name was enough to be replaced: a user's notes or logger file so named went,
+    without a word. Only what parts.json lists is a split's."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / theirs).write_text("mine")
+    code, _, err = _split(day[".log"], "--out", str(out))
+    assert code == 1 and "holds files c2n did not write" in err
+    assert [p.name for p in out.iterdir()] == [theirs] and (out / theirs).read_text() == "mine"
+
+
+def test_the_split_of_another_log_of_the_same_name_is_not_replaced(
+    day: dict[str, Path], tmp_path: Path
+) -> None:
+    """Two cars' `day.log` split into one --out: the first car's parts went, replaced by the
+    second's. The second is refused; the first split is as it was."""
+    out = tmp_path / "split"
+    other = tmp_path / "car 2" / day[".log"].name
+    other.parent.mkdir()
+    other.write_bytes(day[".log"].read_bytes())
+    assert _split(day[".log"], "--out", str(out))[0] == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    code, _, err = _split(other, "--out", str(out))
+    assert code == 1 and "holds files c2n did not write" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_parts_json_lists_the_log_and_each_part(day: dict[str, Path], parts: dict[str, list[Path]]) -> None:
+    listed = json.loads((parts[".log"][0].parent / "parts.json").read_text())
+    assert listed["log"] == str(day[".log"].resolve())
+    assert [p["file"] for p in listed["parts"]] == [p.name for p in parts[".log"]]
+    assert [p["frames"] for p in listed["parts"]] == [len(_frames(p)) for p in parts[".log"]]
+    assert listed["parts"][1]["sensor_from_s"] == pytest.approx(750.0, abs=1.0)
 
 
 def test_a_log_without_the_optical_sensor_is_refused(tmp_path: Path) -> None:
@@ -327,7 +378,7 @@ def _flaky(log: Path, late: bool = False) -> list[can.Message]:
 
 @pytest.mark.skipif(sys.platform == "win32", reason="RLIMIT_NOFILE is POSIX's")
 def test_a_log_of_hundreds_of_pauses_is_split_within_the_open_file_limit(tmp_path: Path) -> None:
-    """150 parts split in a process allowed 96 open files (all 150 were held open at once: `Too
+    """150 parts split in a process allowed 48 open files (all 150 were held open at once: `Too
     many open files`, nothing written). Every frame once, each part exactly its own."""
     log = tmp_path / "flaky.log"
     frames = _flaky(log)
@@ -336,7 +387,7 @@ def test_a_log_of_hundreds_of_pauses_is_split_within_the_open_file_limit(tmp_pat
         import resource, sys
         sys.path.insert(0, {str(REPO)!r})
         from app.cli import main
-        resource.setrlimit(resource.RLIMIT_NOFILE, (96, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
+        resource.setrlimit(resource.RLIMIT_NOFILE, (48, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
         sys.exit(main(["split", {str(log)!r}]))
         """
     )
@@ -344,7 +395,7 @@ def test_a_log_of_hundreds_of_pauses_is_split_within_the_open_file_limit(tmp_pat
         [sys.executable, "-c", child], capture_output=True, text=True, timeout=300, cwd=REPO
     )
     assert done.returncode == 0, done.stderr
-    written = sorted((tmp_path / "flaky-parts").iterdir(), key=lambda f: int(f.name.split()[2]))
+    written = _part_files(tmp_path / "flaky-parts")  # numbered to sort in order: part 001 of 150
     assert len(written) == 150
     kept = [[m.timestamp for m in can.LogReader(part)] for part in written]
     assert sorted(t for part in kept for t in part) == [round(m.timestamp, 6) for m in frames]  # as candump
@@ -361,8 +412,46 @@ def test_a_frame_out_of_order_across_every_open_part_is_refused_and_nothing_writ
     sensor = min(sensor_messages(load_config()))
     assert code == 1 and "Traceback" not in err
     assert (
-        f"the frame at 0.000 s (id 0x{sensor:X}) belongs to late part 1 of 150 (0–0 s).log, written already"
+        f"the frame at 0.000 s (id 0x{sensor:X}) belongs to late part 001 of 150 (0–0 s).log, written already"
         in err
     )
     assert err.rstrip().endswith("split a copy sorted by time (nothing written)")
     assert [p.name for p in tmp_path.iterdir()] == [log.name]
+
+
+def _split_until_it_writes(log: Path, sig: signal.Signals) -> subprocess.Popen[bytes]:
+    """`c2n split` of ``log`` in a process sent ``sig`` once its hidden folder of parts is there."""
+    child = subprocess.Popen(
+        [sys.executable, "-m", "app", "split", str(log)],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    deadline = time.monotonic() + 120
+    while not list(log.parent.glob(".*.partial-*")) and child.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    assert child.poll() is None  # still writing
+    child.send_signal(sig)
+    child.wait(timeout=120)
+    return child
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_sigterm_while_writing_leaves_nothing_and_a_killed_splits_leftovers_go_at_the_next(
+    day: dict[str, Path], tmp_path: Path
+) -> None:
+    """SIGTERM (a closed terminal too) left the hidden folder of part files and an empty
+    `-parts` folder, which the next split passed over for `-parts-2`, keeping the leftover for
+    good. It is now Ctrl-C's way out: nothing left. SIGKILL cannot be caught: what it leaves goes
+    at the next split of the log, which then takes the name it had claimed."""
+    log = tmp_path / day[".log"].name
+    log.write_bytes(day[".log"].read_bytes())
+    child = _split_until_it_writes(log, signal.SIGTERM)
+    assert child.returncode != 0 and b"Traceback" not in (child.stderr.read() if child.stderr else b"")
+    assert [p.name for p in tmp_path.iterdir()] == [log.name]
+    child = _split_until_it_writes(log, signal.SIGKILL)
+    assert len(list(tmp_path.iterdir())) == 3  # the log, the claimed folder, the hidden one
+    code, _, err = _split(log)
+    assert code == 0, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([log.name, f"{NAME}-parts"])

@@ -8,7 +8,9 @@ frame of the sensor after a pause longer than the config's ``gap_reset_s``.
 
 import argparse
 import contextlib
-import re
+import glob
+import json
+import os
 import shlex
 import struct
 from collections.abc import Callable, Iterable, Iterator
@@ -19,10 +21,10 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, DownloadColumn, Progress, TaskProgressColumn, TextColumn
 
-from app.cli.common import add_config, error_console
+from app.cli.common import ENDING, add_config, error_console, interrupted_by
 from app.config import Config, load_config
 from app.errors import NoResultError, OutputError, one_line, printable
-from app.output.files import folder_atomically, new_folder
+from app.output.files import folder_atomically, new_folder, remove_stale
 from app.output.paths import Output, check, config_files
 from app.user_text import shown
 
@@ -52,9 +54,11 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 
 _CHUNK = 4096  # frames assigned to their parts at once
-# part files open at once, a log of hundreds of pauses written in turn: well under the smallest
-# open-file limit in common use (macOS's 256 a process)
-_OPEN_AT_MOST = 64
+_LARGEST_LIST = 16 << 20  # a parts.json larger is not one c2n split wrote (100,000 parts: 20 MB)
+# part files open at once, a log of hundreds of pauses written in turn: far under the open-file
+# limits in use (macOS's 256 a process, a shell's `ulimit -n 64`); a log's frames come in time
+# order but for the few around a cut that its channels interleave
+_OPEN_AT_MOST = 16
 
 
 @dataclass(frozen=True)
@@ -64,11 +68,14 @@ class Cut:
 
     at: "np.ndarray"
     spans_s: list[tuple[float, float]]
+    t0_s: float  # the log's first frame's time
 
     def names(self, stem: str, suffix: str) -> list[str]:
+        """``day part 07 of 12 (300–450 s).blf``: numbered to sort as they follow each other."""
         count = len(self.spans_s)
+        width = len(str(count))
         return [
-            f"{stem} part {k} of {count} ({begin:.0f}–{end:.0f} s){suffix}"
+            f"{stem} part {k:0{width}d} of {count} ({begin:.0f}–{end:.0f} s){suffix}"
             for k, (begin, end) in enumerate(self.spans_s, 1)
         ]
 
@@ -81,7 +88,7 @@ def cut_of(report: "LogReport") -> Cut:
     t0, t1 = report.span_s if report.span_s is not None else (0.0, float("nan"))
     bounds = [t0, *(t for pause in pauses for t in pause), t1]
     spans = [(bounds[2 * k] - t0, bounds[2 * k + 1] - t0) for k in range(len(pauses) + 1)]
-    return Cut(cuts(pauses), spans)
+    return Cut(cuts(pauses), spans, t0)
 
 
 @dataclass
@@ -191,7 +198,7 @@ def write_parts(
                 for k, msg in zip(part_of(cut.at, [m.timestamp for m in chunk]).tolist(), chunk, strict=True):
                     part = writing.get(k)
                     if part is None:
-                        if k in parts:  # finished: a frame later in the file than a whole 63 parts
+                        if k in parts:  # finished: a frame in the file after 16 later parts began
                             raise NoResultError(_out_of_order(log, msg, names[k]))
                         if len(writing) == _OPEN_AT_MOST:  # the earliest part is done with
                             current = writing[min(writing)].path
@@ -225,20 +232,73 @@ def _out_of_order(log: Path, msg: "can.Message", name: str) -> str:
     )
 
 
-def _ours(stem: str) -> Callable[[Path], bool]:
-    """A file an earlier ``c2n split`` of this log wrote (an older split in ``--out`` is replaced
-    whole); anything else in the folder is the user's."""
-    pattern = re.compile(rf"{re.escape(stem)} part \d+ of \d+ \(.*\)\.[A-Za-z0-9.]+")
+PARTS_JSON = "parts.json"  # the split's own list: the log (its real path) and each part's file
+
+
+def _ours(log: Path) -> Callable[[Path], bool]:
+    """What an earlier ``c2n split`` of this same log wrote (replaced whole by a split into
+    ``--out``): its ``parts.json``, naming the log, and the files it lists. A file merely named
+    like a part (a user's notes, a logger's file) or the parts of another log of the same name
+    are not ours: they were replaced, unread, when a name was enough."""
+    source = os.path.realpath(log)
+
+    def listed(folder: Path) -> frozenset[str]:
+        try:
+            if (folder / PARTS_JSON).stat().st_size > _LARGEST_LIST:
+                return frozenset()
+            written = json.loads((folder / PARTS_JSON).read_text(encoding="utf-8"))
+            if written["log"] == source:
+                return frozenset({PARTS_JSON, *(str(part["file"]) for part in written["parts"])})
+        except (OSError, ValueError, TypeError, KeyError, IndexError):
+            pass
+        return frozenset()
 
     def ours(path: Path) -> bool:
-        return path.is_file() and pattern.fullmatch(path.name) is not None
+        return path.is_file() and path.name in listed(path.parent)
 
     return ours
+
+
+def _list_parts(folder: Path, log: Path, parts: "list[PartFile]", cut: Cut, config: Config) -> None:
+    """``parts.json`` beside the parts: what was split, where and into which files."""
+    from app.output.files import write_json
+
+    t0 = cut.t0_s
+    write_json(
+        folder / PARTS_JSON,
+        {
+            "log": os.path.realpath(log),
+            "pauses_longer_than_s": config.filter.gap_reset_s,
+            "parts": [
+                {
+                    "file": part.path.name,
+                    "sensor_from_s": span[0],
+                    "sensor_to_s": span[1],
+                    "first_frame_s": part.first_s - t0,
+                    "last_frame_s": part.last_s - t0,
+                    "frames": part.frames,
+                }
+                for part, span in zip(parts, cut.spans_s, strict=True)
+            ],
+        },
+        "the parts' list",
+    )
+
+
+def _remove_killed(log: Path, stem: str) -> None:
+    """What a killed split of this log left beside it (SIGKILL, a power cut): its hidden
+    folder of part files, and the folder it had claimed for them if that is still empty."""
+    for left in log.parent.glob(f".{glob.escape(stem)}-parts*.partial-*"):
+        prefix = left.name[: left.name.rindex(".partial-") + len(".partial-")]
+        if remove_stale(log.parent, prefix):
+            with contextlib.suppress(OSError):
+                (log.parent / prefix[1 : -len(".partial-")]).rmdir()  # only if empty
 
 
 def claim_folder(log: Path, stem: str) -> Path:
     """A new folder beside the log, ``<stem>-parts`` (``-parts-2`` … where taken): never one
     that holds someone's files."""
+    _remove_killed(log, stem)
     candidates = (log.with_name(f"{stem}-parts{'' if k == 1 else f'-{k}'}") for k in range(1, 1000))
     try:
         folder = new_folder(candidates)
@@ -257,7 +317,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     config = load_config(args.config)
     log: Path = args.log
     stem, fmt = format_of(log)
-    ours = _ours(stem)
+    ours = _ours(log)
     if args.out is not None:  # before any work: never the input, never a folder of someone's files
         check([Output("--out", args.out, ours, folder=True)], [log, *config_files(config)])
     found = find_pauses(log, config, console)
@@ -267,21 +327,23 @@ def run(args: argparse.Namespace, console: Console) -> int:
     cut = cut_of(found.report)
     names = cut.names(stem, fmt.suffix)
     claimed = args.out is None
-    out: Path = claim_folder(log, stem) if claimed else args.out
-    try:
-        with folder_atomically(out, ours, "c2n split", replace=not claimed) as staging:
-            parts = write_parts(log, cut, names, staging, fmt, console)
-    except BaseException as error:
-        if not claimed:
+    with interrupted_by(*ENDING):  # SIGTERM, a closed terminal: as Ctrl-C, nothing left behind
+        out: Path = claim_folder(log, stem) if claimed else args.out
+        try:
+            with folder_atomically(out, ours, "c2n split", replace=not claimed) as staging:
+                parts = write_parts(log, cut, names, staging, fmt, console)
+                _list_parts(staging, log, parts, cut, config)
+        except BaseException as error:
+            if not claimed:
+                raise
+            with contextlib.suppress(OSError):
+                out.rmdir()  # claimed for this run, still empty
+            if isinstance(error, OutputError):  # the folder this run made is gone again
+                raise OutputError(
+                    str(error).replace(f" — {out} is left as it was", " — nothing written")
+                ) from error
             raise
-        with contextlib.suppress(OSError):
-            out.rmdir()  # claimed for this run, still empty
-        if isinstance(error, OutputError):  # the folder this run made is gone again
-            raise OutputError(
-                str(error).replace(f" — {out} is left as it was", " — nothing written")
-            ) from error
-        raise
-    _say(console, log, out, cut, parts, fmt, found.report)
+    _say(console, log, out, cut, parts, fmt)
     return 0
 
 
@@ -292,16 +354,16 @@ def _say(
     cut: Cut,
     parts: "list[PartFile]",
     fmt: "Format",
-    report: "LogReport",
 ) -> None:
     """A line per part written (its file, seconds and frames) and how to go on."""
     if fmt.note is not None:
         error_console().print(f"c2n: note: {printable(f'{log}: {fmt.note}')}", markup=False)
-    t0 = report.span_s[0] if report.span_s is not None else 0.0
+    t0 = cut.t0_s
     console.print(
         printable(f"{log}: {len(cut.spans_s)} parts between the optical sensor's pauses → {out}"),
         markup=False,
     )
+    console.print(printable(f"  {PARTS_JSON}  the log, and each part's seconds and frames"), markup=False)
     for part in parts:
         console.print(
             printable(

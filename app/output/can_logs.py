@@ -81,8 +81,9 @@ def format_of(log: Path) -> tuple[str, Format]:
     if real in _WRITERS and (not gz or real in _TEXT):
         return stem, Format(real, spelt, gz)
     if real in _WRITERS:  # a gzip of a binary format
-        why = f"python-can's {real[1:].upper()} writer goes back to its file's start at the end, which a gzip stream cannot"
-        return stem, Format(real, real, note=f"{why}: the parts are written as plain {real[1:].upper()}")
+        kind = real[1:].upper()
+        why = f"python-can's {kind} writer goes back to its start at the end, which a gzip stream cannot"
+        return stem, Format(real, real, note=f"{why}: the parts are written as plain {kind}")
     why = _NOT_AS_READ.get(real, f"python-can cannot write {real or 'its'} files")
     return stem, Format(_FALLBACK, _FALLBACK, note=f"{why}: the parts are written as BLF")
 

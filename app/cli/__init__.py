@@ -4,14 +4,17 @@ import argparse
 import gc
 import logging
 import sys
+import threading
 import traceback
 from collections.abc import Sequence
+from contextlib import AbstractContextManager, nullcontext
 from typing import NoReturn, TextIO, cast
 
 from rich.console import Console
 
 from app import __version__
 from app.cli import analyze, campaign, demo, export, gap, gap_check, live, replay, simulate, split
+from app.cli.common import ENDING, interrupted_by
 from app.cli.terminal import LosableStream, say
 from app.errors import C2nError, UsageError, printable
 
@@ -81,6 +84,16 @@ def entry() -> NoReturn:
     sys.exit(code)
 
 
+def _ended_as_by_ctrl_c() -> AbstractContextManager[None]:
+    """SIGTERM and a closed terminal end every command as Ctrl-C does, unwinding: a temporary
+    file or folder goes, what is finished is kept. Their default ended the process where it
+    stood, leaving a half-written export's hidden folder behind. (Signals are the main thread's:
+    a command run in another thread keeps the handlers it finds.)"""
+    if threading.current_thread() is not threading.main_thread():
+        return nullcontext()
+    return interrupted_by(*ENDING)
+
+
 def main(argv: Sequence[str] | None = None, console: Console | None = None) -> int:
     """Run a c2n command; returns the exit code (0 ok, 1 user error, 2 bad usage)."""
     parser = build_parser()
@@ -98,7 +111,8 @@ def main(argv: Sequence[str] | None = None, console: Console | None = None) -> i
     own = console is None
     console = console or Console(file=cast(TextIO, words), highlight=False, soft_wrap=True)
     try:
-        code = int(args.run(args, console))
+        with _ended_as_by_ctrl_c():
+            code = int(args.run(args, console))
     except C2nError as error:
         if args.debug:
             traceback.print_exc()

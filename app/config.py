@@ -415,6 +415,12 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     gap = _dataclass_from(path, "gap", GapSettings, _section(path, table, "gap"))
     stated = _section(path, table, "priors")
     priors = _own_load_transfer(path, vehicle, _dataclass_from(path, "priors", Priors, stated), stated)
+    if priors.confidence != Priors.confidence:  # 0.5 printed a 50 % interval as "95 %", 1.0 [0, 0]
+        raise ConfigError(
+            f"{path}: [priors] confidence = {priors.confidence:g}: c2n's intervals and tests are "
+            f"{100 * Priors.confidence:g} % throughout (the result file's c2n_ci95, the comparisons of "
+            "drives) — remove the key"
+        )
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(
@@ -588,8 +594,14 @@ def _roles(path: Path, table: dict[str, Any], dbcs: tuple[Dbc, ...]) -> dict[str
             raise ConfigError(f'{path}: {where} needs signal = "Message.Signal"')
         dbc, message, signal = _find_signal(path, where, value["signal"], dbcs)
         scale = value.get("scale", 1.0)
-        if not isinstance(scale, int | float) or isinstance(scale, bool) or scale == 0:
-            raise ConfigError(f"{path}: {where} scale must be a non-zero number, got {scale!r}")
+        if (
+            not isinstance(scale, int | float)
+            or isinstance(scale, bool)
+            or scale == 0
+            or not math.isfinite(scale)
+        ):
+            # NaN was taken, and every value it gave dropped as the log's: "not a number (yaw_rate)"
+            raise ConfigError(f"{path}: {where} scale must be a finite non-zero number, got {scale!r}")
         unit = value.get("unit", units.get(role)) or signal.unit or ""
         if not isinstance(unit, str):
             raise ConfigError(f'{path}: [units] {role} must be a unit text such as "km/h"')

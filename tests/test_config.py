@@ -76,7 +76,13 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
             "[sensor_status] key names signal 'Status.HeadStat'",
         ),
         (("[roles]", "[rolez]"), "unknown key 'rolez' — did you mean 'roles'?"),
-        (("scale = -1.0", "scale = 0"), "[roles] vy scale must be a non-zero number"),
+        (("scale = -1.0", "scale = 0"), "[roles] vy scale must be a finite non-zero number"),
+        (("scale = -1.0", "scale = nan"), "[roles] vy scale must be a finite non-zero number, got nan"),
+        (("scale = -1.0", "scale = -inf"), "[roles] vy scale must be a finite non-zero number, got -inf"),
+        (
+            ("[sensor_status]", "[priors]\nconfidence = 0.5\n[sensor_status]"),
+            "[priors] confidence = 0.5: c2n's intervals and tests are 95 % throughout",
+        ),
         (
             ('speed = "BrakeSysFeatures.Veh_V_ActlBrk"', 'speed = "Correvit.Angle_cor"'),
             "not one for speed — set [units] speed to one of",

@@ -507,6 +507,28 @@ def test_a_folder_c2n_cannot_write_in_is_said_before_the_analysis(
     assert code == 1 and f"cannot write in {shelf} (Read-only file system)" in err
 
 
+@pytest.mark.parametrize("option", ["--json", "--out"])
+def test_an_output_under_a_file_is_said_before_the_analysis(day: Path, option: str) -> None:
+    """`--json notes.txt/r.json`: the whole analysis ran, then `cannot write the summary (File
+    exists)`, which names neither the file nor the cause."""
+    notes = day / "notes.txt"
+    notes.write_text("a user's")
+    command = ["analyze", "--json"] if option == "--json" else ["export", "--no-plots", "--out"]
+    code, out, err = run_cli(
+        [
+            command[0],
+            str(day / "d.blf"),
+            "--config",
+            str(day / "car.toml"),
+            *command[1:],
+            str(notes / "sub" / "r"),
+        ]
+    )
+    assert code == 1 and err.count("\n") == 1
+    assert f"{option} {notes / 'sub' / 'r'}: {notes} is a file, not a folder — choose another place" in err
+    assert "C2n" not in out and notes.read_text() == "a user's"
+
+
 def test_a_campaign_cache_whose_hash_memo_is_damaged_is_hashed_again(day: Path) -> None:
     """A hash memo that does not read beside the cache's rows was taken for a user's file, and
     the campaign's own folder refused as not c2n's."""

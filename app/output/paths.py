@@ -199,6 +199,10 @@ def _can_write(out: Output) -> None:
     not all (a read-only mount refuses root too) — else found only after the analysis."""
     folder = Path(os.path.realpath(out.path)).parent
     while not folder.is_dir() and folder != folder.parent:
+        if folder.exists():  # a file where a folder would be made: found after the work, "File exists"
+            raise OutputError(
+                f"{out.option} {out.path}: {folder} is a file, not a folder — choose another place"
+            )
         folder = folder.parent
     try:
         with tempfile.TemporaryFile(dir=folder):  # O_TMPFILE where it can: no name, nothing left

@@ -6,6 +6,9 @@ not move the cursor or clear the screen. ``shown`` answers both; every string th
 user or a file goes through it before a rich console prints it as markup.
 """
 
+import shlex
+from pathlib import Path
+
 from rich.markup import escape
 
 from app.errors import printable
@@ -26,3 +29,11 @@ def shown(value: object) -> str:
     # rich doubles a trailing backslash lest it escape a tag that follows; none does here (the
     # callers put no markup right after a user string), and the doubled one would be printed
     return escaped[:-1] if escaped.endswith("\\\\") and not text.endswith("\\\\") else escaped
+
+
+def argument(path: Path) -> str:
+    """``path`` as a command c2n suggests gives it to a shell: quoted (spaces, brackets, quotes),
+    and a relative one that begins with ``-`` as ``./-day.log``, which no option parser takes for
+    an option (``c2n split -day.log`` was refused: `the following arguments are required: LOG`)."""
+    text = str(path)
+    return shlex.quote(f"./{text}" if text.startswith("-") else text)

@@ -4,6 +4,8 @@ attack through the command line as a user makes it: the exit code, the one line,
 import http.server
 import io
 import math
+import os
+import shlex
 import socket
 import threading
 import time
@@ -217,6 +219,19 @@ def test_shown_prints_user_text_literally(text: str, printed: str) -> None:
     console = Console(record=True, width=200)
     console.print(f"tag {shown(text)}.")
     assert console.export_text() == f"tag {printed}.\n"
+
+
+@pytest.mark.parametrize(
+    "name", ["-day.log", "--pool.log", "day [tyre change] 1.blf", "it's.log", "/tmp/-a.log"]
+)
+def test_a_suggested_command_takes_the_log_it_names(name: str) -> None:
+    """The fixes say `c2n split <log>`: a log named `-day.log` was printed as is, and the
+    command, copied, refused it (`the following arguments are required: LOG`)."""
+    from app.cli import build_parser
+    from app.user_text import argument
+
+    args = build_parser().parse_args(["split", *shlex.split(argument(Path(name)))])
+    assert os.path.normpath(args.log) == name
 
 
 def test_simulate_to_a_path_with_brackets_prints_it_and_exits_0(tmp_path: Path) -> None:

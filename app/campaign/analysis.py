@@ -10,7 +10,6 @@ import hashlib
 import logging
 import os
 import resource
-import shlex
 import stat
 import time
 from collections.abc import Callable
@@ -25,6 +24,7 @@ from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import C2nError, printable
 from app.results.headline import Method
 from app.sinks.recorder import read_session
+from app.user_text import argument
 
 if TYPE_CHECKING:  # the analysis's own modules load where a drive is analysed
     from app.results.regression import RegressionFit
@@ -139,7 +139,7 @@ def _analysed(raws: list[Path], config: Config) -> SessionRow:
     for report in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
         why = parts_disagree(report, config, Pipeline)
         if why is not None:  # no summary, as analyze writes none: its C2n lies between the parts'
-            fix = WITHIN_FIX.format(log=shlex.quote(str(report.path)))
+            fix = WITHIN_FIX.format(log=argument(report.path))
             said = printable(f"{raw}: no C2n — {why} — {fix}")
             return SessionRow(error=said, drive=identity, runs=runs, frames=snapshot.frames.total)
     written = summary.build(snapshot, config, [str(r) for r in raws], source.notes)

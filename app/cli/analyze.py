@@ -2,7 +2,6 @@
 
 import argparse
 import itertools
-import shlex
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -14,6 +13,7 @@ from app.config import load_config
 from app.errors import NoResultError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
 from app.results.headline import Method
+from app.user_text import argument
 
 if TYPE_CHECKING:
     from app.config import Config
@@ -122,7 +122,7 @@ def _one_drive(reports: "list[LogReport]", config: "Config", console: Console) -
     for report in reports:  # a file that paused: its parts alone (``app.results.within_file``)
         why = parts_disagree(report, config, console)
         if why is not None:
-            raise NoResultError(f"{why} — {_FIX['within'].format(log=shlex.quote(str(report.path)))}")
+            raise NoResultError(f"{why} — {_FIX['within'].format(log=argument(report.path))}")
     for before, after in itertools.pairwise(r for r in reports if r.span_s is not None):
         assert before.span_s is not None and after.span_s is not None
         gap = after.span_s[0] - before.span_s[1]

@@ -2,7 +2,6 @@
 table, the summary, plots and one self-contained HTML report."""
 
 import argparse
-import shlex
 import stat
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -15,7 +14,7 @@ from app.errors import NoResultError, need, printable
 from app.output.csv_dialects import CSV_DIALECT_HELP, CSV_DIALECTS
 from app.output.files import folder_atomically
 from app.output.paths import HTML_REPORT, SUMMARY_JSON, Output, check, config_files
-from app.user_text import shown
+from app.user_text import argument, shown
 
 if TYPE_CHECKING:
     from app.sinks.summary import Summary
@@ -199,7 +198,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     for read in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
         why = parts_disagree(read, config, console)
         if why is not None:  # the summary, events and plots would show one C2n between them
-            fix = _WITHIN_FIX.format(log=shlex.quote(str(read.path)))
+            fix = _WITHIN_FIX.format(log=argument(read.path))
             raise NoResultError(f"{why} — {fix} (nothing written to {out})")
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0

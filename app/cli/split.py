@@ -11,7 +11,6 @@ import contextlib
 import glob
 import json
 import os
-import shlex
 import struct
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -26,7 +25,7 @@ from app.config import Config, load_config
 from app.errors import NoResultError, OutputError, one_line, printable
 from app.output.files import folder_atomically, new_folder, remove_stale
 from app.output.paths import Output, check, config_files
-from app.user_text import shown
+from app.user_text import argument, shown
 
 # loaded when the command runs, not at import: `c2n --help` needs none of them
 if TYPE_CHECKING:
@@ -372,7 +371,7 @@ def _say(
             ),
             markup=False,
         )
-    first = shlex.quote(str(out / parts[0].path.name))
+    first = argument(out / parts[0].path.name)
     console.print(
         printable(f"analyse each part alone: c2n analyze {first} … (--pool the parts of one set of tyres)"),
         markup=False,

@@ -80,6 +80,10 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
         (("scale = -1.0", "scale = nan"), "[roles] vy scale must be a finite non-zero number, got nan"),
         (("scale = -1.0", "scale = -inf"), "[roles] vy scale must be a finite non-zero number, got -inf"),
         (
+            ("[sensor_status]", "[filter]\ngap_reset_s = 700\n[sensor_status]"),
+            "[filter] gap_reset_s = 700.0 is out of range — use above 0 up to 10",
+        ),
+        (
             ("[sensor_status]", "[priors]\nconfidence = 0.5\n[sensor_status]"),
             "[priors] confidence = 0.5: c2n's intervals and tests are 95 % throughout",
         ),

@@ -499,7 +499,10 @@ def test_ctrl_c_while_a_frame_is_read_keeps_it_and_every_frame_waiting(tmp_path:
     was: in the middle of a receive it lost the frame being read and every frame waiting behind
     it (here all 3000: an empty recording). Now the signal stops the session, which reads what
     arrived before it ends: all 3000 recorded and counted, exit 0. Pressed twice, the user will
-    not wait: the session ends at once, finished, its summary counting what is on the disk."""
+    not wait: the frames still waiting are left, and the summary says so — the second press
+    raised KeyboardInterrupt too, which between a frame's recording and its count, or inside the
+    recording's write, left the summary counting other frames than the disk held. The summary
+    counts what is on the disk each time."""
     frames = cached_drive("constant_radius", 41, 15.1).messages[:3000]
     channel = f"interrupted-{uuid.uuid4().hex}"
 
@@ -514,8 +517,28 @@ def test_ctrl_c_while_a_frame_is_read_keeps_it_and_every_frame_waiting(tmp_path:
     assert live_command.run(live_args(channel, tmp_path), console, open_bus=open_bus) == 0
     [session] = list((tmp_path / "sessions").glob("20*"))
     recorded = len(list(can.LogReader(session / "frames.log")))
-    assert json.loads((session / "summary.json").read_text())["frames"]["total"] == recorded
+    summary = json.loads((session / "summary.json").read_text())
+    assert summary["frames"]["total"] == recorded
     assert recorded == 3000 if presses == 1 else recorded < 3000
+    hurried = [
+        w for w in summary["warnings"] if w.startswith("a second Ctrl-C (or SIGTERM, SIGHUP) ended the stop")
+    ]
+    assert len(hurried) == (presses == 2)
+
+
+def test_the_third_signal_raises_for_a_session_that_does_not_end() -> None:
+    """First the stop, then the hurry (neither raises: see above); a third raises, the way out
+    of a session stuck where neither is looked at."""
+    from app.cli.common import stopping
+
+    stop, hurry = threading.Event(), threading.Event()
+    handler = stopping(stop, hurry)
+    handler(signal.SIGINT, None)
+    assert stop.is_set() and not hurry.is_set()
+    handler(signal.SIGTERM, None)
+    assert hurry.is_set()
+    with pytest.raises(KeyboardInterrupt):
+        handler(signal.SIGINT, None)
 
 
 def socketcan_error(classes: int, detail: int = 0, t: float = 0.0) -> can.Message:

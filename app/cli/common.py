@@ -187,16 +187,21 @@ def take_over(
     }
 
 
-def stopping(stop: threading.Event) -> Callable[[int, FrameType | None], None]:
-    """A signal handler that sets ``stop`` — a live session then ends at its next frame, having
-    read what arrived before (``BusSource``: a KeyboardInterrupt raised mid-read lost the frame
-    being read and every frame waiting) — and raises KeyboardInterrupt at a second signal, for
-    a user who will not wait."""
+def stopping(stop: threading.Event, hurry: threading.Event) -> Callable[[int, FrameType | None], None]:
+    """A signal handler for a live session: the first signal sets ``stop`` — the session ends at
+    its next frame, having read what arrived before (a KeyboardInterrupt raised mid-read lost the
+    frame being read and every frame waiting) — and the second ``hurry``: the frames still
+    waiting are left unread, and said. Neither raises: a KeyboardInterrupt between a frame's
+    recording and its count, or inside the recording's write, lost frames that the summary
+    counted. A third raises KeyboardInterrupt, for a session that does not end."""
+    presses = 0
 
     def handler(signum: int, frame: FrameType | None) -> None:
-        if stop.is_set():
+        nonlocal presses
+        presses += 1
+        if presses > 2:
             raise KeyboardInterrupt
-        stop.set()
+        (hurry if stop.is_set() else stop).set()
 
     return handler
 

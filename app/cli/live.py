@@ -182,11 +182,12 @@ def run(
     title = ", ".join(str(bus.channel_info) for bus in buses)
     pipeline = PartedPipeline(config)  # a tyre change while the sensor was off: no one C2n
     recorder = None if args.no_record else _recorder(args.record, config, args.raw_format)
-    stop = threading.Event()
+    stop, hurry = threading.Event(), threading.Event()
     timer = threading.Timer(args.duration, stop.set) if args.duration else None
     # Ctrl-C, SIGTERM and a closed terminal (SIGHUP, unless run under nohup) end the session cleanly,
-    # once what arrived before is read; a second one at once
-    previous = take_over(ENDING, stopping(stop))
+    # once what arrived before is read; a second one without what still waits. Held until the
+    # summary is written: a signal then, at the default, ended the process before it was
+    previous = take_over(ENDING, stopping(stop, hurry))
     console.print(f"c2n live on {shown(title)} — Ctrl-C ends the session", style="dim")
     if args.rate != 1.0:
         console.print(
@@ -200,7 +201,13 @@ def run(
         console.print(Text(f"c2n: {printable(text)}", style="bold yellow"), soft_wrap=True)
 
     source = BusSource(
-        buses, stop, reopen=reopen, backoff=backoff or Backoff(), clock=clock, on_change=bus_changed
+        buses,
+        stop,
+        reopen=reopen,
+        backoff=backoff or Backoff(),
+        clock=clock,
+        on_change=bus_changed,
+        hurry=hurry,
     )
     dashboard = Dashboard(title, bus_problem=lambda: source.problem)
     sinks: list[Sink] = [EventPrinter(console)]
@@ -211,32 +218,36 @@ def run(
         recorder.on_note = bus_changed
         sinks.append(recorder)
     try:
-        if timer is not None:
-            timer.start()
-        frames = source if args.rate == 1.0 else drive_time(source, args.rate)
-        run_pipeline(frames, pipeline, sinks, display=dashboard, console=console)
-    finally:  # the recording is finished (the run loop closed it); the summary goes beside it
+        try:
+            if timer is not None:
+                timer.start()
+            frames = source if args.rate == 1.0 else drive_time(source, args.rate)
+            run_pipeline(frames, pipeline, sinks, display=dashboard, console=console)
+        finally:  # the recording is finished (the run loop closed it); the summary goes beside it
+            if timer is not None:
+                timer.cancel()
+            for bus in source.buses:  # the ones open now (a lost bus was closed already)
+                bus.shutdown()
+            snapshot = pipeline.snapshot()
+            stopped = [recorder.problem] if recorder is not None and recorder.problem else []
+            parts = recorder.notes if recorder is not None else []
+            unseen = _console_lost(console)
+            result = summary.build(snapshot, config, [title]).warned(
+                [*stopped, *parts, *source.losses, *unseen]
+            )
+            unwritten = []  # a full disk: the numbers are still shown
+            for write, where in (
+                (recorder.write_summary if recorder is not None else None, "the session's summary"),
+                ((lambda r: summary.write(args.json, r)) if args.json else None, "--json"),
+            ):
+                if write is not None:
+                    try:
+                        write(result)
+                    except OutputError as error:
+                        unwritten.append(f"{where} was not written: {error}")
+    finally:  # only now: a signal at the default while the summary was written ended the process
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        if timer is not None:
-            timer.cancel()
-        for bus in source.buses:  # the ones open now (a lost bus was closed already)
-            bus.shutdown()
-        snapshot = pipeline.snapshot()
-        stopped = [recorder.problem] if recorder is not None and recorder.problem else []
-        parts = recorder.notes if recorder is not None else []
-        unseen = _console_lost(console)
-        result = summary.build(snapshot, config, [title]).warned([*stopped, *parts, *source.losses, *unseen])
-        unwritten = []  # a full disk: the numbers are still shown
-        for write, where in (
-            (recorder.write_summary if recorder is not None else None, "the session's summary"),
-            ((lambda r: summary.write(args.json, r)) if args.json else None, "--json"),
-        ):
-            if write is not None:
-                try:
-                    write(result)
-                except OutputError as error:
-                    unwritten.append(f"{where} was not written: {error}")
     print_result(console, snapshot)
     errors = error_console()
     for warning in [*result.warnings, *unwritten]:

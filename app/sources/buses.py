@@ -154,9 +154,11 @@ class BusSource:
         backoff: Backoff = Backoff(),
         clock: Callable[[], float] = time.monotonic,
         on_change: Callable[[str], None] | None = None,
+        hurry: threading.Event | None = None,
     ) -> None:
         self.buses = list(buses)
         self.stop = stop
+        self.hurry = hurry or threading.Event()  # set: the stop reads no more of what waits
         self.finished = finished
         self.idle_s = idle_s
         self.reopen = reopen
@@ -276,7 +278,7 @@ class BusSource:
         last: float | None = None
         say = self._saying_at(self.clock() + _SAY_S)
         while True:
-            if time.monotonic() >= deadline:
+            if time.monotonic() >= deadline or self.hurry.is_set():
                 self._left_unread(last)
                 return
             say()
@@ -289,7 +291,7 @@ class BusSource:
                 yield item
         for index, bus in enumerate(self.buses):
             while index not in self.lost:
-                if time.monotonic() >= deadline:
+                if time.monotonic() >= deadline or self.hurry.is_set():
                     self._left_unread(last)
                     return
                 say()
@@ -323,6 +325,12 @@ class BusSource:
 
     def _left_unread(self, last: float | None) -> None:
         after = f" (after the frame at {last:.3f} s)" if last is not None else ""
+        if self.hurry.is_set():
+            self.losses.append(
+                "a second Ctrl-C (or SIGTERM, SIGHUP) ended the stop before the buses were read "
+                f"empty: what they still held{after} is not in the session"
+            )
+            return
         self.losses.append(
             f"the stop found the buses sending faster than c2n reads: after {_DRAIN_S:g} s of reading "
             f"what waited, the frames still held{after} are not in the session"

@@ -60,6 +60,26 @@ def test_a_semicolon_manifest_reads_decimal_commas_as_numbers(tmp_path: Path) ->
     assert set(trends) == {"pressure_bar", "temp_C"} and "all" in trends["pressure_bar"]
 
 
+def test_a_point_in_a_semicolon_manifest_is_no_decimal_mark_it_could_be_sure_of(tmp_path: Path) -> None:
+    """Where the decimal mark is a comma a point groups thousands: '1.200' N is 1200 there, and it
+    was read as 1.2 — a trend of C2n over 1.2, 950 and 1.5 N, no word. A column with a point in
+    a ';' manifest is kept as text, said; its commas' column is read as before. '1_000' and '2_3'
+    (Python's float reads 23) are a code's spelling, not numbers."""
+    text = (
+        "log;load_N;pressure_bar;fw;code\n"
+        "a.blf;1.200;2,0;1.5;1_000\nb.blf;950;2,3;1.10;2_3\nc.blf;1.500;2,6;2.0;7\n"
+    )
+    manifest = read_manifest(_manifest(tmp_path, text))
+    assert manifest.numeric_tags() == ["pressure_bar"]
+    assert [e.tags["load_N"] for e in manifest.entries] == ["1.200", "950", "1.500"]  # as written
+    [load, fw] = manifest.warnings
+    assert "line 2, column 'load_N': '1.200' has a point, in a manifest separated by ';'" in load
+    assert "'1.200' is 1200, not 1.2) — the column is kept as text, with no trend against it" in load
+    assert "line 2, column 'fw': '1.5' has a point" in fw
+    trends = compare(manifest, _rows(C2N[:3]), None).trends
+    assert set(trends) == {"pressure_bar"}
+
+
 def test_a_column_mixing_decimal_commas_with_other_values_says_which_it_could_not_read(
     tmp_path: Path,
 ) -> None:
@@ -248,3 +268,33 @@ def test_results_csv_answers_a_semicolon_manifest_in_its_own_dialect(tmp_path: P
         )
         assert 14.6 < float(drive["c2n"].replace(mark, ".")) < 15.6 and mark in drive["c2n"]
         assert gone["c2n"] == "" and "gone.blf" in gone["error"]
+
+
+def test_a_results_csv_edited_since_or_a_users_own_is_not_replaced(tmp_path: Path) -> None:
+    """A results.csv was c2n's if it began with a BOM and `log,` — what Excel's "CSV UTF-8"
+    writes of a user's sheet whose first column is `log`, as the manifest's is — and a later run
+    replaced it, unread: a column of notes added by hand, or a user's own file, gone. Now the
+    campaign knows its files by the digests it recorded: an edited one is refused, untouched;
+    its own, unedited, is replaced as before."""
+    from app.sim.simulated_drive import write_drive
+    from tests.simulated import cached_drive
+
+    write_drive(cached_drive("constant_radius", 41, 15.1), tmp_path / "s 1.blf")
+    path = _manifest(tmp_path, "log,tyre_set\ns 1.blf,A\n")
+    out = tmp_path / "manifest-campaign"
+    argv = ["campaign", str(path), "--workers", "1"]
+    for _ in range(2):  # its own results, replaced
+        code, _, err = run_cli(argv)
+        assert code == 0, err
+    results = out / "results.csv"
+    edited = results.read_text(encoding="utf-8-sig").replace("\n", ",felt cold\n", 1)
+    results.write_text(edited, encoding="utf-8-sig")
+    code, _, err = run_cli(argv)
+    assert code == 1 and "holds files c2n did not write (results.csv)" in err
+    assert results.read_text(encoding="utf-8-sig") == edited
+    theirs = tmp_path / "mine"
+    theirs.mkdir()
+    (theirs / "results.csv").write_bytes(b"\xef\xbb\xbflog,my own analysis\r\nweek 1,very important\r\n")
+    code, _, err = run_cli([*argv, "--out", str(theirs)])
+    assert code == 1 and "holds files c2n did not write (results.csv)" in err
+    assert (theirs / "results.csv").read_bytes().endswith(b"very important\r\n")

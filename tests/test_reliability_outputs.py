@@ -359,6 +359,23 @@ def test_a_mount_point_as_an_output_folder_asks_for_a_folder_inside_it(
     assert list(stick.iterdir()) == []
 
 
+def test_a_log_copied_over_another_of_the_same_size_and_date_is_hashed_again(tmp_path: Path) -> None:
+    """The hash memo knew a log by its size and mtime: a logger without a clock (every file the
+    same date), or one that cuts files at a size, writes another drive with both the same, and
+    the campaign gave the earlier drive's C2n for it ("1 known from an earlier run"). The change
+    time and inode are remembered too."""
+    log = tmp_path / "LOG0001.log"
+    log.write_bytes(b"(1.000000) can0 123#00\n" * 100)
+    os.utime(log, ns=(315532800 * 10**9, 315532800 * 10**9))  # 1980-01-01, a clock never set
+    memo = HashMemo(tmp_path / "hashes.json")
+    first = memo.key(Job(log, None))
+    memo.save()
+    assert HashMemo(tmp_path / "hashes.json").key(Job(log, None)) == first  # remembered
+    log.write_bytes(b"(1.000000) can0 123#01\n" * 100)  # another drive, the same size
+    os.utime(log, ns=(315532800 * 10**9, 315532800 * 10**9))
+    assert HashMemo(tmp_path / "hashes.json").key(Job(log, None)) != first
+
+
 def test_a_folder_named_cache_is_a_campaign_s_only_by_its_content(tmp_path: Path) -> None:
     """A campaign's --out may hold its own cache; a user's folder that is merely named ``cache``
     (its hashes.json was written over) is not c2n's; a damaged hash memo is no memo."""

@@ -37,6 +37,7 @@ class Manifest:
     entries: tuple[Entry, ...]
     warnings: tuple[str, ...] = ()  # a column not read as its values suggest, one line each
     delimiter: str = ","  # what separates its fields: Excel's ';' where the decimal mark is a comma
+    text_tags: frozenset[str] = frozenset()  # numbers whose reading the manifest leaves open
 
     def numeric_tags(self) -> list[str]:
         """The tags whose every value is a finite number (pressure, load, temperature …), bar
@@ -44,7 +45,8 @@ class Manifest:
         return [
             name
             for name in self.tag_names
-            if any(e.tags[name] for e in self.entries)
+            if name not in self.text_tags
+            and any(e.tags[name] for e in self.entries)
             and all(_number(e.tags[name]) for e in self.entries if e.tags[name])
         ]
 
@@ -72,6 +74,10 @@ _LINES_NAMED = 5  # an empty cell's line named up to this many; the rest counted
 
 
 def _number(text: str) -> bool:
+    """A finite number as a spreadsheet writes one: Python's ``float`` also reads '1_000' and
+    '2_3' (23), a code's spelling, not a value's."""
+    if "_" in text:
+        return False
     try:
         return math.isfinite(float(text))
     except ValueError:
@@ -133,11 +139,36 @@ def read_manifest(path: Path) -> Manifest:
         raise C2nError(f"{path}: no logs listed under the header")
     tag_names = tuple(name for name in header if name != LOG)
     warnings: list[str] = []
-    if delimiter != ",":  # a comma in a cell may then be a decimal mark
+    text_tags: set[str] = set()
+    if delimiter != ",":  # a comma in a cell may then be a decimal mark, and a point group thousands
         for name in tag_names:
+            pointed = _pointed(entries, name)
+            if pointed is not None:
+                text_tags.add(name)
+                warnings.append(f"{path}: {pointed}")
+                continue
             entries, unread = _decimal_commas(entries, name)
             warnings += [f"{path}: {said}" for said in unread]
-    return Manifest(path, tag_names, tuple(entries), tuple(warnings), delimiter)
+    return Manifest(path, tag_names, tuple(entries), tuple(warnings), delimiter, frozenset(text_tags))
+
+
+def _pointed(entries: list[Entry], name: str) -> str | None:
+    """Where the manifest's fields are separated by ';' — the decimal mark a comma, a point
+    grouping thousands — a column of numbers written with points or no mark, one with a point
+    ('1.200': 1200 there, 1.2 elsewhere), cannot be read for sure: a line saying so (the column
+    is then text), else None."""
+    values = [(entry.line, entry.tags[name]) for entry in entries if entry.tags[name]]
+    if not all(_number(value) for _, value in values):  # decimal commas among them: said apart
+        return None
+    line, value = next(((line, value) for line, value in values if "." in value), (0, ""))
+    if not value:
+        return None
+    return (
+        f"line {line}, column '{name}': '{value}' has a point, in a manifest separated by ';' (where "
+        f"the decimal mark is a comma, a point groups thousands: '1.200' is 1200, not 1.2) — the "
+        f"column is kept as text, with no trend against it; write its numbers with a decimal comma "
+        f"('2,5') and no thousands mark, or save the manifest with ','"
+    )
 
 
 def _log(path: Path, line: int, named: str) -> Path:

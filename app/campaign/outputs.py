@@ -2,7 +2,9 @@
 ``comparison.json`` (groups, differences, trends) and ``report.html``."""
 
 import csv
+import hashlib
 import io
+import json
 import math
 import os
 from collections import Counter
@@ -40,14 +42,27 @@ FILES = ("results.csv", "results.parquet", "comparison.json", "report.html")  # 
 
 
 def ours(entry: Path) -> bool:
-    """What a campaign leaves in its folder, each known by its content: its results, its cache
-    folder, a killed run's temporary folder (a user's ``results.csv`` there is not ours)."""
+    """What a campaign leaves in its folder: its results, each as the record in its cache says
+    it wrote them (``record_written``), its cache folder, a killed run's temporary folder. A
+    results.csv edited by hand since, or a user's own that begins as c2n's does, is not ours: a
+    later run would have replaced it, unread."""
     from app.campaign.work import CACHE, is_cache
 
     if entry.name == CACHE:
         return entry.is_dir() and is_cache(entry)
     if entry.name.startswith(".partial-"):
         return entry.is_dir()
+    if entry.name not in FILES or not entry.is_file():
+        return False
+    record = _written(entry.parent)
+    if record is not None:
+        return _digest(entry) in record.get(entry.name, ())
+    cache = entry.parent / CACHE
+    return cache.is_dir() and is_cache(cache) and _begins_as_ours(entry)  # an older c2n's campaign
+
+
+def _begins_as_ours(entry: Path) -> bool:
+    """A campaign's file by its content, for a campaign of a c2n that kept no record."""
     starts = {"results.csv": (b"\xef\xbb\xbflog,", b"\xef\xbb\xbflog;"), "results.parquet": (b"PAR1",)}
     if entry.name in starts:
         try:
@@ -58,6 +73,43 @@ def ours(entry: Path) -> bool:
     if entry.name == "comparison.json":
         return json_with("groups", "differences", "trends", "method")(entry)
     return entry.name == "report.html" and HTML_REPORT(entry)
+
+
+def _digest(path: Path) -> str | None:
+    try:
+        with path.open("rb") as file:
+            return hashlib.file_digest(file, "blake2b").hexdigest()
+    except OSError:
+        return None
+
+
+def _written(folder: Path) -> dict[str, list[str]] | None:
+    """The campaign's record of the results it put in ``folder`` (None: it kept none)."""
+    from app.campaign.work import CACHE, WRITTEN
+
+    try:
+        record = json.loads((folder / CACHE / WRITTEN).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict):
+        return None
+    return {
+        name: [d for d in digests if isinstance(d, str)]
+        for name, digests in record.items()
+        if isinstance(digests, list)
+    }
+
+
+def record_written(folder: Path, staging: Path) -> None:
+    """Before the results in ``staging`` take their places in ``folder``: their digests in the
+    cache's record, beside those of the ones in place now — a kill between the two leaves
+    either set known as the campaign's."""
+    from app.campaign.work import CACHE, WRITTEN
+
+    before = _written(folder) or {}
+    record = {name: [_digest(staging / name), *before.get(name, [])[:1]] for name in FILES}
+    (folder / CACHE).mkdir(exist_ok=True)
+    write_json(folder / CACHE / WRITTEN, record, "the campaign's record of its results")
 
 
 def clashing_tags(manifest: Manifest) -> list[str]:

@@ -31,6 +31,7 @@ from app.output.files import partial_pid, write_json
 
 CACHE = "cache"
 HASHES = "hashes.json"  # not a row: its stem is no key
+WRITTEN = "written.json"  # the digests of the results each run put in place (``outputs.ours``)
 _ROW_NAME = re.compile(r"[0-9a-f]{32}-[0-9a-f]{32}\.json")  # a row's key: the log's and the config's hashes
 
 
@@ -291,12 +292,13 @@ def _take(
 
 
 def is_memo(data: object) -> bool:
-    """What ``HashMemo`` writes: each file's path to its size, time and content hash."""
+    """What ``HashMemo`` writes: each file's path to its size, times and inode, and its content
+    hash (an older c2n's: size and mtime only, hashed again)."""
     return isinstance(data, dict) and all(
         isinstance(entry, list)
-        and len(entry) == 3
-        and all(isinstance(x, int) for x in entry[:2])
-        and isinstance(entry[2], str)
+        and len(entry) in (3, 5)
+        and all(isinstance(x, int) for x in entry[:-1])
+        and isinstance(entry[-1], str)
         for entry in data.values()
     )
 
@@ -315,6 +317,8 @@ def is_cache(folder: Path) -> bool:
         if entry.name == HASHES:
             if not rows and not _a_memo(entry):
                 return False
+        elif entry.name == WRITTEN:
+            continue
         elif not _ROW_NAME.fullmatch(entry.name) and not _a_rows_temporary(entry.name, folder):
             return False
     return True
@@ -361,13 +365,18 @@ class HashMemo:
         return f"{log_hash}-{self._configs[config_key]}"
 
     def _hash(self, path: Path) -> str:
+        """The file's content hash, remembered by its size, modification and change times and
+        inode: a log copied over another of the same size and date (a logger without a clock, one
+        that cuts files at a size; `touch -d`) keeps the size and mtime, and its earlier drive's
+        result was taken for it. The change time no program sets back."""
         stat = path.stat()
         name = str(path.resolve())
+        seen = [stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns, stat.st_ino]
         known = self._known.get(name)
-        if known is not None and known[:2] == [stat.st_size, stat.st_mtime_ns]:
-            return str(known[2])
+        if known is not None and known[:-1] == seen:
+            return str(known[-1])
         digest = content_hash([path])
-        self._known[name] = [stat.st_size, stat.st_mtime_ns, digest]
+        self._known[name] = [*seen, digest]
         return digest
 
     def save(self) -> None:

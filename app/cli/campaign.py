@@ -218,6 +218,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             outputs.write_tables(staging, *compared, dialect, numeric=manifest.numeric_tags())
             outputs.write_comparison(staging, comparison)
             outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
+            outputs.record_written(out, staging)
     cached = sum(1 for row in rows if row.cached)
     console.print(
         f"{outputs.sessions(len(rows))} in {elapsed:.1f} s ({cached} known from an earlier run, "

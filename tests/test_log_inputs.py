@@ -227,6 +227,11 @@ def test_an_export_of_a_session_without_its_summary_warns_it_covers_the_frames_s
     assert code == 0 and f"c2n: warning: {warning}\n" in err
     exported = json.loads((session / "export" / "summary.json").read_text())
     assert exported["warnings"][0] == warning and exported["c2n"] == pytest.approx(15.1, rel=0.02)
+    manifest = tmp_path / "manifest.csv"  # a campaign's row of it: said too (it was not)
+    manifest.write_text("log,tyre_set\nsession,A\n")
+    code, _, err = run_cli(["campaign", str(manifest), "--workers", "1"])
+    row = warning.replace("this export covers", "this row covers")
+    assert code == 0 and f"c2n: warning: {row}\n" in err
     (session / "summary.json").write_text(json.dumps(exported))  # the end of the run
     code, _, err = run_cli(["export", str(session), "--no-plots", "--format", "csv"])
     assert code == 0 and "no summary.json" not in err

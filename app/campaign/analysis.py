@@ -99,7 +99,7 @@ def analyse(job: Job) -> SessionRow:
     try:
         raws, config_path, dbc_dir = where(job)
         config = load_config(config_path, dbc_dir=dbc_dir)
-        row = _analysed(raws, config)
+        row = _analysed(raws, config, job.log)
     except C2nError as error:
         row = SessionRow(error=printable(str(error)))
     except Exception as error:  # a worker's boundary: the row carries it, the campaign goes on
@@ -110,13 +110,14 @@ def analyse(job: Job) -> SessionRow:
     return replace(row, seconds=round(time.perf_counter() - started, 3), worker_peak_mib=peak)
 
 
-def _analysed(raws: list[Path], config: Config) -> SessionRow:
+def _analysed(raws: list[Path], config: Config, given: Path) -> SessionRow:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.results.log_clock import clock_notes, sensor_messages
     from app.results.within_file import parts_disagree
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
-    from app.sources.logs import LogSource, drive_identity
+    from app.sinks.recorder import unfinished
+    from app.sources.logs import LogReport, LogSource, drive_identity
     from app.sources.overlap import sample
 
     pipeline = Pipeline(config)
@@ -142,7 +143,12 @@ def _analysed(raws: list[Path], config: Config) -> SessionRow:
             fix = WITHIN_FIX.format(log=argument(report.path))
             said = printable(f"{raw}: no C2n — {why} — {fix}")
             return SessionRow(error=said, drive=identity, runs=runs, frames=snapshot.frames.total)
-    written = summary.build(snapshot, config, [str(r) for r in raws], source.notes)
+    notes = source.notes
+    cut_short = unfinished(given)  # a session killed, or still recording: the frames so far
+    if cut_short is not None:
+        said = f"{cut_short} — this row covers the frames on disk so far"
+        notes = [LogReport(given, stopped=said, done=True), *notes]
+    written = summary.build(snapshot, config, [str(r) for r in raws], notes)
     missing = summary.missing_required(snapshot, config)
     error = printable(f"{raw}: {missing}") if missing else None
     if not missing and written.c2n is None:

@@ -71,22 +71,17 @@ def _inputs(args: argparse.Namespace) -> tuple[list[Path], Config, Path]:
     return [path], config, args.out or path.with_name(f"{path.stem}-export")
 
 
-SESSION_SUMMARY = "summary.json"  # what c2n live writes in its session folder at the end (app.sinks.recorder)
-
-
 def _unfinished(path: Path) -> "list[LogReport]":
-    """A note for a session folder without the summary c2n live writes when it ends: the session
-    is still being recorded, or its run was killed, so the export is of the frames on disk so far
-    — said in the warnings (and the exported summary), not taken for the whole drive."""
+    """A note for a session folder without the summary c2n live writes when it ends
+    (``recorder.unfinished``): the export is of the frames on disk so far — said in the warnings
+    (and the exported summary), not taken for the whole drive."""
+    from app.sinks.recorder import unfinished
     from app.sources.logs import LogReport
 
-    if not path.is_dir() or (path / SESSION_SUMMARY).exists():
+    why = unfinished(path)
+    if why is None:
         return []
-    why = (
-        f"no {SESSION_SUMMARY}: the session is still being recorded, or its c2n live was killed — "
-        "this export covers the frames on disk so far"
-    )
-    return [LogReport(path, stopped=why, done=True)]
+    return [LogReport(path, stopped=f"{why} — this export covers the frames on disk so far", done=True)]
 
 
 def _nothing_to_export(snapshot: "Snapshot", config: Config, logs: list[Path], out: Path) -> str | None:

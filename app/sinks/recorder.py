@@ -403,7 +403,7 @@ class SessionRecorder(Sink):
         deleted meanwhile is not made again to hold a summary of frames it no longer has)."""
         for folder in self.folders:
             if folder.is_dir():
-                write_summary(folder / "summary.json", summary)
+                write_summary(folder / SESSION_SUMMARY, summary)
 
 
 _MOST_PARTS = 10_000  # a folder c2n cannot make beside the first this many times: stop trying
@@ -465,6 +465,18 @@ def _folder_name(name: object) -> bool:
 
 def _raw_log(folder: Path) -> Path | None:
     return next((folder / f"frames{s}" for s in RAW_FORMATS if (folder / f"frames{s}").is_file()), None)
+
+
+SESSION_SUMMARY = "summary.json"  # what a session folder holds once its c2n live has ended
+
+
+def unfinished(folder: Path) -> str | None:
+    """Why a session folder's frames may not be its whole drive: no summary, which c2n live
+    writes when it ends — the session is still being recorded, or its run was killed. None for a
+    log file, or a session that ended."""
+    if not folder.is_dir() or (folder / SESSION_SUMMARY).exists():
+        return None
+    return f"no {SESSION_SUMMARY}: the session is still being recorded, or its c2n live was killed"
 
 
 def read_session(folder: Path) -> tuple[list[Path], Path]:

@@ -1,5 +1,6 @@
 """The command line: exit codes, one-line errors, and each command doing its job."""
 
+import errno
 import json
 import subprocess
 import sys
@@ -101,12 +102,16 @@ def test_bad_usage_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_an_output_error_names_the_file_and_debug_shows_its_cause(
-    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    drive_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    (tmp_path / "blocker").write_text("a file where a folder should be")
-    out = tmp_path / "blocker" / "s.json"
+    def full(path: Path) -> None:  # the disk fills as the summary is written
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr("app.output.files.synced", full)
+    out = tmp_path / "s.json"
     assert main(["analyze", str(drive_log), "--json", str(out)]) == 1
-    assert f"c2n: error: {out}: cannot write the summary (" in one_error_line(capsys.readouterr().err)
+    said = one_error_line(capsys.readouterr().err)
+    assert f"c2n: error: {out}: cannot write the summary (No space left on device)" in said
     assert main(["analyze", str(drive_log), "--json", str(out), "--debug"]) == 1
     err = capsys.readouterr().err
     assert "The above exception was the direct cause" in err and "OutputError" in err

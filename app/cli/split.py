@@ -197,11 +197,12 @@ def write_parts(
                 for k, msg in zip(part_of(cut.at, [m.timestamp for m in chunk]).tolist(), chunk, strict=True):
                     part = writing.get(k)
                     if part is None:
-                        if k in parts:  # finished: a frame in the file after 16 later parts began
+                        if k in parts:  # finished: in the file after _OPEN_AT_MOST later parts began
                             raise NoResultError(_out_of_order(log, msg, names[k]))
                         if len(writing) == _OPEN_AT_MOST:  # the earliest part is done with
-                            current = writing[min(writing)].path
-                            writing.pop(min(writing)).finish()
+                            earliest = writing.pop(min(writing))
+                            current = earliest.path
+                            earliest.finish()
                         current = folder / names[k]
                         start = getattr(report.reader, "start_time", None)  # an ASC's header date
                         part = parts[k] = writing[k] = open_part(current, fmt, start)

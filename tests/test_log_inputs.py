@@ -210,7 +210,8 @@ def test_an_export_of_a_vehicle_bus_without_the_sensor_still_converts_what_there
 def test_an_export_of_a_session_without_its_summary_warns_it_covers_the_frames_so_far(tmp_path: Path) -> None:
     """c2n live writes summary.json when it ends: without it the session is still being recorded
     or its run was killed (was: exported as if final, no word); the warning is on stderr and in
-    the exported summary, first. A session with its summary exports without it."""
+    the exported summary, first. A session with its summary exports without it, and a campaign's
+    row of it, cached while it had none, is analysed again (it kept the warning)."""
     from app.config import load_config
     from app.sinks.recorder import SessionRecorder
 
@@ -235,3 +236,5 @@ def test_an_export_of_a_session_without_its_summary_warns_it_covers_the_frames_s
     (session / "summary.json").write_text(json.dumps(exported))  # the end of the run
     code, _, err = run_cli(["export", str(session), "--no-plots", "--format", "csv"])
     assert code == 0 and "no summary.json" not in err
+    code, _, err = run_cli(["campaign", str(manifest), "--workers", "1"])  # its cached row: said it still
+    assert code == 0 and "no summary.json" not in err, err

@@ -6,6 +6,7 @@ import errno
 import itertools
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -15,7 +16,7 @@ from typing import Any
 import can
 import pytest
 
-from app.campaign.analysis import Job, where
+from app.campaign.analysis import Job, logs_hash, where
 from app.config import Config
 from app.pipeline import Pipeline
 from app.sinks.recorder import SessionRecorder, read_session
@@ -145,6 +146,30 @@ def test_the_parts_read_as_the_one_drive_they_are(tmp_path: Path, config: Config
     )
     raws, _, _ = where(Job(tmp_path / "split", None))
     assert raws == [f / "frames.log" for f in split.folders]
+
+
+def test_a_campaign_of_a_session_in_parts_runs_again_from_its_cache(tmp_path: Path, config: Config) -> None:
+    """A session in parts is one drive in a campaign, its row keyed by every part's hash. Its key
+    was the parts' hashes joined, a name the cache's check did not know: the second run refused
+    its own folder ("holds files c2n did not write"); and eight parts' hashes made a name longer
+    than a file's can be (255 bytes)."""
+    recorder = SessionRecorder(tmp_path / "s", config)
+    assert recorder._spool is not None
+    recorder._spool._file = Capped(recorder._spool._file, 1_000)  # type: ignore[assignment]
+    for msg in _frames(1_500):
+        recorder.on_frame(msg)
+        recorder.flush()
+    recorder.close()
+    recorder.write_summary(build(Pipeline(config).snapshot(), config, ["virtual"]).warned(recorder.notes))
+    assert len(recorder.folders) == 2
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("log,tyre_set\ns,A\n")
+    for _ in range(2):
+        code, _, err = run_cli(["campaign", str(manifest), "--workers", "1"])
+        assert code in (0, 1) and "did not write" not in err and "too long" not in err, err
+    rows = list((tmp_path / "manifest-campaign" / "cache").glob("*-*.json"))
+    assert len(rows) == 1 and len(rows[0].name) == 70
+    assert re.fullmatch("[0-9a-f]{32}", logs_hash(tmp_path / "log", [Path(f"{i}") for i in range(60)], str))
 
 
 def test_a_part_folder_never_enters_one_already_there(tmp_path: Path, config: Config) -> None:

@@ -23,7 +23,7 @@ from app.campaign.row import SessionResult, SessionRow, finite_numbers
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import C2nError, printable
 from app.results.headline import Method
-from app.sinks.recorder import read_session
+from app.sinks.recorder import read_session, unfinished
 from app.user_text import argument
 
 if TYPE_CHECKING:  # the analysis's own modules load where a drive is analysed
@@ -59,10 +59,18 @@ def where(job: Job) -> tuple[list[Path], Path, Path | None]:
     return [job.log], job.config or DEFAULT_CONFIG, None
 
 
-def logs_hash(raws: list[Path], hash_one: Callable[[Path], str]) -> str:
+def logs_hash(given: Path, raws: list[Path], hash_one: Callable[[Path], str]) -> str:
     """A drive's logs' hash: its one log's, or a session's parts' in order, each hashed alone (a
-    part's hash is remembered as a log's is)."""
-    return "+".join(hash_one(raw) for raw in raws)
+    part's hash is remembered as a log's is), then together. A session folder without its summary
+    (still being recorded, or killed) is keyed apart from the same frames with it: its row says
+    the frames may not be the whole drive, and once the summary is written that is not true."""
+    hashes = [hash_one(raw) for raw in raws]
+    if unfinished(given) is not None:
+        hashes.append("unfinished")
+    if len(hashes) == 1:
+        return hashes[0]
+    # one hash of the 32-digit width, whatever the parts: a key is a file's name (at most 255 bytes)
+    return hashlib.blake2b("+".join(hashes).encode(), digest_size=16).hexdigest()
 
 
 def content_hash(paths: list[Path]) -> str:
@@ -116,7 +124,6 @@ def _analysed(raws: list[Path], config: Config, given: Path) -> SessionRow:
     from app.results.within_file import parts_disagree
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
-    from app.sinks.recorder import unfinished
     from app.sources.logs import LogReport, LogSource, drive_identity
     from app.sources.overlap import sample
 

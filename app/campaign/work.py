@@ -32,7 +32,9 @@ from app.output.files import partial_pid, write_json
 CACHE = "cache"
 HASHES = "hashes.json"  # not a row: its stem is no key
 WRITTEN = "written.json"  # the digests of the results each run put in place (``outputs.ours``)
-_ROW_NAME = re.compile(r"[0-9a-f]{32}-[0-9a-f]{32}\.json")  # a row's key: the log's and the config's hashes
+# a row's key: the logs' and the config's hashes (a session's parts' hashes joined by "+" before
+# 2026-11-29, whose campaigns were refused the second time: their cache held "files c2n did not write")
+_ROW_NAME = re.compile(r"(?:[0-9a-f]{32}\+)*[0-9a-f]{32}-[0-9a-f]{32}\.json")
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,7 @@ def run_task(task: Task) -> SessionRow | str:
     """On a worker: the row of one drive, or only its key when that row is known."""
     try:
         raws, config_path, dbc_dir = where(task.job)
-        key = f"{logs_hash(raws, _one_hash)}-{config_hash(config_path, dbc_dir, _one_hash)}"
+        key = f"{logs_hash(task.job.log, raws, _one_hash)}-{config_hash(config_path, dbc_dir, _one_hash)}"
     except (C2nError, OSError) as error:
         message = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
         return SessionRow(error=printable(f"{task.job.log}: {message}"))
@@ -356,7 +358,7 @@ class HashMemo:
     def key(self, job: Job) -> str | None:
         try:
             raws, config_path, dbc_dir = where(job)
-            log_hash = logs_hash(raws, self._hash)
+            log_hash = logs_hash(job.log, raws, self._hash)
             config_key = (config_path, dbc_dir)
             if config_key not in self._configs:
                 self._configs[config_key] = config_hash(config_path, dbc_dir, self._hash)

@@ -384,3 +384,22 @@ def test_replay_and_simulate_show_their_progress_on_a_terminal(drive_log: Path, 
     out = io.StringIO()
     assert main(["simulate", "--out", str(tmp_path / "x.blf")], Console(file=out, force_terminal=True)) == 0
     assert "simulating the constant_radius drive" in out.getvalue()
+
+
+def test_a_ctrl_c_that_passed_through_source_text_still_exits_130(tmp_path: Path) -> None:
+    """A KeyboardInterrupt raised inside an exec() of source text (a signal landing while a
+    dataclass's methods are made) leaves CPython's unhandled-interrupt flag set though c2n caught
+    it: under `python -m`, the interpreter then ended itself by SIGINT (-2), 1 run in 4 of an
+    export ended by SIGTERM, after `c2n: interrupted`."""
+    (tmp_path / "forced.py").write_text(
+        "import sys\n"
+        f"sys.path.insert(0, {str(REPO)!r})\n"
+        "from app.cli import entry, split\n"
+        "def run(args, console):\n"
+        "    exec('raise KeyboardInterrupt')\n"
+        "split.run = run\n"
+        "sys.argv = ['c2n', 'split', 'day.log']\n"
+        "entry()\n"
+    )
+    ended = subprocess.run([sys.executable, "-m", "forced"], cwd=tmp_path, capture_output=True, timeout=120)
+    assert ended.returncode == 130 and ended.stderr.decode().endswith("c2n: interrupted\n"), ended.stderr

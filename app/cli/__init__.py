@@ -74,12 +74,21 @@ def _configure_logging(debug: bool) -> None:
     logging.getLogger("asammdf").setLevel(logging.DEBUG if debug else logging.CRITICAL)
 
 
+INTERRUPTED = 130  # the exit code of a command ended by Ctrl-C, SIGTERM or SIGHUP (128 + SIGINT)
+
+
 def entry() -> NoReturn:
     """The ``c2n`` command (``python -m app``): ``main``, then the exit. What is still alive then
     is frozen first (``gc.freeze``), so the interpreter's last collections do not walk numba's,
     scipy's and pandas's objects once more before the OS frees them all (0.6 s off ``c2n gap``,
     tools/bench.py)."""
     code = main()
+    if code == INTERRUPTED:
+        # A KeyboardInterrupt that passed through an exec() of source text (a dataclass's methods
+        # being made as the signal came) leaves CPython's "unhandled KeyboardInterrupt" flag set,
+        # though main caught it: `python -m app` then ended by SIGINT (-2), 1 run in 4, where 130
+        # was meant. Running source text clears the flag (pythonrun.c, run_eval_code_obj).
+        exec("")
     gc.freeze()
     sys.exit(code)
 
@@ -120,7 +129,7 @@ def main(argv: Sequence[str] | None = None, console: Console | None = None) -> i
         return 2 if isinstance(error, UsageError) else 1
     except KeyboardInterrupt:
         say("c2n: interrupted")
-        return 130
+        return INTERRUPTED
     if own and words.lost is not None and not words.reader_left:
         # a reader that stopped reading (`| head`) wanted no more; any other loss hid the words
         where = "standard error" if to_stdout else "standard output"

@@ -403,3 +403,23 @@ def test_a_ctrl_c_that_passed_through_source_text_still_exits_130(tmp_path: Path
     )
     ended = subprocess.run([sys.executable, "-m", "forced"], cwd=tmp_path, capture_output=True, timeout=120)
     assert ended.returncode == 130 and ended.stderr.decode().endswith("c2n: interrupted\n"), ended.stderr
+
+
+def test_ctrl_c_while_c2n_s_modules_load_is_one_line_and_exit_130(tmp_path: Path) -> None:
+    """Ctrl-C in the command's first 0.7 s, while its modules load, printed the traceback of
+    whichever import it landed in."""
+    (tmp_path / "early.py").write_text(
+        "import os, signal, sys\n"
+        f"sys.path.insert(0, {str(REPO)!r})\n"
+        "class Press:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'app.cli.analyze':  # Ctrl-C as c2n's modules load\n"
+        "            os.kill(os.getpid(), signal.SIGINT)\n"
+        "sys.meta_path.insert(0, Press())\n"
+        "sys.argv = ['c2n', 'demo']\n"
+        "from app.__main__ import run\n"
+        "run()\n"
+    )
+    ended = subprocess.run([sys.executable, "early.py"], cwd=tmp_path, capture_output=True, timeout=120)
+    assert ended.returncode == 130 and ended.stderr == b"c2n: interrupted\n", ended.stderr
+    assert not (tmp_path / "c2n-demo").exists()

@@ -423,3 +423,31 @@ def test_ctrl_c_while_c2n_s_modules_load_is_one_line_and_exit_130(tmp_path: Path
     ended = subprocess.run([sys.executable, "early.py"], cwd=tmp_path, capture_output=True, timeout=120)
     assert ended.returncode == 130 and ended.stderr == b"c2n: interrupted\n", ended.stderr
     assert not (tmp_path / "c2n-demo").exists()
+
+
+@pytest.mark.parametrize("loop", [[], ["--loop"]])
+def test_replay_ended_by_a_signal_says_it_did_not_send_the_whole_log(
+    drive_log: Path, loop: list[str]
+) -> None:
+    """`replay` stopped by SIGTERM said `sent 19760 frames` and exit 0, as if the log had gone
+    out whole. `--loop` alone (until Ctrl-C) ends so as meant: exit 0."""
+    import signal
+
+    child = subprocess.Popen(
+        [sys.executable, "-m", "app", "replay", str(drive_log), "-i", "virtual", "--rate", "1", *loop],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(3.0)  # sending, at the drive's own pace
+    assert child.poll() is None
+    child.send_signal(signal.SIGTERM)
+    out, err = child.communicate(timeout=60)
+    sent = int(out.split("sent ")[1].split(" frames")[0])
+    assert 0 < sent < 100_000 and "Traceback" not in err
+    if loop:
+        assert child.returncode == 0 and "interrupted" not in err, err
+    else:
+        assert child.returncode == 130, err
+        assert f"c2n: interrupted — {sent:,} frames sent, not the whole of {drive_log}" in err

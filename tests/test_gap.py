@@ -45,7 +45,7 @@ def steady_drive(u: float, delta: float, seconds: float = 20.0, dt: float = 0.02
         steady=np.ones(n, dtype=bool),
         speed_source="vehicle speed",
         vehicle_roles=frozenset({"speed", "steer"}),
-        method=Later.now(Method((), None, Summary())),
+        method=Later.now(Method((), None, Summary(), None)),
     )
 
 

@@ -119,21 +119,25 @@ def test_demo_ended_by_sigterm_leaves_no_temporary_folder_and_a_killed_ones_is_r
         [sys.executable, "-m", "app", "demo", "--speedup", "1"],
         cwd=REPO,
         env=env,
-        stdout=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
     try:
         deadline = time.monotonic() + 60
-        while not list(tmp_path.glob(f"{TEMP_PREFIX}*")) and time.monotonic() < deadline:
-            time.sleep(0.1)
+        while not list(tmp_path.glob(f"{TEMP_PREFIX}*/*.truth.json")) and time.monotonic() < deadline:
+            time.sleep(0.05)
         assert list(tmp_path.glob(f"{TEMP_PREFIX}{child.pid}-*")), "the demo never made its folder"
-        time.sleep(1.0)
+        time.sleep(1.0)  # replaying
         child.send_signal(signal.SIGTERM)
-        _, err = child.communicate(timeout=30)
+        out, err = child.communicate(timeout=30)
     finally:
         child.kill()
-    assert child.returncode in (0, 130) and "Traceback" not in err, err  # ended as Ctrl-C ends it
+    # ended as Ctrl-C ends it: the result of the frames replayed, said to be theirs (it said
+    # nothing, exit 0, and set the simulated truth beside it as if the drive had been whole)
+    assert child.returncode == 130 and "Traceback" not in err, err
+    assert "c2n: interrupted — " in err and " frames replayed: the result above is theirs" in err
+    assert "simulated truth" not in out
     assert not list(tmp_path.glob(f"{TEMP_PREFIX}*"))
     # SIGKILL cannot be caught: the folder stays until the next demo finds its process gone
     dead = subprocess.Popen([sys.executable, "-c", "pass"])

@@ -121,6 +121,60 @@ def test_simulate_never_replaces_a_log_or_a_truth_without_force(tmp_path: Path) 
     assert real.read_text().count("\n") > 1000
 
 
+def test_simulate_force_puts_a_log_and_its_truth_in_place_together_or_neither(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The log was put in place, then its truth written: a full disk at the truth left the new
+    drive's log beside the older drive's truth (C2n 18 in the log, 14.87 in its truth), and a
+    folder in the truth's place was found only after the log had been replaced."""
+    log, truth = tmp_path / "a.log", tmp_path / "a.log.truth.json"
+    assert run_cli(["simulate", "--seed", "1", "--out", str(log)])[0] == 0
+    before = log.read_bytes(), truth.read_bytes()
+
+    def full(tmp: Path) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    from app.sim import simulated_drive
+
+    monkeypatch.setattr(simulated_drive, "text_file", lambda text: full)
+    code, _, err = run_cli(["simulate", "--seed", "2", "--c2n", "18", "--out", str(log), "--force"])
+    assert code == 1 and "a.log.truth.json: cannot write the truth (No space left on device)" in err
+    assert (log.read_bytes(), truth.read_bytes()) == before and sorted(tmp_path.iterdir()) == [log, truth]
+    monkeypatch.undo()
+    truth.unlink()
+    truth.mkdir()
+    code, _, err = run_cli(["simulate", "--seed", "2", "--out", str(log), "--force"])
+    assert code == 1 and "cannot write the truth (Is a directory)" in err
+    assert log.read_bytes() == before[0] and sorted(tmp_path.iterdir()) == [log, truth]
+
+
+def test_gap_s_diagnosis_and_report_are_put_in_place_together_or_neither(
+    drive_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--json was written, then the report: a report that failed (a full disk, a file-size limit)
+    left the new diagnosis beside the older report's other verdict."""
+    json_path, report = tmp_path / "g.json", tmp_path / "g.html"
+    json_path.write_text("{}")  # an older run's, as far as the test goes
+    report.write_text("<html>older</html>")
+    from app.output import files as written
+
+    real = written.text_file
+
+    def failing_html(text: str):  # type: ignore[no-untyped-def]
+        if text.startswith("<!DOCTYPE html>"):
+            return lambda tmp: (_ for _ in ()).throw(OSError(errno.EFBIG, os.strerror(errno.EFBIG)))
+        return real(text)
+
+    from app.cli import gap
+
+    monkeypatch.setattr(gap, "text_file", failing_html)
+    argv = ["gap", str(drive_log), "--json", str(json_path), "--report", str(report), "--force"]
+    code, _, err = run_cli(argv)
+    assert code == 1 and "g.html: cannot write the report (File too large)" in err, err
+    assert json_path.read_text() == "{}" and report.read_text() == "<html>older</html>"
+    assert sorted(tmp_path.iterdir()) == sorted([json_path, report])
+
+
 def test_a_name_too_long_for_its_temporary_is_refused_before_anything_is_written(tmp_path: Path) -> None:
     long = tmp_path / ("a" * 247 + ".log")  # the log fits in 255 bytes, its truth would not
     code, _, err = run_cli(["simulate", "--out", str(long)])

@@ -171,3 +171,20 @@ def test_a_vehicle_bus_in_sae_axes_is_named_beside_the_yaw_rate(
     assert any("so C2n stands: ay and steer (a vehicle bus in SAE axes)" in w for w in result["warnings"])
     out, result = analyse(circles, tmp_path, FLIPPED_AY, FLIPPED_STEER)
     assert result["c2n"] is None and "or ay and steer both are (a vehicle bus in SAE axes" in out
+
+
+@pytest.mark.parametrize(
+    ("flips", "role"), [((FLIPPED_YAW,), "role yaw_rate"), (FLIPPED_SIDESLIP, "roles vy and beta")]
+)
+def test_gap_with_a_role_the_wrong_way_round_names_the_role_and_diagnoses_nothing(
+    drive_log: Path, tmp_path: Path, flips: tuple[tuple[str, str], ...], role: str
+) -> None:
+    """A yaw rate or a sideslip the wrong way round read as an effect: `sensor_position_error`,
+    the sensor 1.1 m behind the rear axle, `measure d again`, and a C2n line printing Python's
+    None. The gap now refuses as analyze does, naming the role."""
+    config = config_with(tmp_path, *flips)
+    out_json = tmp_path / "gap.json"
+    code, out, err = run_cli(["gap", str(drive_log), "--config", str(config), "--json", str(out_json)])
+    assert code == 1 and err.count("\n") == 1 and f"{drive_log}: no diagnosis — " in err, err
+    assert f"check `scale` of the {role}" in err and not out_json.exists()
+    assert "None" not in out + err and "sensor_position_error" not in out + err

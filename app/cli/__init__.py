@@ -14,7 +14,7 @@ from rich.console import Console
 
 from app import __version__
 from app.cli import analyze, campaign, demo, export, gap, gap_check, live, replay, simulate, split
-from app.cli.common import ENDING, interrupted_by
+from app.cli.common import ENDING, INTERRUPTED, interrupted_by
 from app.cli.terminal import LosableStream, say
 from app.errors import C2nError, UsageError, printable
 
@@ -72,9 +72,6 @@ def _configure_logging(debug: bool) -> None:
     logging.getLogger("can").setLevel(logging.DEBUG if debug else logging.ERROR)
     # asammdf logs a damaged MF4 as an ERROR with a traceback; the reader's error says it in one line
     logging.getLogger("asammdf").setLevel(logging.DEBUG if debug else logging.CRITICAL)
-
-
-INTERRUPTED = 130  # the exit code of a command ended by Ctrl-C, SIGTERM or SIGHUP (128 + SIGINT)
 
 
 def entry() -> NoReturn:

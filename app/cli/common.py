@@ -160,6 +160,8 @@ def add_force(parser: argparse.ArgumentParser) -> None:
     )
 
 
+INTERRUPTED = 130  # the exit code of a command ended by Ctrl-C, SIGTERM or SIGHUP (128 + SIGINT)
+
 # The signals that end a command as Ctrl-C does: Ctrl-C, a shutdown's or `kill`'s SIGTERM, and the
 # terminal closed or an ssh session dropped (SIGHUP, POSIX only).
 ENDING: tuple[signal.Signals, ...] = tuple(

@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.text import Text
 
-from app.cli.common import ENDING, SEED, add_config, interrupted_by, number
+from app.cli.common import ENDING, INTERRUPTED, SEED, add_config, interrupted_by, number
+from app.cli.terminal import say
 from app.config import Config, load_config
 from app.errors import C2nError
 from app.output import files
@@ -52,6 +53,7 @@ class Player(threading.Thread):
         self.finished = threading.Event()
         self.error: BaseException | None = None
         self.sent = 0
+        self.whole = False  # every frame of the log sent: not stopped first
 
     def run(self) -> None:
         from app.sources.logs import LogReport, read_log
@@ -63,6 +65,8 @@ class Player(threading.Thread):
                     break
                 self.bus.send(msg)
                 self.sent += 1
+            else:
+                self.whole = True
         except Exception as error:
             self.error = error
         finally:
@@ -135,6 +139,12 @@ def _replay(
     snapshot = pipeline.snapshot()
     headline = snapshot.headline
     print_result(console, snapshot)
+    if not player.whole:  # Ctrl-C, SIGTERM: no word of the truth, which is the whole drive's
+        say(
+            f"c2n: interrupted — {player.sent:,} of the drive's {truth['frames']:,} frames replayed: "
+            "the result above is theirs"
+        )
+        return INTERRUPTED
     if headline is not None:
         error = 100.0 * (headline.c2n / truth["c2n"] - 1.0)
         console.print(

@@ -9,9 +9,9 @@ from rich.console import Console
 
 from app.cli.common import ENDING, add_config, add_force, interrupted_by
 from app.config import load_config
-from app.errors import need
+from app.errors import NoResultError, need
 from app.gap.result import GapResult
-from app.output.files import write_json
+from app.output.files import STDOUT, json_text, text_file, write_text, write_together
 from app.output.paths import DIAGNOSIS_JSON, HTML_REPORT, Output, check, config_files
 
 
@@ -57,17 +57,28 @@ def run(args: argparse.Namespace, console: Console) -> int:
             from app.gap.diagnose import diagnose  # imported while the background works
 
             diagnosis = diagnose(measured, config, workers=workers)
+    if measured.sign_problem is not None:  # a role the wrong way round reads as an effect (d at −1.1 m)
+        raise NoResultError(f"{', '.join(map(str, args.logs))}: no diagnosis — {measured.sign_problem}")
     result = diagnosis.result
+    texts = []  # (where, text, what): both made, then both written — never one run's beside another's
     if args.json:
-        write_json(args.json, result.to_json(), "the diagnosis")
+        texts.append((args.json, json_text(result.to_json()), "the diagnosis"))
     if args.report:
         from app.gap.report import render
-        from app.sinks.html import write_html
 
-        write_html(render(diagnosis, "c2n gap", [str(p) for p in args.logs]), args.report)
+        texts.append((args.report, render(diagnosis, "c2n gap", [str(p) for p in args.logs]), "the report"))
+    write_together([(path, text_file(text), what) for path, text, what in texts if path != STDOUT])
+    for path, text, what in texts:
+        if path == STDOUT:
+            write_text(path, text, what)
     for line in lines(result):
         console.print(line, highlight=False)
     return 0
+
+
+def _c2n(value: float | None) -> str:
+    """A C2n of the diagnosis, or the words for none (it printed Python's ``None``)."""
+    return "none" if value is None else str(value)
 
 
 _CALIBRATION_LABELS = {
@@ -99,11 +110,11 @@ def lines(result: GapResult) -> list[str]:
             f"[{low:.4g}, {high:.4g}]{bound}{held}"
         )
     c2n = result.c2n
-    corrected = f", with the effect taken out {c2n.corrected}" if c2n.corrected is not None else ""
+    corrected = f", with the effect taken out {_c2n(c2n.corrected)}" if c2n.corrected is not None else ""
     out.append(
-        f"  C2n [1/rad]: config {c2n.nominal}, calibrated model {c2n.calibrated}, "
-        f"the method on the measured sideslip {c2n.measured}{corrected} "
-        f"(the pipeline's headline {c2n.pipeline})"
+        f"  C2n [1/rad]: config {_c2n(c2n.nominal)}, calibrated model {_c2n(c2n.calibrated)}, "
+        f"the method on the measured sideslip {_c2n(c2n.measured)}{corrected} "
+        f"(the pipeline's headline {_c2n(c2n.pipeline)})"
     )
     for row in result.located[:3]:
         out.append(

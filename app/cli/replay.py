@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 
-from app.cli.common import add_bus, bus_kwargs, channels, number
+from app.cli.common import INTERRUPTED, add_bus, bus_kwargs, channels, number
+from app.cli.terminal import say
 from app.errors import BusError, C2nError, UsageError, printable
 from app.user_text import shown
 
@@ -202,11 +203,16 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 if not sent % 512:  # where the reader is in the file (a loop starts it again)
                     progress.update(task, completed=report.bytes_read() or 0, sent=sent)
     except KeyboardInterrupt:
-        pass
+        interrupted = True
+    else:
+        interrupted = False
     finally:
         for bus in buses:
             bus.shutdown()
     console.print(f"sent {sent} frames from {shown(args.log)}", style="dim")
+    if interrupted and args.loop is not None:  # --loop alone ends so, as meant; N plays did not
+        say(f"c2n: interrupted — {sent:,} frames sent, not the whole of {shown(args.log)}")
+        return INTERRUPTED
     if _in_process_only(args.interface):
         console.print(
             "c2n: note: python-can's -i virtual reaches only buses in this process: no other program "

@@ -45,6 +45,7 @@ class Method:
     crossings: tuple[Crossing, ...]
     regression: RegressionFit | None
     summary: Summary
+    sign_problem: str | None  # a role the wrong way round (``Snapshot.sign_problem``)
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,10 @@ class Measured:
     @property
     def summary(self) -> Summary:
         return self.method.get().summary
+
+    @property
+    def sign_problem(self) -> str | None:
+        return self.method.get().sign_problem
 
     @property
     def heading(self) -> np.ndarray:
@@ -189,7 +194,10 @@ def _checked(source: LogSource, trace: Trace, logs: Sequence[Path]) -> Trace:
 
 def _method(snapshot: Snapshot, config: Config, logs: Sequence[Path]) -> Method:
     return Method(
-        snapshot.crossings, snapshot.regression, build_summary(snapshot, config, [str(p) for p in logs])
+        snapshot.crossings,
+        snapshot.regression,
+        build_summary(snapshot, config, [str(p) for p in logs]),
+        snapshot.sign_problem,
     )
 
 

@@ -57,25 +57,51 @@ def write_atomically(path: Path, write: Callable[[Path], object], what: str) -> 
     report"). Whatever stops the write (an error, Ctrl-C) takes the temporary with it; one a
     killed run left (its process gone) goes at the next write of the same file. The content is
     on the disk before the rename, the rename before this returns: a power cut too leaves one."""
-    target = Path(os.path.realpath(path)) if os.path.islink(path) else path
-    tmp = partial_path(target)
+    write_together([(path, write, what)])
+
+
+def write_together(files: Sequence[tuple[Path, Callable[[Path], object], str]]) -> None:
+    """Files that belong together (a log and its truth, a diagnosis and its report), each
+    ``(path, write, what)`` as ``write_atomically`` takes one: every one is written to its
+    temporary beside it and put on the disk, and only then are they renamed into place, one
+    after the other with Ctrl-C and SIGTERM held back — a full disk or an interrupt leaves the
+    older set or the new, never a new log beside an older log's truth."""
+    staged: list[tuple[Path, Path]] = []  # (temporary, target)
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        if target.exists() and not (target.is_file() or target.is_dir()):  # never renamed over
-            raise OutputError(f"{path}: is a device or a pipe, not a file — cannot write {what} there")
-        _remove_stale_partials(target)
-        write(tmp)
-        synced(tmp)
-        os.replace(tmp, target)
-        synced(target.parent)
-    except OSError as error:
-        with contextlib.suppress(OSError):  # a file in the folder's place: there is no tmp either
-            tmp.unlink(missing_ok=True)
-        raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink(missing_ok=True)
-        raise
+        for path, write, what in files:
+            target = Path(os.path.realpath(path)) if os.path.islink(path) else path
+            staged.append((partial_path(target), target))
+            try:
+                target.parent.mkdir(parents=True, exist_ok=True)
+                if target.is_dir():  # refused before any file of the set is put in place
+                    raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR))
+                if target.exists() and not target.is_file():  # never renamed over
+                    raise OutputError(
+                        f"{path}: is a device or a pipe, not a file — cannot write {what} there"
+                    )
+                _remove_stale_partials(target)
+                write(staged[-1][0])
+                synced(staged[-1][0])
+            except OSError as error:
+                raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
+        with _held():  # a held Ctrl-C arrives after the last rename
+            for (tmp, target), (path, _, what) in zip(staged, files, strict=True):
+                try:
+                    os.replace(tmp, target)
+                except OSError as error:  # a file in the folder's place (EISDIR)
+                    raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
+        folders: set[Path] = set()
+        for (_, target), (path, _, what) in zip(staged, files, strict=True):
+            if target.parent not in folders:
+                folders.add(target.parent)
+                try:
+                    synced(target.parent)
+                except OSError as error:
+                    raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
+    finally:
+        for tmp, _ in staged:
+            with contextlib.suppress(OSError):  # put in place: it is gone already
+                tmp.unlink(missing_ok=True)
 
 
 def _remove_stale_partials(path: Path) -> None:
@@ -119,11 +145,20 @@ def write_text(path: Path, text: str, what: str) -> None:
         except OSError as error:  # a closed pipe
             raise OutputError(f"standard output: cannot write {what} ({error.strerror or error})") from error
         return
-    write_atomically(path, lambda tmp: tmp.write_text(as_text(text), encoding="utf-8"), what)
+    write_atomically(path, text_file(text), what)
 
 
 def write_json(path: Path, data: Any, what: str) -> None:
-    write_text(path, json.dumps(data, indent=2) + "\n", what)
+    write_text(path, json_text(data), what)
+
+
+def json_text(data: Any) -> str:
+    return json.dumps(data, indent=2) + "\n"
+
+
+def text_file(text: str) -> Callable[[Path], object]:
+    """What writes ``text`` (UTF-8) to a file, for ``write_atomically`` and ``write_together``."""
+    return lambda tmp: tmp.write_text(as_text(text), encoding="utf-8")
 
 
 @contextlib.contextmanager

@@ -11,7 +11,7 @@ from app import paper
 from app.config import Config
 from app.dbc import load_dbc
 from app.errors import C2nError, LogFileError, need
-from app.output.files import write_atomically, write_json
+from app.output.files import json_text, text_file, write_together
 from app.sim.drive import DriveTrace, simulate
 from app.sim.scenarios import SCENARIOS, SweepPlan
 from app.sim.sensors import SensorSetup, frames
@@ -106,9 +106,8 @@ def write_drive(drive: SimulatedDrive, log: Path) -> Path:
             for message in drive.messages:
                 writer.on_message_received(message)
 
-    write_atomically(log, write, "the log")
-    path = truth_path(log)
-    write_json(path, drive.truth, "the truth")
+    path = truth_path(log)  # both written, then both put in place: never a log beside another's truth
+    write_together([(log, write, "the log"), (path, text_file(json_text(drive.truth)), "the truth")])
     return path
 
 

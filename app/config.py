@@ -5,6 +5,8 @@ Every mistake becomes a one-line ConfigError naming the file, the key and the fi
 
 import difflib
 import math
+import os
+import stat
 import tomllib
 import types
 import typing
@@ -378,8 +380,12 @@ def load_config(path: Path | str = DEFAULT_CONFIG, dbc_dir: Path | None = None) 
     """
     path = Path(path)
     try:
-        with path.open("rb") as file:
-            table = tomllib.load(file)
+        # without waiting (O_NONBLOCK): a pipe with no writer held `--config` forever
+        with os.fdopen(os.open(path, os.O_RDONLY | os.O_NONBLOCK), "rb") as file:
+            if not stat.S_ISREG(os.fstat(file.fileno()).st_mode):  # a folder fails to open: EISDIR
+                raise ConfigError(f"{path}: not a file (a pipe or a device) — pass --config with a TOML file")
+            # a byte-order mark (Windows Notepad's "UTF-8") is no TOML: read past it
+            table = tomllib.loads(file.read().decode("utf-8").removeprefix("\ufeff"))
     except FileNotFoundError as error:
         raise ConfigError(f"{path}: config file not found — pass --config with a TOML file") from error
     except tomllib.TOMLDecodeError as error:
@@ -426,6 +432,12 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
         )
     dbcs = _load_dbcs(path, table, dbc_dir)
     roles = _roles(path, table, dbcs)
+    source = filter_settings.sideslip_source
+    if source != "auto" and source not in roles:  # it gave no result, and blamed the driving
+        raise ConfigError(
+            f'{path}: [filter] sideslip_source = "{source}" but [roles] has no {source} — add the role, '
+            'or set sideslip_source = "auto"'
+        )
     status = _status(path, table, "sensor_status", OPTICAL_ROLES, dbcs) + _status(
         path, table, "beta_status", ("beta",), dbcs
     )
@@ -517,6 +529,12 @@ def _load_dbcs(path: Path, table: dict[str, Any], dbc_dir: Path | None) -> tuple
             raise ConfigError(f"{path}: [dbc] files: {where} cannot be read ({why})") from error
 
     resolved = {name: locate(name) for name in files}
+    for name, where in resolved.items():  # it said "id 0x7E0 is in both x.dbc and x.dbc"
+        first = next(other for other, there in resolved.items() if there == where)
+        if first != name:
+            raise ConfigError(
+                f'{path}: [dbc] files lists {where.name} twice ("{first}" and "{name}") — list it once'
+            )
     for key, channel in channels.items():
         if key not in resolved and locate(key) not in resolved.values():
             raise ConfigError(

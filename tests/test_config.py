@@ -242,3 +242,44 @@ def test_a_slope_s_load_transfer_prior_is_the_car_s_own(write_config: Callable[[
         load_config(write_config(tall))
     stated_tall = tall + "\n[priors]\nload_transfer_per_g = 0.5\n"  # the user's figure stands
     assert load_config(write_config(stated_tall)).priors.load_transfer_per_g == 0.5
+
+
+def test_a_config_that_is_a_pipe_or_a_folder_is_refused_without_waiting(tmp_path: Path) -> None:
+    """A pipe with no writer given as --config held the command forever (a log or a DBC that is a
+    pipe was refused at once)."""
+    import os
+
+    pipe = tmp_path / "car.toml"
+    os.mkfifo(pipe)
+    with pytest.raises(
+        ConfigError, match=re.escape(f"{pipe}: not a file (a pipe or a device) — pass --config")
+    ):
+        load_config(pipe)
+    with pytest.raises(ConfigError, match=re.escape(f"{tmp_path}: cannot read (Is a directory)")):
+        load_config(tmp_path)
+
+
+def test_a_config_saved_with_a_byte_order_mark_loads(write_config: Callable[[str], Path]) -> None:
+    """Windows Notepad's "UTF-8" begins with a byte-order mark: it read as `not valid TOML
+    (Invalid statement (at line 1, column 1))`."""
+    plain = write_config(GOOD)
+    marked = plain.with_name("marked.toml")
+    marked.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    assert load_config(marked).roles == load_config(plain).roles
+
+
+def test_a_sideslip_source_without_its_role_and_a_dbc_listed_twice_are_named(
+    write_config: Callable[[str], Path],
+) -> None:
+    """`sideslip_source = "vy"` without a vy role gave no C2n and told the driver to drive again;
+    a DBC listed twice was `id 0x7E0 is in both kistler_smotion.dbc and kistler_smotion.dbc — set
+    [channels]`."""
+    no_vy = re.sub(r"(?m)^vy = .*$", 'beta = "Correvit.Angle_cor"', GOOD)
+    no_vy += '\n[filter]\nsideslip_source = "vy"\n'
+    with pytest.raises(ConfigError, match=re.escape('[filter] sideslip_source = "vy" but [roles] has no vy')):
+        load_config(write_config(no_vy))
+    twice = GOOD.replace(
+        '"{dbc}/vehicle_ford.dbc"]', '"{dbc}/vehicle_ford.dbc", "{dbc}/../dbc/kistler_smotion.dbc"]'
+    )
+    with pytest.raises(ConfigError, match=re.escape("[dbc] files lists kistler_smotion.dbc twice (")):
+        load_config(write_config(twice))

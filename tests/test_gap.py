@@ -8,6 +8,7 @@ import math
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
+import can
 import numpy as np
 import pytest
 
@@ -25,7 +26,7 @@ from app.gap.result import BeforeAfter, C2nEffect, Effect, GapC2n, GapNoise, Gap
 from app.sim.simulated_drive import DriveOptions, simulate_drive, write_drive
 from app.sim.vehicle_model import BicycleParams
 from app.sinks.summary import Summary
-from tests.simulated import FAST_SENSORS, REPO
+from tests.simulated import FAST_SENSORS, REPO, cached_drive
 
 
 def steady_drive(u: float, delta: float, seconds: float = 20.0, dt: float = 0.02) -> Measured:
@@ -669,3 +670,22 @@ def test_the_compiled_model_is_the_numpy_reference_step_for_step() -> None:
             a, b = getattr(compiled, name), getattr(reference, name)
             assert np.array_equal(np.isnan(a), np.isnan(b)), name
             assert np.nanmax(np.abs(a - b)) <= 1e-12 * np.nanmax(np.abs(b)), (name, mods)
+
+
+def test_gap_of_two_drives_or_one_drive_twice_is_refused_as_analyze_refuses(
+    drive_log: Path, tmp_path: Path
+) -> None:
+    """`c2n gap` merges its logs as one drive's channels: two drives on two sets of tyres gave a
+    confident `roll_steer`, the axle's C2n +9 % from the tyre's, with no word; a drive and a copy
+    of part of it were diagnosed as one. Each is now analysed alone first, as analyze does."""
+    other = tmp_path / "other tyres.blf"
+    with can.Logger(other) as writer:
+        for m in cached_drive("constant_radius", 42, 18.0).messages:
+            writer.on_message_received(m)
+    code, out, err = run_cli(["gap", str(drive_log), str(other), "--json", str(tmp_path / "g.json")])
+    assert code == 1 and err.startswith("c2n: error: the drives disagree, each alone: ") and out == "", err
+    assert err.endswith("diagnose each drive alone (the logs of one gap are one drive's channels, merged)\n")
+    copy = tmp_path / "copy.blf"
+    copy.write_bytes(drive_log.read_bytes())
+    code, _, err = run_cli(["gap", str(drive_log), str(copy)])
+    assert code == 1 and "hold the same driving" in err and not (tmp_path / "g.json").exists()

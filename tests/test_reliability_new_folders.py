@@ -41,6 +41,21 @@ def _foreground() -> None:
     signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
+def _children(pid: int) -> list[int]:
+    """The processes ``pid`` made (Linux's /proc; elsewhere none are looked for)."""
+    listed = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(p) for p in listed.read_text().split()] if listed.exists() else []
+
+
+def _alive(pid: int) -> bool:
+    """Running, or stopped: not gone and not a zombie waiting for its parent's reaper."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
 def _first_file(child: subprocess.Popen[str], folder: Path, pattern: str) -> None:
     """Wait until the run has written its first drive (wherever it writes it)."""
     deadline = time.monotonic() + 120
@@ -68,10 +83,16 @@ def test_an_interrupted_pack_or_campaign_leaves_nothing_under_its_name(tmp_path:
     child = _start(out, kind)
     try:
         _first_file(child, tmp_path, KINDS[kind][1])
+        workers = _children(child.pid)
         child.kill()
         child.wait(timeout=30)
     finally:
         child.kill()
+    # its workers end with it (a campaign's worker was left blocked on its task pipe for good)
+    deadline = time.monotonic() + 30
+    while [pid for pid in workers if _alive(pid)] and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [pid for pid in workers if _alive(pid)]
     assert not out.exists()
     left = [p.name for p in tmp_path.iterdir() if p.name != "mine.txt"]
     assert len(left) == 1 and left[0].startswith(f".{out.name}.partial-{child.pid}-"), left

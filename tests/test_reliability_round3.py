@@ -391,3 +391,9 @@ def test_sweeps_of_two_tyre_sets_are_not_pooled_or_merged(how: str, two_tyre_set
     assert line.startswith(f"c2n: error: the drives disagree, each alone: {soft} 15.")
     assert f"{stiff} 20." in line or f"{stiff} 19." in line
     assert "C2n =" not in printed
+
+
+def test_replay_map_without_channels_says_to_name_them(drive_log: Path) -> None:
+    """`--map 5=can9` with no -c said `BUS one of the -c channels None`."""
+    code, _, err = run_cli(["replay", str(drive_log), "-i", "virtual", "--map", "5=can9"])
+    assert code == 2 and err == "c2n: error: --map 5=can9: want LOG=BUS with BUS a channel given with -c\n"

@@ -16,7 +16,6 @@ import os
 import re
 import signal
 import socket
-import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass, replace
@@ -28,6 +27,7 @@ from app.campaign.manifest import Manifest
 from app.campaign.row import SessionRow
 from app.errors import C2nError, printable
 from app.output.files import partial_pid, write_json
+from app.sim.workers import ends_with_parent
 
 CACHE = "cache"
 HASHES = "hashes.json"  # not a row: its stem is no key
@@ -84,14 +84,7 @@ def _start_worker() -> None:
     ends when the campaign does, however that ends: a fork server's children are not the
     campaign's, and would live on after a kill -9 of it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    parent = multiprocessing.parent_process()
-    if parent is not None:
-        threading.Thread(target=_end_with, args=(parent,), daemon=True).start()
-
-
-def _end_with(parent: multiprocessing.process.BaseProcess) -> None:
-    parent.join()  # its sentinel: returns when the campaign's process has gone
-    os._exit(1)
+    ends_with_parent()
 
 
 CONNECT_TIMEOUT_S = 10.0  # a scheduler on a reachable network answers in far less

@@ -52,13 +52,14 @@ _FIX = {
     "pool": "pool one set of tyres",
     "merge": "merge the channels of one drive, pool drives that agree",
     "one": "analyse each alone, or --pool drives of one set of tyres",
+    "gap": "diagnose each drive alone (the logs of one gap are one drive's channels, merged)",
     "within": "split the log at its pauses (c2n split {log}) and analyse each part alone, or --pool the "
     "parts of one set of tyres",
 }
 
 
-def _each_alone(
-    logs: list[Path], config: "Config", how: Literal["pool", "merge", "one"], console: Console
+def each_alone(
+    logs: list[Path], config: "Config", how: Literal["pool", "merge", "one", "gap"], console: Console
 ) -> None:
     """Each log analysed alone first: drives pooled, or given as one, must agree
     (``app.results.agreement``), files merged must be channels of one drive, not whole drives
@@ -94,7 +95,7 @@ def _each_alone(
             "twice — a second logger on the bus, a copy cut or thinned, or two simulations of one --seed "
             "— which would count twice; analyse one of them"
         )
-    if how == "merge" and len(alone) < 2:
+    if how in ("merge", "gap") and len(alone) < 2:
         return
     if quasi_only and how == "pool":  # the pooled run fits each drive's quasi-steady samples alone
         return  # too and says, with each one's result in the summary, why there is no C2n
@@ -133,7 +134,7 @@ def _one_drive(reports: "list[LogReport]", config: "Config", console: Console) -
             if gap > 0
             else f"begins {-gap:.3g} s before {before.path.name} ends"
         )
-        _each_alone([r.path for r in reports], config, "one", console)
+        each_alone([r.path for r in reports], config, "one", console)
         note = (
             f"{where}: separate recordings, run on as one drive (one head offset ψ0 and yaw-rate bias "
             "for both) — --pool takes separate drives of one car, --merge the channels of one drive"
@@ -196,9 +197,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         drives = [[log] for log in kept]
     if (args.pool or args.merge) and len(drives[0] if args.merge else drives) > 1:
         if args.merge:
-            _each_alone(drives[0], config, "merge", console)
+            each_alone(drives[0], config, "merge", console)
         else:
-            _each_alone([d[0] for d in drives], config, "pool", console)
+            each_alone([d[0] for d in drives], config, "pool", console)
     for number, logs in enumerate(drives):
         source = LogSource(
             logs, merge=args.merge, triage=pipeline.decoder, spaced=spaced, pause_s=config.filter.gap_reset_s

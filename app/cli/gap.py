@@ -49,6 +49,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
         [*args.logs, *config_files(config)],
         args.force,
     )
+    if len(args.logs) > 1:  # two drives merged are neither: refused as analyze refuses them
+        from app.cli.analyze import each_alone
+
+        each_alone(args.logs, config, "gap", console)
     workers = os.cpu_count() or 1
     with interrupted_by(*ENDING):  # each stops the forked processes too
         with console.status("reading the drive…"):  # the method's detector and regressions go on

@@ -77,10 +77,9 @@ class Router:
         for item in mapping:
             source, sep, target = item.partition("=")
             if not sep or not source or target not in self.by_name:
-                raise UsageError(
-                    f"--map {printable(item)}: want LOG=BUS with BUS one of the -c channels "
-                    f"{', '.join(self.by_name)}"
-                )
+                named = [name for name in self.by_name if name != "None"]  # a bus opened without -c
+                listed = f"one of the -c channels {', '.join(named)}" if named else "a channel given with -c"
+                raise UsageError(f"--map {printable(item)}: want LOG=BUS with BUS {listed}")
             if log_channels is not None:
                 source = log_channel(source, log_channels, item)
             self.routes[source] = self.by_name[target]

@@ -30,6 +30,7 @@ from app.sim import commonroad
 from app.sim.effects import EFFECT_NAMES, Effect, draw_effect
 from app.sim.imperfections import HANDBOOK_SPREAD, NO_IMPERFECTIONS, Imperfections, handbook, of_session
 from app.sim.standard import STANDARD_PLAN, StandardOptions, StandardPlan, simulate_standard
+from app.sim.workers import ends_with_parent
 
 LOG_NAME = "drive.blf"
 _EFFECT_STREAM = 0xEFFEC7  # the effect's draw has a random stream of its own, apart from the noise
@@ -153,7 +154,7 @@ def _write_cases(
             if on_case:
                 on_case(results[-1])
     else:
-        executor = ProcessPoolExecutor(max_workers=workers)
+        executor = ProcessPoolExecutor(max_workers=workers, initializer=ends_with_parent)
         try:
             futures: list[Future[CaseResult]] = [executor.submit(_write_case, *job) for job in jobs]
             for future in as_completed(futures):

@@ -25,6 +25,7 @@ from app.errors import C2nError, OutputError
 from app.output.files import folder_atomically, write_json, write_text
 from app.sim.pack import write_log
 from app.sim.simulated_drive import DriveOptions, simulate_drive
+from app.sim.workers import ends_with_parent
 
 # tyre set -> (true C2n [1/rad], pressure [kPa]): stiffer with pressure, as tyres are
 TYRE_SETS: dict[str, tuple[float, float]] = {"A": (13.8, 200.0), "B": (14.9, 230.0), "C": (16.1, 260.0)}
@@ -105,7 +106,8 @@ def _write_sessions(
 ) -> None:
     (out / "logs").mkdir(parents=True, exist_ok=True)
     jobs = [(Path(config_path), out / "logs" / f"{spec.name}.blf", spec, sensor) for spec in specs]
-    pool = ProcessPoolExecutor(max_workers=max(1, min(workers or os.cpu_count() or 1, len(specs))))
+    workers = max(1, min(workers or os.cpu_count() or 1, len(specs)))
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=ends_with_parent)
     try:
         futures = {pool.submit(_write_session, *job): job[2] for job in jobs}
         for future in as_completed(futures):

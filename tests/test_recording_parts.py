@@ -153,13 +153,7 @@ def test_a_campaign_of_a_session_in_parts_runs_again_from_its_cache(tmp_path: Pa
     was the parts' hashes joined, a name the cache's check did not know: the second run refused
     its own folder ("holds files c2n did not write"); and eight parts' hashes made a name longer
     than a file's can be (255 bytes)."""
-    recorder = SessionRecorder(tmp_path / "s", config)
-    assert recorder._spool is not None
-    recorder._spool._file = Capped(recorder._spool._file, 1_000)  # type: ignore[assignment]
-    for msg in _frames(1_500):
-        recorder.on_frame(msg)
-        recorder.flush()
-    recorder.close()
+    recorder, _ = _recorded_in_parts(tmp_path / "s", config)
     recorder.write_summary(build(Pipeline(config).snapshot(), config, ["virtual"]).warned(recorder.notes))
     assert len(recorder.folders) == 2
     manifest = tmp_path / "manifest.csv"

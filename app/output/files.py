@@ -71,7 +71,7 @@ def write_together(files: Sequence[tuple[Path, Callable[[Path], object], str]]) 
         for path, write, what in files:
             target = Path(os.path.realpath(path)) if os.path.islink(path) else path
             staged.append((partial_path(target), target))
-            try:
+            with _said_of(path, what):
                 target.parent.mkdir(parents=True, exist_ok=True)
                 if target.is_dir():  # refused before any file of the set is put in place
                     raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR))
@@ -82,26 +82,29 @@ def write_together(files: Sequence[tuple[Path, Callable[[Path], object], str]]) 
                 _remove_stale_partials(target)
                 write(staged[-1][0])
                 synced(staged[-1][0])
-            except OSError as error:
-                raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
         with _held():  # a held Ctrl-C arrives after the last rename
             for (tmp, target), (path, _, what) in zip(staged, files, strict=True):
-                try:
+                with _said_of(path, what):
                     os.replace(tmp, target)
-                except OSError as error:  # a file in the folder's place (EISDIR)
-                    raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
         folders: set[Path] = set()
         for (_, target), (path, _, what) in zip(staged, files, strict=True):
             if target.parent not in folders:
                 folders.add(target.parent)
-                try:
+                with _said_of(path, what):
                     synced(target.parent)
-                except OSError as error:
-                    raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
     finally:
         for tmp, _ in staged:
             with contextlib.suppress(OSError):  # put in place: it is gone already
                 tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def _said_of(path: Path, what: str) -> Iterator[None]:
+    """An OSError of the body as the OutputError that names the file: `PATH: cannot write WHAT (why)`."""
+    try:
+        yield
+    except OSError as error:
+        raise OutputError(f"{path}: cannot write {what} ({error.strerror or error})") from error
 
 
 def _remove_stale_partials(path: Path) -> None:

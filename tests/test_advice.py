@@ -277,3 +277,17 @@ def test_one_frame_is_one_frame_in_the_warnings(config: Config) -> None:
     assert advice.time_jumps(one) == "timestamps went backwards once: the filter restarted"
     two = replace(one, frames=replace(frames, rejected=Counter({"no sensor status yet (vx)": 2})))
     assert advice.values_dropped(two) == ("2 frames' values dropped: no sensor status yet (vx)",)
+
+
+def test_a_lost_filter_names_the_process_noise_of_each_sensor_it_lost(config: Config) -> None:
+    from app.estimate.motion_model import FilterCounts
+
+    assert advice.filter_lost(Findings(config=config, filter_counts=FilterCounts(outliers=40))) is None
+    lost = FilterCounts(lost_yaw=1, lost_speed=2)
+    said = advice.filter_lost(Findings(config=config, filter_counts=lost)) or ""
+    assert said.startswith("the filter lost the car 3 times (vehicle speed 2, yaw 1:")
+    assert "raise [filter] q_r (0.5), q_u (0.05), or check" in said  # the defaults: no "default" said
+    gated = replace(config, filter=replace(config.filter, innovation_gate=4.0, q_r=1e-4))
+    said = advice.filter_lost(Findings(config=gated, filter_counts=FilterCounts(lost_yaw=1))) or ""
+    assert "the filter lost the car 1 time (yaw 1:" in said
+    assert "raise [filter] q_r (0.0001; default 0.5) or innovation_gate (4; default 30)" in said

@@ -92,10 +92,12 @@ def test_a_spike_is_gated_but_a_real_jump_is_believed(motion_filter: Filter) -> 
         f.step(rec)
     e = f.step(record(2.0, yaw_rate=0.9))  # one wild gyro sample
     assert f.counts.outliers == 1
+    assert f.counts.lost == {}  # one frame: a glitch, not the car lost
     assert e is not None and e.r_radps == pytest.approx(0.1, abs=1e-3)
     for k in range(1, 20):  # the gyro insists: the model lost the car, believe the sensor
         e = f.step(record(2.0 + k / 100, yaw_rate=0.9))
     assert e is not None and e.r_radps == pytest.approx(0.9, abs=0.05)
+    assert set(f.counts.lost) == {"yaw"}  # believed from the fourth frame beyond the gate on
 
 
 def test_health_is_about_one_when_the_noise_model_fits(motion_filter: Filter) -> None:

@@ -75,6 +75,7 @@ def _settings(name: str) -> FilterSettings:
         "default": FilterSettings(),
         "vy": FilterSettings(sideslip_source="vy"),
         "beta, fixed σ": FilterSettings(sideslip_source="beta", sigma_beta_deg=0.05),
+        "too slow": FilterSettings(q_u=1e-7, q_r=1e-9),  # cannot follow the sweep or the turn-in
     }[name]
 
 
@@ -86,6 +87,7 @@ def _settings(name: str) -> FilterSettings:
         ("step_steer", 0.45, "default", (), True),
         ("constant_radius", 0.45, "beta, fixed σ", ("yaw_rate",), True),  # r from a_y/u
         ("constant_radius", 0.0, "default", ("yaw_rate", "ay"), False),  # no yaw information
+        ("step_steer", 0.0, "too slow", (), False),  # the model loses the car
     ],
 )
 def test_the_compiled_filter_gives_filterpys_estimates_over_a_drive(
@@ -125,6 +127,10 @@ def test_the_compiled_filter_gives_filterpys_estimates_over_a_drive(
         assert (
             counts.resets >= 2 and counts.time_jumps == 1 and counts.late_frames > 0 and counts.outliers > 0
         )
+    # A spike is one frame and a dropout a restart: neither loses the car. A model too slow for the
+    # drive does, and so does a fixed σ_β of 0.05° (not learned) at the turn-in's sideslip
+    # transient, twice, disturbed or not.
+    assert bool(fast.counts.lost) == (settings in ("too slow", "beta, fixed σ"))
     assert fast.noise_sigma() == pytest.approx(reference.noise_sigma(), rel=1e-9)
     assert fast.health == pytest.approx(reference.health, rel=1e-9)
     for ours, theirs in zip(fast.state(), reference.state(), strict=True):

@@ -312,3 +312,21 @@ def test_circles_beyond_the_linear_range_are_flagged_not_a_confident_interval(
     ok = json.loads((tmp_path / "ok.json").read_text())
     assert ok["regression"]["softening_resolved"]
     assert not any("linear range" in w or "could hide" in w for w in ok["warnings"])
+
+
+def test_a_filter_too_slow_for_the_drive_says_it_lost_the_car(drive_log: Path, tmp_path: Path) -> None:
+    """`[filter] q_u = 1e-6` (the default 0.05) read a 15.1 drive as 16–17 with d blamed, no word of
+    the filter: it now names the process noise, the sensor and how often the model lost the car."""
+    slow = config_with(tmp_path, ("[beta_status]", "[filter]\nq_u = 1e-6\n\n[beta_status]"))
+    results = {}
+    for name, argv in (("default", []), ("slow", ["--config", str(slow)])):
+        code, _, err = run_cli(["analyze", str(drive_log), *argv, "--json", str(tmp_path / f"{name}.json")])
+        assert code == 0 and "Traceback" not in err
+        results[name] = json.loads((tmp_path / f"{name}.json").read_text())
+    assert results["default"]["filter"]["lost_vx"] == 0
+    assert not any("lost the car" in w for w in results["default"]["warnings"])
+    lost = results["slow"]["filter"]["lost_vx"]
+    assert lost > 10
+    said = [w for w in results["slow"]["warnings"] if "lost the car" in w]
+    assert len(said) == 1 and f"times (optical vx {lost:,}" in said[0]
+    assert "raise [filter] q_u (1e-06; default 0.05)" in said[0]

@@ -54,8 +54,9 @@ _X, _P = 0, 6
 _T, _T_OPTICAL, _T_YAW, _LAST_AY, _HEALTH, _NOISE_VX, _NOISE_LAT = range(42, 49)
 _REJECTS = 49  # consecutive gate rejections: vx, lateral, speed, yaw
 _ANGLE, _LAST_DT = 53, 54
-_COUNTS = 55  # resets, time_jumps, late_frames, outliers
-_N_STATE = 59
+_COUNTS = 55  # resets, time_jumps, late_frames, outliers, then lost: vx, lateral, speed, yaw
+_N_COUNTS = 8
+_N_STATE = 63
 _VX, _LAT, _SPEED, _YAW = range(4)  # the kinds of measurement row
 _STEP_ROLES = ("vx", "vy", "beta", "speed", "yaw_rate", "ay")  # _step's arguments after t
 
@@ -130,7 +131,7 @@ class CompiledMotionFilter:
 
     @property
     def counts(self) -> FilterCounts:
-        return FilterCounts(*self._state[_COUNTS : _COUNTS + 4].astype(int).tolist())
+        return FilterCounts(*self._state[_COUNTS : _COUNTS + _N_COUNTS].astype(int).tolist())
 
     @property
     def health(self) -> float:
@@ -414,10 +415,12 @@ def _gate(s: Array, c: Array, rows: Array, n: int) -> Array:
         k = int(kind)
         innovation, hph = _innovation(s, z, hu, hv, hr)
         nis = innovation * innovation / (hph + r)
-        if nis > c[_GATE] and s[_REJECTS + k] < MAX_CONSECUTIVE_REJECTS:
-            s[_COUNTS + 3] += 1.0
-            s[_REJECTS + k] += 1.0
-            continue
+        if nis > c[_GATE]:
+            if s[_REJECTS + k] < MAX_CONSECUTIVE_REJECTS:
+                s[_COUNTS + 3] += 1.0
+                s[_REJECTS + k] += 1.0
+                continue
+            s[_COUNTS + 4 + k] += 1.0  # the sensor insists: believed, and the car was lost
         s[_REJECTS + k] = 0.0
         kept[i] = True
         if k in (_VX, _LAT):

@@ -42,6 +42,25 @@ class FilterCounts:
     time_jumps: int = 0  # timestamps that went backwards
     late_frames: int = 0
     outliers: int = 0  # measurements rejected by the innovation gate
+    # Times the model lost the car, per sensor: a frame beyond the gate after MAX_CONSECUTIVE_REJECTS
+    # of that sensor's frames were rejected running, and so believed. Under the filter's own noise
+    # model a frame beyond the gate is a 1-in-2·10⁷ event (χ²₁ beyond 30), three running none at
+    # all; a sensor's glitch is one frame. Each is the filter's state left behind by the car.
+    lost_vx: int = 0
+    lost_lateral: int = 0
+    lost_speed: int = 0
+    lost_yaw: int = 0
+
+    @property
+    def lost(self) -> dict[str, int]:
+        """The sensors on which the model lost the car, and how often (those with none left out)."""
+        counts = {
+            "vx": self.lost_vx,
+            "lateral": self.lost_lateral,
+            "speed": self.lost_speed,
+            "yaw": self.lost_yaw,
+        }
+        return {kind: n for kind, n in counts.items() if n}
 
 
 def white_jerk(dt: float, q_u: float, q_v: float, q_r: float) -> np.ndarray:

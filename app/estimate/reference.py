@@ -234,10 +234,13 @@ class MotionFilter:
             z, h, r, kind = row
             innovation, hph = kalman.innovation(z, h)
             nis = innovation * innovation / (hph + r)
-            if nis > self.settings.innovation_gate and self._rejects.get(kind, 0) < MAX_CONSECUTIVE_REJECTS:
-                self.counts.outliers += 1
-                self._rejects[kind] = self._rejects.get(kind, 0) + 1
-                continue
+            if nis > self.settings.innovation_gate:
+                if self._rejects.get(kind, 0) < MAX_CONSECUTIVE_REJECTS:
+                    self.counts.outliers += 1
+                    self._rejects[kind] = self._rejects.get(kind, 0) + 1
+                    continue
+                lost = f"lost_{kind}"  # the sensor insists: believed, and the car was lost
+                setattr(self.counts, lost, getattr(self.counts, lost) + 1)
             self._rejects[kind] = 0
             kept.append((z, h, r))
             if kind in ("vx", "lateral"):

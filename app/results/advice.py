@@ -11,10 +11,10 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from app.config import Config
+from app.config import Config, FilterSettings
 from app.decode.counts import FrameCounts
 from app.detect.steady_state import WHEELBASE_M
-from app.estimate.motion_model import FilterCounts
+from app.estimate.motion_model import MAX_CONSECUTIVE_REJECTS, FilterCounts
 from app.results.combine import bracket
 from app.results.headline import Headline, Method
 from app.results.pairing import Paired
@@ -196,6 +196,41 @@ def optical_gaps(f: Findings) -> str | None:
     return (
         f"the optical data stopped {gaps} times for over "
         f"{f.config.filter.gap_reset_s:g} s: the filter restarted"
+    )
+
+
+# the process noise that lets the filter follow what each sensor measures
+_FOLLOWS = {"vx": "q_u", "speed": "q_u", "lateral": "q_v", "yaw": "q_r"}
+_SENSOR = {"vx": "optical vx", "speed": "vehicle speed", "lateral": "optical lateral", "yaw": "yaw"}
+
+
+def filter_lost(f: Findings) -> str | None:
+    """The filter left behind by the car: a sensor's frames beyond the gate several times running,
+    which its noise model gives no chance (FilterCounts). Its speeds and sideslip lag there, and a
+    C2n from them with them: on a standard session q_u = 1e-3 read C2n unchanged, 1e-5 +2.3 %, 1e-6
+    +18 % (docs/method.md)."""
+    lost = f.filter_counts.lost
+    if not lost:
+        return None
+    settings, default = f.config.filter, FilterSettings()
+    times = sum(lost.values())
+    where = ", ".join(f"{_SENSOR[kind]} {n:,}" for kind, n in lost.items())
+    knobs = ", ".join(
+        f"{q} ({now:g}{'' if now == was else f'; default {was:g}'})"
+        for q in sorted({_FOLLOWS[kind] for kind in lost})
+        for now, was in [(getattr(settings, q), getattr(default, q))]
+    )
+    gate = settings.innovation_gate
+    narrow = (
+        f" or innovation_gate ({gate:g}; default {default.innovation_gate:g})"
+        if gate < default.innovation_gate
+        else ""
+    )
+    return (
+        f"the filter lost the car {times:,} time{'s' if times != 1 else ''} ({where}: frames beyond its "
+        f"innovation gate {MAX_CONSECUTIVE_REJECTS} running, then believed): its speeds and sideslip "
+        f"lagged the car there, and where that was in the cornering C2n rests on, C2n lags with them "
+        f"— raise [filter] {knobs}{narrow}, or check the sensor's signal"
     )
 
 
@@ -481,6 +516,7 @@ ADVICE: tuple[Advice, ...] = (
     values_dropped,
     time_jumps,
     optical_gaps,
+    filter_lost,
     d_disagrees,
     crossings_apart,
     idle_drives,

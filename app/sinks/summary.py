@@ -179,6 +179,10 @@ class FilterRow:
     time_jumps: int = 0
     late_frames: int = 0
     outliers: int = 0
+    lost_vx: int = 0  # times the filter lost the car on each sensor (FilterCounts)
+    lost_lateral: int = 0
+    lost_speed: int = 0
+    lost_yaw: int = 0
     health: float | None = None
     noise: Mapping[str, float | None] = field(default_factory=dict)
 

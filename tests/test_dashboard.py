@@ -50,6 +50,17 @@ def test_dashboard_after_a_drive(analysed: Pipeline) -> None:
     assert "status: " in text and "HeadStatus 1" in text
 
 
+def test_the_dashboard_says_when_the_filter_lost_the_car(analysed: Pipeline) -> None:
+    from app.estimate.motion_model import FilterCounts
+
+    snapshot = analysed.snapshot()
+    assert "lost the car" not in render(shown(analysed, "vcan0"))
+    lost = replace(snapshot.filter, counts=FilterCounts(outliers=9, lost_vx=2, lost_yaw=1))
+    dashboard = Dashboard("can0")
+    dashboard.on_snapshot(replace(snapshot, filter=lost))
+    assert "lost the car 3× (vx, yaw)" in render(dashboard)
+
+
 def test_guidance_for_the_driver() -> None:
     reasons = (
         "lateral acceleration too high: 4.3 m/s² > 4",

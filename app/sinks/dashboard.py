@@ -104,6 +104,12 @@ def _waiting(snapshot: Snapshot) -> Text:
     return Text("waiting for optical sensor frames", style="yellow")
 
 
+def _lost(lost: dict[str, int]) -> str:
+    """How often the filter lost the car so far (its gate rejected a sensor that insisted): the
+    summary's warning names the process noise to raise."""
+    return f"  lost the car {sum(lost.values()):,}× ({', '.join(lost)})" if lost else ""
+
+
 def _pairs(rows: list[tuple[str, str]]) -> Text:
     """Label (bold) and value (right-aligned) per line."""
     label_width = max(len(label) for label, _ in rows)
@@ -225,7 +231,7 @@ class Dashboard(Display):
             ("lat. acc.", f"{e.ay_mps2:+6.2f} m/s²" if e.ay_mps2 is not None else "—"),
             ("yaw rate", f"{math.degrees(e.r_radps):+6.2f} °/s" if e.r_radps is not None else "—"),
             ("steering", f"{math.degrees(steer):+6.1f}°" if steer is not None else "—"),
-            ("filter health", f"{e.health:5.2f}"),
+            ("filter health", f"{e.health:5.2f}" + _lost(snapshot.filter.counts.lost)),
             ("optical noise", f"σ {noise['vx_mps'] * 1000:.0f} / {noise['lateral_mps'] * 1000:.0f} mm/s"),
         ]
         return Panel(_pairs(rows), title="Motion")

@@ -1,6 +1,7 @@
-"""A log file whose optical sensor paused between two tyre sets has no one C2n in `c2n export`
-and in a campaign's row, as in `c2n analyze` (``app.results.within_file``); parts that agree
-keep their C2n, and a file that did not pause is not read again."""
+"""A log file whose optical sensor paused between two tyre sets has no one C2n in `c2n export`,
+no one diagnosis in `c2n gap`, and no C2n in a campaign's row, as in `c2n analyze`
+(``app.results.within_file``); parts that agree keep their C2n, and a file that did not pause is
+not read again."""
 
 import csv
 import json
@@ -45,6 +46,17 @@ def test_export_of_two_tyre_sets_in_one_file_is_refused_and_writes_nothing(
     assert f"the drives disagree, each alone: {PARTS[0]}" in err and PARTS[1] in err
     fix = f"split the log at its pauses (c2n split {logs / 'day.log'}) and export each part alone"
     assert f"{fix} (nothing written to {out})" in err
+    assert not out.exists()
+
+
+def test_gap_of_two_tyre_sets_in_one_file_is_refused_and_writes_nothing(logs: Path, tmp_path: Path) -> None:
+    """Each part's result named and the fix, exit 1, no diagnosis file (it diagnosed the two
+    drives as one drive's gap, its C2n lines between them, without a word)."""
+    out = tmp_path / "gap.json"
+    code, _, err = run_cli(["gap", str(logs / "day.log"), "--json", str(out)])
+    assert code == 1
+    assert f"the drives disagree, each alone: {PARTS[0]}" in err and PARTS[1] in err
+    assert f"split the log at its pauses (c2n split {logs / 'day.log'}) and diagnose each part alone" in err
     assert not out.exists()
 
 

@@ -7,12 +7,13 @@ from pathlib import Path
 
 from rich.console import Console
 
-from app.cli.common import ENDING, add_config, add_force, interrupted_by
+from app.cli.common import ENDING, add_config, add_force, interrupted_by, parts_disagree
 from app.config import load_config
 from app.errors import NoResultError, need
 from app.gap.result import GapResult
 from app.output.files import STDOUT, json_text, text_file, write_text, write_together
 from app.output.paths import DIAGNOSIS_JSON, HTML_REPORT, Output, check, config_files
+from app.user_text import argument
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -57,6 +58,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     with interrupted_by(*ENDING):  # each stops the forked processes too
         with console.status("reading the drive…"):  # the method's detector and regressions go on
             measured = measure(args.logs, config, background=workers > 1)  # beside the diagnosis
+        for report in measured.reports:  # a log that paused: its parts alone, as c2n analyze reads them
+            why = parts_disagree(report, config, console)
+            if why is not None:  # two tyre sets diagnosed as one drive's gap
+                raise NoResultError(f"{why} — {_WITHIN_FIX.format(log=argument(report.path))}")
         with console.status("fitting the candidate effects…"):
             from app.gap.diagnose import diagnose  # imported while the background works
 
@@ -78,6 +83,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     for line in lines(result):
         console.print(line, highlight=False)
     return 0
+
+
+_WITHIN_FIX = "split the log at its pauses (c2n split {log}) and diagnose each part alone"
 
 
 def _c2n(value: float | None) -> str:

@@ -23,6 +23,7 @@ from app.errors import NoResultError
 from app.gap.forked import Background, Later
 from app.pipeline import Pipeline
 from app.records import Crossing
+from app.results.log_clock import sensor_messages
 from app.results.regression import RegressionFit
 from app.run_loop import run
 from app.sinks.summary import Summary
@@ -30,7 +31,7 @@ from app.sinks.summary import build as build_summary
 from app.sinks.trace import Trace, TraceBlocks, TraceRecorder
 from app.snapshot import Snapshot
 from app.sources.blocks import FrameBlock, RecordBlock
-from app.sources.logs import LogSource
+from app.sources.logs import LogReport, LogSource
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +66,7 @@ class Measured:
     speed_source: str
     vehicle_roles: frozenset[str]  # roles read from the vehicle bus (they share its latency)
     method: Later[Method]  # what the pipeline's method made of the drive, maybe still being made
+    reports: tuple[LogReport, ...] = ()  # how reading each log went: its optical sensor's pauses
 
     @property
     def crossings(self) -> tuple[Crossing, ...]:
@@ -142,7 +144,7 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S, *, backgroun
     forked process, which takes the blocks as the first stage makes them; ``Measured.method``
     waits for its result while the caller goes on with the trace."""
     pipeline = Pipeline(config)
-    source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
+    source = _source(logs, config, pipeline)
     messages = source.items(blocks=True)
     first = next(messages, None)
     if isinstance(first, can.Message) and not (first.channel is None or type(first.channel) is int):
@@ -166,18 +168,30 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S, *, backgroun
     except BaseException:
         second.stop()
         raise
-    return _on_grid(trace, config, second.end(pipeline.snapshot()), dt)
+    return _on_grid(trace, config, second.end(pipeline.snapshot()), dt, source.reports)
 
 
 def measure_by_frame(logs: Sequence[Path], config: Config, dt: float = DT_S) -> Measured:
     """``measure`` frame by frame through the live loop's path: the reference the blocks keep to."""
     pipeline = Pipeline(config)
-    source = LogSource(logs, merge=len(logs) > 1, triage=pipeline.decoder)
+    source = _source(logs, config, pipeline)
     recorder = TraceRecorder(config.roles)
     run(source, pipeline, [recorder])
     snapshot = pipeline.snapshot()
     trace = _checked(source, recorder.trace(snapshot.t0), logs)
-    return _on_grid(trace, config, Later.now(_method(snapshot, config, logs)), dt)
+    return _on_grid(trace, config, Later.now(_method(snapshot, config, logs)), dt, source.reports)
+
+
+def _source(logs: Sequence[Path], config: Config, pipeline: Pipeline) -> LogSource:
+    """The logs, merged where several are one drive's channels; each file's report keeps where its
+    optical sensor paused beyond what the filter bridges (``c2n gap`` checks the parts agree)."""
+    return LogSource(
+        logs,
+        merge=len(logs) > 1,
+        triage=pipeline.decoder,
+        spaced=frozenset(sensor_messages(config)),
+        pause_s=config.filter.gap_reset_s,
+    )
 
 
 def _checked(source: LogSource, trace: Trace, logs: Sequence[Path]) -> Trace:
@@ -267,7 +281,9 @@ def _block(part: list[can.Message]) -> FrameBlock:
     )
 
 
-def _on_grid(trace: Trace, config: Config, method: Later[Method], dt: float) -> Measured:
+def _on_grid(
+    trace: Trace, config: Config, method: Later[Method], dt: float, reports: Sequence[LogReport] = ()
+) -> Measured:
     time = trace["time"]
     n = int(time[-1] / dt) + 1
     index = np.minimum((time / dt).astype(np.int64), n - 1)
@@ -301,4 +317,5 @@ def _on_grid(trace: Trace, config: Config, method: Later[Method], dt: float) -> 
         speed_source="vehicle speed" if has_speed else "optical speed",
         vehicle_roles=_vehicle_roles(config),
         method=method,
+        reports=tuple(reports),
     )

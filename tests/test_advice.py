@@ -291,3 +291,11 @@ def test_a_lost_filter_names_the_process_noise_of_each_sensor_it_lost(config: Co
     said = advice.filter_lost(Findings(config=gated, filter_counts=FilterCounts(lost_yaw=1))) or ""
     assert "the filter lost the car 1 time (yaw 1:" in said
     assert "raise [filter] q_r (0.0001; default 0.5) or innovation_gate (4; default 30)" in said
+
+
+def test_a_drive_backwards_more_than_it_cornered_forwards_is_a_sign_not_a_manoeuvre() -> None:
+    said = refusal.refusal(None, None, None, None, Cornering(backwards_s=100.4))
+    assert said.startswith("the optical speed reads backwards (100 s of the drive moving backwards, 0 s")
+    reversed_to_park = Cornering(turning_s=60.0, usable_s=40.0, backwards_s=20.0)  # a test drive's own
+    assert "backwards" not in refusal.refusal(None, None, None, None, reversed_to_park)
+    assert refusal.reads_backwards(0.9, 0.0) is None  # under a second: a roll back at the start

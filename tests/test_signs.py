@@ -188,3 +188,41 @@ def test_gap_with_a_role_the_wrong_way_round_names_the_role_and_diagnoses_nothin
     assert code == 1 and err.count("\n") == 1 and f"{drive_log}: no diagnosis — " in err, err
     assert f"check `scale` of the {role}" in err and not out_json.exists()
     assert "None" not in out + err and "sensor_position_error" not in out + err
+
+
+VX = 'vx = "Correvit.VelX_cor"'
+FLIPPED_VX = (VX, 'vx = {signal = "Correvit.VelX_cor", scale = -1.0}')
+
+
+def test_a_flipped_optical_speed_is_named_not_blamed_on_the_driving(drive_log: Path, tmp_path: Path) -> None:
+    """vx the wrong way round read `no cornering in the drive: drive steady circles …` and told the
+    driver to drive again: the drive moved backwards by the optical speed, which a test drive
+    does not, and the result says which role and how to turn it."""
+    _, plain = analyse(drive_log, tmp_path)
+    assert plain["cornering"]["backwards_s"] == 0.0 and plain["c2n"] is not None
+    out, result = analyse(drive_log, tmp_path, FLIPPED_VX)
+    assert result["c2n"] is None and result["cornering"]["backwards_s"] > 30.0
+    assert "C2n: no result (the optical speed reads backwards (" in out
+    assert "s cornering forwards): vx's sign is the wrong way round, or the head faces the rear" in out
+    assert 'set [roles] vx = {signal = "…", scale = -1.0}' in out
+    assert not result["warnings"] or not any(  # nothing else blamed: the driving, the filter's noise
+        "sweep the speed" in w or "lost the car" in w for w in result["warnings"]
+    )
+    assert "drive steady circles" not in out
+
+
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        (NO_STEER, "no steering angle in the drive: the model is driven by it — give the steering-wheel"),
+        (FLIPPED_VX, "the optical speed reads backwards ("),
+    ],
+)
+def test_gap_names_what_the_drive_lacks_not_its_length(
+    drive_log: Path, tmp_path: Path, change: tuple[str, str], said: str
+) -> None:
+    """Both said `too short to diagnose: 0 s of usable driving … drive the standard session`."""
+    config = config_with(tmp_path, change)
+    code, _, err = run_cli(["gap", str(drive_log), "--config", str(config)])
+    assert code == 1 and err.count("\n") == 1, err
+    assert f"c2n: error: {said}" in err and "too short" not in err

@@ -46,6 +46,7 @@ class Cornering:
     tight_s: float = 0.0  # of which on a radius under eight wheelbases (``tightest_curvature``)
     usable_ay_mps2: tuple[float, float] | None = None  # the quasi-steady samples' |a_y|: least, most
     usable_samples: int = 0  # the quasi-steady samples
+    backwards_s: float = 0.0  # the optical speed at or below −speed_min: a head facing back, a vx flipped
 
 
 NO_CORNERING = Cornering()
@@ -58,16 +59,16 @@ class QuasiSteadyGate:
         self._max_curvature = tightest_curvature(wheelbase_m)
         self._since: float | None = None  # when every condition began to hold
         self._t: float | None = None  # the last sample's time
-        self._seconds = [0.0, 0.0, 0.0, 0.0, 0.0]  # Cornering's fields, in order
+        self._seconds = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # Cornering's seconds: five, then backwards_s
         self._usable_ay = [math.inf, 0.0]  # the quasi-steady samples' least and most |a_y|
         self._usable_n = 0
 
     @property
     def cornering(self) -> Cornering:
         low, high = self._usable_ay
-        turning, ay_high, transient, usable, tight = self._seconds
+        turning, ay_high, transient, usable, tight, backwards = self._seconds
         spread = (low, high) if low <= high else None
-        return Cornering(turning, ay_high, transient, usable, tight, spread, self._usable_n)
+        return Cornering(turning, ay_high, transient, usable, tight, spread, self._usable_n, backwards)
 
     def new_log(self) -> None:
         """Another drive follows: nothing of this one carries over but the tally."""
@@ -100,6 +101,8 @@ class QuasiSteadyGate:
             tally = self._seconds
             tally[0] += dt
             tally[1 if not ay_ok else 4 if not wide else 3 if quasi else 2] += dt
+        elif u <= -s.speed_min_mps:
+            self._seconds[5] += dt
         if quasi:
             assert ay is not None  # a quasi-steady sample is turning: it has an a_y
             spread = self._usable_ay
@@ -142,6 +145,7 @@ class QuasiSteadyGate:
         tally[2] += float(dt[turning & ay_ok & wide & ~quasi].sum())
         tally[3] += float(dt[quasi].sum())
         tally[4] += float(dt[turning & ay_ok & ~wide].sum())
+        tally[5] += float(dt[u <= -s.speed_min_mps].sum())
         if quasi.any():
             usable = np.abs(ay[quasi])
             spread = self._usable_ay

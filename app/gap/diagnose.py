@@ -30,6 +30,7 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from app.config import Config
+from app.detect.quasi_steady import AY_MIN_MPS2
 from app.errors import NoResultError
 from app.gap.candidates import (
     CANDIDATES,
@@ -72,6 +73,7 @@ from app.gap.result import (
     Located,
     Secondary,
 )
+from app.results.refusal import reads_backwards
 from app.sim.effects import EffectName
 from app.sim.vehicle_model import BicycleParams
 from app.units import Z95
@@ -131,6 +133,21 @@ def _usable(m: Measured) -> np.ndarray:
     usable = np.isfinite(m.beta) & np.isfinite(m.r) & np.isfinite(m.delta)
     linear = np.abs(np.nan_to_num(m.u_optical * m.r)) <= LINEAR_AY_MPS2
     return np.asarray(usable & linear & (np.nan_to_num(m.u_optical) > 5.0))
+
+
+def _lacking(m: Measured, config: Config) -> str | None:
+    """What the drive lacks that the model needs, named (it said "too short to diagnose: 0 s"):
+    the steering that drives the model, the yaw rate it is compared on, a forward speed."""
+    if not np.isfinite(m.delta).any():
+        return (
+            "no steering angle in the drive: the model is driven by it — give the steering-wheel "
+            "angle's signal as [roles] steer (and [vehicle] steering_ratio)"
+        )
+    if not np.isfinite(m.r).any():
+        return "no yaw rate in the drive: the model is compared on it — give its signal as [roles] yaw_rate"
+    u, speed_min = np.nan_to_num(m.u_optical), config.detector.speed_min_mps
+    forwards = float(np.count_nonzero((u >= speed_min) & (np.abs(u * np.nan_to_num(m.r)) >= AY_MIN_MPS2)))
+    return reads_backwards(np.count_nonzero(u <= -speed_min) * m.dt, forwards * m.dt)
 
 
 def _noise(x: np.ndarray) -> float:
@@ -334,6 +351,9 @@ def problem(m: Measured, config: Config) -> Problem:
     """The drive, the nominal car, and the white noise of each channel on the nominal model."""
     params = BicycleParams.from_config(config)
     rows = _usable(m)
+    lacking = _lacking(m, config)
+    if lacking is not None:
+        raise NoResultError(lacking)
     if rows.sum() * m.dt < MIN_USABLE_S:
         raise NoResultError(
             f"too short to diagnose: {rows.sum() * m.dt:.0f} s of usable driving (moving above 5 m/s, "

@@ -56,6 +56,7 @@ class Findings:
     drives_disagree: str | None = None  # refusal.drives_disagree, or results.parts.parts_disagree
     replay_hint: str | None = None  # refusal.replay_hint
     d_witnessed: bool = False  # refusal.d_witnessed
+    backwards: bool = False  # the optical speed read backwards (refusal.reads_backwards): a role's sign
 
     @property
     def fit(self) -> RegressionFit | None:
@@ -210,7 +211,7 @@ def filter_lost(f: Findings) -> str | None:
     C2n from them with them: on a standard session q_u = 1e-3 read C2n unchanged, 1e-5 +2.3 %, 1e-6
     +18 % (docs/method.md)."""
     lost = f.filter_counts.lost
-    if not lost:
+    if not lost or f.backwards:  # vx against the wheels' speed: its sign, which the result names
         return None
     settings, default = f.config.filter, FilterSettings()
     times = sum(lost.values())
@@ -476,6 +477,8 @@ def rejected_crossings(f: Findings) -> str | None:
 def no_crossing(f: Findings) -> str | None:
     """No sweep crossed zero: the quasi-steady estimate, what it counts, and how to measure C2n
     the method's own way; or, without even that, that no sign change was found."""
+    if f.backwards:  # no driving to blame: the result names vx's sign
+        return None
     beyond = crossing_beyond_gate(f)
     if f.headline is not None and f.headline.method is Method.QUASI_STEADY:
         fit = f.fit

@@ -127,6 +127,19 @@ def unbounded_fit(fit: RegressionFit | None) -> str | None:
     )
 
 
+def reads_backwards(backwards_s: float, forwards_s: float) -> str | None:
+    """The optical speed backwards for more of the drive than it cornered forwards (a test drive
+    is driven forwards): vx the wrong way round, or the head turned; None otherwise."""
+    if backwards_s <= max(forwards_s, 1.0):
+        return None
+    return (
+        f"the optical speed reads backwards ({backwards_s:.0f} s of the drive moving backwards, "
+        f"{forwards_s:.0f} s cornering forwards): vx's sign is the wrong way round, or the head "
+        'faces the rear — set [roles] vx = {signal = "…", scale = -1.0} (and vy\'s too where the '
+        "head faces the rear)"
+    )
+
+
 def refusal(
     sign: str | None,
     disagree: str | None,
@@ -147,6 +160,9 @@ def refusal(
     if unsteady and (regression is None or not positive(regression.c2n)):
         return unsteady
     c = cornering
+    backwards = reads_backwards(c.backwards_s, c.turning_s)
+    if backwards:
+        return backwards
     if c.turning_s < 1.0:
         return (
             "no cornering in the drive: drive steady circles at 2–4 m/s² with the speed swept "

@@ -16,7 +16,7 @@ from app.config import Config
 from app.detect.signs import SignVotes
 from app.output.files import json_ready, write_json
 from app.records import Crossing, CrossingRejected, Direction, Sweep
-from app.results import advice
+from app.results import advice, refusal
 from app.results.combine import Combined
 from app.results.pairing import Paired
 from app.results.parts import Part
@@ -105,6 +105,7 @@ class CorneringRow:
     transient_s: float  # speed or steering changing too fast for quasi-steady, or settling
     usable_s: float  # quasi-steady
     tight_s: float  # on a radius under eight wheelbases: the bicycle model's small steer angles fail
+    backwards_s: float  # the optical speed backwards (not cornering): a head facing back, a vx flipped
 
 
 @dataclass(frozen=True)
@@ -298,6 +299,7 @@ def missing_required(snapshot: Snapshot, config: Config) -> str | None:
 
 def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = ()) -> advice.Findings:
     """What the advice reads of the run (``results/advice.py``)."""
+    cornering = snapshot.cornering
     return advice.Findings(
         config=config,
         reports=tuple(reports),
@@ -318,6 +320,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         drives_disagree=snapshot.parts_disagree or snapshot.drives_disagree,
         replay_hint=snapshot.replay_hint,
         d_witnessed=snapshot.d_witnessed,
+        backwards=refusal.reads_backwards(cornering.backwards_s, cornering.turning_s) is not None,
     )
 
 

@@ -106,6 +106,7 @@ class Pipeline:
             frozenset(config.roles),
             {role: spec.resolution for role, spec in config.roles.items()},
         )
+        self._lost_in_samples = 0  # samples the estimates take where the filter lost the car
         self.gate = SteadyStateGate(config.detector, config.vehicle.wheelbase_m)
         self._ay_votes = "yaw_rate" in config.roles  # without a gyro a_y gives the yaw rate: no vote on it
         self.detector = CrossingDetector(config.detector, config.d_m, config.vehicle.gravity_mps2)
@@ -146,7 +147,9 @@ class Pipeline:
             pending=tuple(Pending(direction, t, u) for direction, t, u in self.detector.pending),
             frames=self.decoder.counts.copy(),
             status=MappingProxyType(dict(self.decoder.status.values)),
-            filter=FilterState(replace(f.counts), f.health, MappingProxyType(f.noise_sigma())),
+            filter=FilterState(
+                replace(f.counts), f.health, MappingProxyType(f.noise_sigma()), self._lost_in_samples
+            ),
             message_names=self.decoder.message_names,
             d_m=self.config.d_m,
             g_mps2=self.config.vehicle.gravity_mps2,
@@ -197,6 +200,8 @@ class Pipeline:
         latest = state.latest
         steady = self.gate.step(record.t, estimate, latest.get("steer"), state.sensor_problem)
         quasi = self.quasi_gate.step(record.t, estimate, state.sensor_problem is None)
+        if (steady.steady or quasi) and self.filter.lost_now:
+            self._lost_in_samples += 1
         events = self._route(
             record.t,
             estimate,
@@ -255,13 +260,18 @@ class Pipeline:
         for role in _FILTER_ROLES.intersection(block.values):
             filtered |= ~np.isnan(block.values[role])
         rows = np.flatnonzero(filtered)
-        valid, out = self.filter.steps(t[rows], {role: column[rows] for role, column in block.values.items()})
-        rows, out = rows[valid], out[valid]
+        valid, out, lost = self.filter.steps(
+            t[rows], {role: column[rows] for role, column in block.values.items()}
+        )
+        rows, out, lost = rows[valid], out[valid], lost[valid]
         if not len(rows):
             if self.on_block is not None:
                 self.on_block(block, rows, out, np.zeros(0, np.int64), np.zeros(0, np.int64))
             return None
         kinds, directions, held = self.gate.steps(t[rows], out, steer[rows], problems[rows] < 0)
+        quasi = self.quasi_gate.steps(t[rows], out, problems[rows] < 0)
+        if lost.any():  # where the filter lost the car in a sample the estimates take
+            self._lost_in_samples += int(np.count_nonzero(lost & (np.equal(kinds, STEADY) | quasi)))
         if self.on_block is not None:
             self.on_block(block, rows, out, np.asarray(kinds), np.asarray(directions))
         last, k = int(rows[-1]), len(rows) - 1
@@ -272,7 +282,7 @@ class Pipeline:
             out=out,
             kinds=kinds,
             directions=directions,
-            quasi=self.quasi_gate.steps(t[rows], out, problems[rows] < 0) & ~np.isnan(out[:, _V_MEAS]),
+            quasi=quasi & ~np.isnan(out[:, _V_MEAS]),
             headings=self.heading.steps(t[rows], out[:, _R]),
             ay=ay[rows],
             steer=steer[rows],

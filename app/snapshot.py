@@ -50,6 +50,7 @@ class FilterState:
     counts: FilterCounts
     health: float  # mean normalised innovation²: ≈ 1 when the noise model fits
     noise_sigma: Mapping[str, float]  # the learnt noise of each optical channel
+    lost_in_samples: int = 0  # of counts' times it lost the car, those in a steady or quasi-steady sample
 
 
 @dataclass(frozen=True)

@@ -284,11 +284,16 @@ def test_a_lost_filter_names_the_process_noise_of_each_sensor_it_lost(config: Co
 
     assert advice.filter_lost(Findings(config=config, filter_counts=FilterCounts(outliers=40))) is None
     lost = FilterCounts(lost_yaw=1, lost_speed=2)
-    said = advice.filter_lost(Findings(config=config, filter_counts=lost)) or ""
+    elsewhere = Findings(config=config, filter_counts=lost)  # a hard stop: no sample touched
+    assert advice.filter_lost(elsewhere) is None
+    said = advice.filter_lost(replace(elsewhere, lost_in_samples=2)) or ""
     assert said.startswith("the filter lost the car 3 times (vehicle speed 2, yaw 1:")
+    assert "then believed), 2 of them in the cornering C2n is measured on:" in said
     assert "raise [filter] q_r (0.5), q_u (0.05), or check" in said  # the defaults: no "default" said
+    assert advice.filter_lost(replace(elsewhere, lost_in_samples=2, backwards=True)) is None  # vx's sign
     gated = replace(config, filter=replace(config.filter, innovation_gate=4.0, q_r=1e-4))
-    said = advice.filter_lost(Findings(config=gated, filter_counts=FilterCounts(lost_yaw=1))) or ""
+    one = Findings(config=gated, filter_counts=FilterCounts(lost_yaw=1), lost_in_samples=1)
+    said = advice.filter_lost(one) or ""
     assert "the filter lost the car 1 time (yaw 1:" in said
     assert "raise [filter] q_r (0.0001; default 0.5) or innovation_gate (4; default 30)" in said
 

@@ -4,6 +4,7 @@ same Records, the same steady-state verdicts, the same state and results, on a d
 troubles that make the sequential parts work — a sensor status that goes bad and goes stale,
 values out of range, frames of the wrong length, time that jumps back."""
 
+import dataclasses
 import json
 import math
 from collections.abc import Iterator
@@ -186,6 +187,24 @@ def test_a_pipeline_fed_blocks_ends_as_one_fed_frame_by_frame(size: int) -> None
         for p in (pipeline, reference)
     )
     assert ours_json == theirs_json
+
+
+def test_where_the_filter_lost_the_car_in_a_sample_blocks_count_as_frames_do() -> None:
+    """A filter too slow for the sweeps (q_u a 50,000th of its default) loses the car in samples
+    the estimates take: counted alike frame by frame (live) and in blocks (a log)."""
+    slow = dataclasses.replace(CONFIG, filter=dataclasses.replace(CONFIG.filter, q_u=1e-6))
+    reference, pipeline = Pipeline(slow), Pipeline(slow)
+    for m in cached_drive().messages:
+        reference.process(m)
+    for block in blocks_of(cached_drive().messages, 997):
+        pipeline.process_block(block)
+    ours, theirs = pipeline.snapshot().filter, reference.snapshot().filter
+    assert ours.counts == theirs.counts and ours.counts.lost_vx > ours.lost_in_samples > 0
+    assert ours.lost_in_samples == theirs.lost_in_samples
+    plain = Pipeline(CONFIG)
+    for block in blocks_of(cached_drive().messages, 997):
+        plain.process_block(block)
+    assert plain.snapshot().filter.lost_in_samples == 0 and not plain.filter.counts.lost
 
 
 def test_blocks_give_no_records_to_watch() -> None:

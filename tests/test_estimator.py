@@ -76,6 +76,21 @@ def test_time_going_backwards_restarts_the_filter(motion_filter: Filter) -> None
     assert e is not None and e.u_mps == pytest.approx(20.0, abs=0.05)
 
 
+def test_reversing_with_an_unsigned_wheel_speed_loses_nothing(motion_filter: Filter) -> None:
+    """Braking at 3 m/s² through a stop into reversing at 3 m/s, the wheel speed reading |u| (the
+    Ford's Veh_V_ActlBrk is unsigned): the speed row was u, so the filter rejected the wheels'
+    +3 m/s against the optical −3 and lost the car on them 265 times; it is −u there now."""
+    f = motion_filter(FilterSettings(), 0.0, ROLES)
+    e = None
+    for k in range(3000):
+        t = k / 100
+        u = 10.0 if t < 5 else max(10.0 - 3.0 * (t - 5), -3.0)
+        signals = {"vx": u, "vy": 0.0, "yaw_rate": 0.0} | ({"speed": abs(u)} if k % 2 == 0 else {})
+        e = f.step(record(t, **signals))
+    assert e is not None and e.u_mps == pytest.approx(-3.0, abs=1e-6)
+    assert "speed" not in f.counts.lost
+
+
 def test_optical_dropout_restarts_and_late_frames_are_applied_now(motion_filter: Filter) -> None:
     f = motion_filter(FilterSettings(gap_reset_s=1.0), 0.0, ROLES)
     for rec in steady_stream(10.0, 0.0, 0.1, seconds=1.0):

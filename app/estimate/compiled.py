@@ -56,7 +56,8 @@ _REJECTS = 49  # consecutive gate rejections: vx, lateral, speed, yaw
 _ANGLE, _LAST_DT = 53, 54
 _COUNTS = 55  # resets, time_jumps, late_frames, outliers, then lost: vx, lateral, speed, yaw
 _N_COUNTS = 8
-_N_STATE = 63
+_LOST_NOW = 63  # 1.0 where the last step lost the car on a sensor
+_N_STATE = 64
 _VX, _LAT, _SPEED, _YAW = range(4)  # the kinds of measurement row
 _STEP_ROLES = ("vx", "vy", "beta", "speed", "yaw_rate", "ay")  # _step's arguments after t
 
@@ -114,20 +115,25 @@ class CompiledMotionFilter:
         """The next record starts the filter afresh: another drive follows."""
         _reset(self._state)
 
-    def steps(self, t: Array, values: Mapping[str, Array]) -> tuple[Array, Array]:
+    def steps(self, t: Array, values: Mapping[str, Array]) -> tuple[Array, Array, Array]:
         """``step`` over many records in one compiled loop: ``values`` role -> column (NaN where
-        a record has none). Returns which records gave an estimate, and the estimates' fields
-        as rows (NaN where ``Estimate`` has None)."""
+        a record has none). Returns which records gave an estimate, the estimates' fields as rows
+        (NaN where ``Estimate`` has None), and at which records the filter lost the car."""
         n = len(t)
         nan = np.full(n, math.nan)
         vx, vy, beta, speed, yaw_rate, ay = (
             np.ascontiguousarray(values.get(role, nan), np.float64) for role in _STEP_ROLES
         )
         out = np.empty((n, len(Estimate._fields)))
-        valid = np.zeros(n, np.bool_)
+        valid, lost = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
         t = np.ascontiguousarray(t, np.float64)
-        _steps(self._state, self._params, t, vx, vy, beta, speed, yaw_rate, ay, out, valid)
-        return valid, out
+        _steps(self._state, self._params, t, vx, vy, beta, speed, yaw_rate, ay, out, valid, lost)
+        return valid, out, lost
+
+    @property
+    def lost_now(self) -> bool:
+        """The last step lost the car on a sensor (``FilterCounts``)."""
+        return bool(self._state[_LOST_NOW] != 0.0)
 
     @property
     def counts(self) -> FilterCounts:
@@ -194,6 +200,7 @@ def _step(
     s: Array, c: Array, t: float, vx: float, vy: float, beta: float, speed: float, yaw_rate: float, ay: float
 ) -> tuple[float, ...] | None:
     optical = vx == vx or vy == vy or beta == beta
+    s[_LOST_NOW] = 0.0
     if s[_T] == s[_T]:
         dt = t - s[_T]
         if dt < -LATE_TOLERANCE_S:
@@ -237,9 +244,11 @@ def _steps(
     ay: Array,
     out: Array,
     valid: Array,
+    lost: Array,
 ) -> None:
     for k in range(len(t)):
         result = _step(s, c, t[k], vx[k], vy[k], beta[k], speed[k], yaw_rate[k], ay[k])
+        lost[k] = s[_LOST_NOW] != 0.0
         if result is not None:
             valid[k] = True
             for j, value in enumerate(result):
@@ -381,7 +390,8 @@ def _update(
         _put(rows, n, beta - h + j0 * u + j1 * v + j2 * r, j0, j1, j2, variance, _LAT)
         n += 1
     if speed == speed:
-        _put(rows, n, speed, 1.0, 0.0, 0.0, c[_SIGMA_SPEED] ** 2, _SPEED)
+        hu = -1.0 if u < 0.0 and speed >= 0.0 else 1.0  # a wheel speed is |u|: reversing reads it so
+        _put(rows, n, speed, hu, 0.0, 0.0, c[_SIGMA_SPEED] ** 2, _SPEED)
         n += 1
     if yaw_rate == yaw_rate:
         _put(rows, n, yaw_rate, 0.0, 0.0, 1.0, c[_SIGMA_YAW] ** 2, _YAW)
@@ -421,6 +431,7 @@ def _gate(s: Array, c: Array, rows: Array, n: int) -> Array:
                 s[_REJECTS + k] += 1.0
                 continue
             s[_COUNTS + 4 + k] += 1.0  # the sensor insists: believed, and the car was lost
+            s[_LOST_NOW] = 1.0
         s[_REJECTS + k] = 0.0
         kept[i] = True
         if k in (_VX, _LAT):

@@ -13,7 +13,8 @@ Measurement models (y_s: sensor's lateral offset, + left), each a scalar row on 
     optical vx      = u − r·y_s                 (rigid body: the head sees the yaw's share)
     optical vy      = v
     optical angle β = atan2(v, u − r·y_s)       (linearised about the prior, as in an EKF)
-    vehicle speed   = u                         (weak: wheel-speed scale errors and lags)
+    vehicle speed   = u, or −u reversing where it reads ≥ 0 (weak: wheel-speed scale errors and
+                      lags; a wheel speed is unsigned, |u|, on most cars)
     yaw rate        = r                         (or ay/u without a gyro)
 
 The constants below tune both filters alike; numba compiles them in as they are.

@@ -91,6 +91,7 @@ class MotionFilter:
         self._rejects: dict[str, int] = {}  # consecutive gate rejections per sensor
         self._angle = False  # this frame's lateral measurement is the angle
         self.last_dt: float | None = None  # the time the last step predicted over (None: none)
+        self.lost_now = False  # the last step lost the car on a sensor (FilterCounts)
 
     # -- time ------------------------------------------------------------------------------
     def _reset(self) -> None:
@@ -131,6 +132,7 @@ class MotionFilter:
         s = record.signals
         optical = "vx" in s or "vy" in s or "beta" in s
         t = record.t
+        self.lost_now = False
         if self._t is not None:
             dt = t - self._t
             if dt < -LATE_TOLERANCE_S:
@@ -187,8 +189,9 @@ class MotionFilter:
                 variance = self._variance("lateral", "beta", abs(u_s)) / (u_s * u_s)
             # pseudo-measurement: filterpy forms y = z − Hx, the EKF needs y = z − h(x)
             rows.append((beta - h + jac[0] * u + jac[1] * v + jac[2] * r, jac, variance, "lateral"))
-        if "speed" in s:
-            rows.append((s["speed"], _U_ROW, self.settings.sigma_speed_mps**2, "speed"))
+        if "speed" in s:  # a wheel speed is |u| (unsigned): reversing, it reads −u
+            row = _MINUS_U_ROW if u < 0.0 and s["speed"] >= 0.0 else _U_ROW
+            rows.append((s["speed"], row, self.settings.sigma_speed_mps**2, "speed"))
         if "yaw_rate" in s:
             rows.append((s["yaw_rate"], _R_ROW, self.settings.sigma_yaw_rate_radps**2, "yaw"))
             self._t_yaw = record.t
@@ -241,6 +244,7 @@ class MotionFilter:
                     continue
                 lost = f"lost_{kind}"  # the sensor insists: believed, and the car was lost
                 setattr(self.counts, lost, getattr(self.counts, lost) + 1)
+                self.lost_now = True
             self._rejects[kind] = 0
             kept.append((z, h, r))
             if kind in ("vx", "lateral"):
@@ -283,5 +287,6 @@ _IDENTITY = (np.eye(6), np.zeros((6, 6)))
 
 
 _U_ROW: H = (1.0, 0.0, 0.0)  # measurement rows (coefficients on u, v, r) that never change
+_MINUS_U_ROW: H = (-1.0, 0.0, 0.0)
 _V_ROW: H = (0.0, 1.0, 0.0)
 _R_ROW: H = (0.0, 0.0, 1.0)

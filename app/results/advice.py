@@ -41,6 +41,7 @@ class Findings:
     reports: tuple[LogReport, ...] = ()
     frames: FrameCounts = field(default_factory=FrameCounts)
     filter_counts: FilterCounts = field(default_factory=FilterCounts)
+    lost_in_samples: int = 0  # of the times the filter lost the car, those in a sample C2n rests on
     result_fit: RegressionFit | None = None  # the fit the result rests on (refusal.resting_fit)
     regression: RegressionFit | None = None  # the steady samples'
     quasi: RegressionFit | None = None  # the quasi-steady samples'
@@ -206,12 +207,13 @@ _SENSOR = {"vx": "optical vx", "speed": "vehicle speed", "lateral": "optical lat
 
 
 def filter_lost(f: Findings) -> str | None:
-    """The filter left behind by the car: a sensor's frames beyond the gate several times running,
-    which its noise model gives no chance (FilterCounts). Its speeds and sideslip lag there, and a
-    C2n from them with them: on a standard session q_u = 1e-3 read C2n unchanged, 1e-5 +2.3 %, 1e-6
-    +18 % (docs/method.md)."""
+    """The filter left behind by the car where C2n is measured: a sensor's frames beyond the gate
+    several times running in a steady or quasi-steady sample, which its noise model gives no
+    chance (FilterCounts). Its speeds and sideslip lag there, and C2n with them: on a standard
+    session q_u = 1e-3 read C2n unchanged, 1e-5 +2.3 %, 1e-6 +18 % (docs/method.md). A loss
+    elsewhere (a hard stop, a reversal) touches no sample: counted in the result file, not said."""
     lost = f.filter_counts.lost
-    if not lost or f.backwards:  # vx against the wheels' speed: its sign, which the result names
+    if not lost or not f.lost_in_samples or f.backwards:  # backwards: vx's sign, which the result names
         return None
     settings, default = f.config.filter, FilterSettings()
     times = sum(lost.values())
@@ -229,9 +231,9 @@ def filter_lost(f: Findings) -> str | None:
     )
     return (
         f"the filter lost the car {times:,} time{'s' if times != 1 else ''} ({where}: frames beyond its "
-        f"innovation gate {MAX_CONSECUTIVE_REJECTS} running, then believed): its speeds and sideslip "
-        f"lagged the car there, and where that was in the cornering C2n rests on, C2n lags with them "
-        f"— raise [filter] {knobs}{narrow}, or check the sensor's signal"
+        f"innovation gate {MAX_CONSECUTIVE_REJECTS} running, then believed), {f.lost_in_samples:,} of "
+        "them in the cornering C2n is measured on: its speeds and sideslip lagged the car there, and "
+        f"C2n with them — raise [filter] {knobs}{narrow}, or check the sensor's signal"
     )
 
 

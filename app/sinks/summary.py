@@ -184,6 +184,7 @@ class FilterRow:
     lost_lateral: int = 0
     lost_speed: int = 0
     lost_yaw: int = 0
+    lost_in_samples: int = 0  # of those, in a steady or quasi-steady sample: said in the warnings
     health: float | None = None
     noise: Mapping[str, float | None] = field(default_factory=dict)
 
@@ -277,6 +278,7 @@ def build(
         ),
         filter=FilterRow(
             **asdict(snapshot.filter.counts),
+            lost_in_samples=snapshot.filter.lost_in_samples,
             health=_round(snapshot.filter.health, 3),
             noise={k: _round(v, 5) for k, v in snapshot.filter.noise_sigma.items()},
         ),
@@ -305,6 +307,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         reports=tuple(reports),
         frames=snapshot.frames,
         filter_counts=snapshot.filter.counts,
+        lost_in_samples=snapshot.filter.lost_in_samples,
         result_fit=snapshot.fit,
         regression=snapshot.regression,
         quasi=snapshot.quasi,

@@ -330,3 +330,16 @@ def test_a_filter_too_slow_for_the_drive_says_it_lost_the_car(drive_log: Path, t
     said = [w for w in results["slow"]["warnings"] if "lost the car" in w]
     assert len(said) == 1 and f"times (optical vx {lost:,}" in said[0]
     assert "raise [filter] q_u (1e-06; default 0.05)" in said[0]
+
+
+@pytest.mark.parametrize("command", ["analyze", "gap", "export"])
+def test_a_log_named_like_an_option_gets_the_way_to_write_it(
+    command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`c2n gap -x.log` said only `the following arguments are required: LOG`."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "-x.log").write_text("")
+    code, _, err = run_cli([command, "-x.log"])
+    assert code == 2 and "c2n: hint: -x.log is a file, read as an option: write ./-x.log" in err
+    code, _, err = run_cli([command, "--no-such-option", "y.log"])
+    assert code == 2 and "hint" not in err

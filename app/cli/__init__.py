@@ -3,6 +3,7 @@
 import argparse
 import gc
 import logging
+import os
 import sys
 import threading
 import traceback
@@ -100,12 +101,22 @@ def _ended_as_by_ctrl_c() -> AbstractContextManager[None]:
     return interrupted_by(*ENDING)
 
 
+def _files_read_as_options(argv: Sequence[str]) -> None:
+    """After a usage error: a word that begins with '-' and names a file (`c2n gap -x.log`) was
+    taken for an option, so argparse said "LOG is required" of a log it was given. Say how."""
+    for word in argv:
+        if word.startswith("-") and word != "-" and os.path.lexists(word):
+            say(f"c2n: hint: {printable(word)} is a file, read as an option: write ./{printable(word)}")
+
+
 def main(argv: Sequence[str] | None = None, console: Console | None = None) -> int:
     """Run a c2n command; returns the exit code (0 ok, 1 user error, 2 bad usage)."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exit_:
+        if exit_.code:
+            _files_read_as_options(sys.argv[1:] if argv is None else argv)
         return int(exit_.code or 0)
     if args.command is None:
         parser.print_help(sys.stderr)

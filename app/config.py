@@ -426,7 +426,7 @@ def _build(path: Path, table: dict[str, Any], dbc_dir: Path | None = None) -> Co
     priors = _own_load_transfer(path, vehicle, _dataclass_from(path, "priors", Priors, stated), stated)
     if priors.confidence != Priors.confidence:  # 0.5 printed a 50 % interval as "95 %", 1.0 [0, 0]
         raise ConfigError(
-            f"{path}: [priors] confidence = {priors.confidence:g}: c2n's intervals and tests are "
+            f"{path}: [priors] confidence = {priors.confidence!r}: c2n's intervals and tests are "
             f"{100 * Priors.confidence:g} % throughout (the result file's c2n_ci95, the comparisons of "
             "drives) — remove the key"
         )

@@ -87,6 +87,10 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
             ("[sensor_status]", "[priors]\nconfidence = 0.5\n[sensor_status]"),
             "[priors] confidence = 0.5: c2n's intervals and tests are 95 % throughout",
         ),
+        (  # it was shown as 0.95, the value the line says c2n uses
+            ("[sensor_status]", "[priors]\nconfidence = 0.95000000001\n[sensor_status]"),
+            "[priors] confidence = 0.95000000001: c2n's intervals",
+        ),
         (
             ('speed = "BrakeSysFeatures.Veh_V_ActlBrk"', 'speed = "Correvit.Angle_cor"'),
             "not one for speed — set [units] speed to one of",

@@ -117,14 +117,23 @@ def test_a_sensor_spaced_past_the_filter_s_restart_names_the_unit_and_the_fix(
 
 
 def test_a_spacing_within_the_filter_s_restart_or_the_sensor_s_own_says_nothing() -> None:
-    """A spacing up to gap_reset_s is not the clock's (the filter bridges it), nor one of the
-    order of the sensor's cycle past a gap_reset_s set shorter than it (the config's, not the
-    clock's); one past every unit asks about the column."""
+    """A spacing up to gap_reset_s is not the clock's (the filter bridges it); one of the order of
+    the sensor's cycle past a gap_reset_s set shorter than it is the config's, named so (it read
+    "the optical data stopped 10343 times" and blamed the driving); one past every unit asks
+    about the column."""
     assert clock_problem(Spacing(SENSOR_ID, 0.01, 500), 1.0, 0.02) is None
     assert clock_problem(Spacing(SENSOR_ID, 1.0, 500), 1.0, 0.02) is None
-    assert clock_problem(Spacing(SENSOR_ID, 0.02, 500), 0.001, 0.02) is None
     assert clock_problem(Spacing(SENSOR_ID, math.inf, 500), 1.0, None) is None  # ±1e308 apart
-    assert clock_problem(Spacing(SENSOR_ID, 0.2, 500), 0.1, None) is None  # 22× 50–250 Hz's middle
+    short = clock_problem(Spacing(SENSOR_ID, 0.02, 500), 0.001, 0.02)
+    assert short == (
+        "[filter] gap_reset_s = 0.001 s is shorter than the optical sensor's frame spacing (id 0x7E5, "
+        "20 ms median): the filter restarts at every frame — set it to a few of the sensor's cycles or "
+        "more (the default is 1 s)"
+    )
+    slow = clock_problem(Spacing(SENSOR_ID, 0.2, 500), 0.1, None)  # 22× 50–250 Hz's middle
+    assert (
+        slow is not None and slow.startswith("[filter] gap_reset_s = 0.1 s is shorter") and "200 ms" in slow
+    )
     asked = clock_problem(Spacing(SENSOR_ID, 1e12, 500), 1.0, 0.02)
     assert asked is not None and asked.endswith(
         ": are the timestamps in seconds? past gap_reset_s (1 s) the filter restarts at every "

@@ -343,3 +343,18 @@ def test_a_log_named_like_an_option_gets_the_way_to_write_it(
     assert code == 2 and "c2n: hint: -x.log is a file, read as an option: write ./-x.log" in err
     code, _, err = run_cli([command, "--no-such-option", "y.log"])
     assert code == 2 and "hint" not in err
+
+
+@pytest.mark.parametrize("command", ["analyze", "gap"])
+def test_a_gap_reset_shorter_than_a_frame_is_named_not_the_driving(
+    command: str, drive_log: Path, tmp_path: Path
+) -> None:
+    """`gap_reset_s = 0.001` with the sensor every 10 ms restarted the filter at every frame:
+    `analyze` blamed the driving (`drive steady circles …`), `gap` said `no optical sideslip`."""
+    car = config_with(tmp_path, ("[beta_status]", "[filter]\ngap_reset_s = 0.001\n\n[beta_status]"))
+    code, out, err = run_cli([command, str(drive_log), "--config", str(car)])
+    assert code == 1 and err.count("\n") == 1, err
+    assert (
+        f"c2n: error: {drive_log}: [filter] gap_reset_s = 0.001 s is shorter than the optical sensor's" in err
+    )
+    assert "drive steady circles" not in out + err and "no optical sideslip" not in err

@@ -23,7 +23,7 @@ from app.errors import NoResultError
 from app.gap.forked import Background, Later
 from app.pipeline import Pipeline
 from app.records import Crossing
-from app.results.log_clock import sensor_messages
+from app.results.log_clock import clock_notes, sensor_messages
 from app.results.regression import RegressionFit
 from app.run_loop import run
 from app.sinks.summary import Summary
@@ -164,7 +164,7 @@ def measure(logs: Sequence[Path], config: Config, dt: float = DT_S, *, backgroun
             filtered = pipeline.filter_block(records)
             if filtered is not None:
                 second.put(filtered)
-        trace = _checked(source, recorder.trace(pipeline.state.t_first or 0.0), logs)
+        trace = _checked(source, recorder.trace(pipeline.state.t_first or 0.0), logs, config)
     except BaseException:
         second.stop()
         raise
@@ -178,7 +178,7 @@ def measure_by_frame(logs: Sequence[Path], config: Config, dt: float = DT_S) -> 
     recorder = TraceRecorder(config.roles)
     run(source, pipeline, [recorder])
     snapshot = pipeline.snapshot()
-    trace = _checked(source, recorder.trace(snapshot.t0), logs)
+    trace = _checked(source, recorder.trace(snapshot.t0), logs, config)
     return _on_grid(trace, config, Later.now(_method(snapshot, config, logs)), dt, source.reports)
 
 
@@ -194,11 +194,15 @@ def _source(logs: Sequence[Path], config: Config, pipeline: Pipeline) -> LogSour
     )
 
 
-def _checked(source: LogSource, trace: Trace, logs: Sequence[Path]) -> Trace:
-    """The trace, once the reader's notes are logged; refused without an optical sideslip."""
+def _checked(source: LogSource, trace: Trace, logs: Sequence[Path], config: Config) -> Trace:
+    """The trace, once the reader's notes are logged; refused where the optical sensor's frames
+    lie further apart than the filter bridges (a clock not in seconds, a gap_reset_s shorter than
+    a frame's spacing: ``clock_notes``) and without an optical sideslip."""
     for report in source.notes:
         if report.stopped:
             log.warning("%s: %s", report.path, report.stopped)
+    for note in clock_notes(source.reports, config):
+        raise NoResultError(f"{note.path}: {note.stopped}")
     if not len(trace) or not np.isfinite(trace["sideslip_measured"]).any():
         raise NoResultError(
             f"{', '.join(map(str, logs))}: no optical sideslip — the gap needs the optical sensor's frames"

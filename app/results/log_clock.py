@@ -44,8 +44,12 @@ def clock_problem(spacing: Spacing, gap_reset_s: float, cycle_s: float | None) -
         return None
     expected = cycle_s if cycle_s else 1.0 / math.sqrt(SENSOR_HZ[0] * SENSOR_HZ[1])
     power = round(math.log(spacing.median / expected, 1000))
-    if power < 1:  # the sensor's own spacing, in seconds
-        return None
+    if power < 1:  # the sensor's own spacing, in seconds: the setting is shorter than a frame's
+        return (  # it said "the optical data stopped 10343 times" and blamed the driving
+            f"[filter] gap_reset_s = {gap_reset_s:g} s is shorter than the optical sensor's frame "
+            f"spacing (id 0x{spacing.frame_id:X}, {_amount(spacing.median * 1000)} ms median): the filter "
+            "restarts at every frame — set it to a few of the sensor's cycles or more (the default is 1 s)"
+        )
     sends = (
         f"{cycle_s * 1000:g} ms (its DBC's cycle)"
         if cycle_s

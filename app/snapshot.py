@@ -78,6 +78,7 @@ class Snapshot:
     cornering: Cornering = NO_CORNERING  # seconds of cornering, by what the quasi-steady gate made of them
     signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
     settle_s: float = 1.0  # the steady-state gate's settling time ([detector] settle_s)
+    vx_scale: float = 1.0  # the config's vx scale, whose sign a drive read backwards turns
     # c2n live: the parts between the optical sensor's pauses, each alone (``app.pipeline.PartedPipeline``),
     # and why they give no one C2n where they disagree (``results.parts.parts_disagree``)
     parts: tuple[Part, ...] = ()
@@ -124,6 +125,8 @@ class Snapshot:
             self.regression,
             self.cornering,
             unbounded_fit(self.fit),
+            self.filter.lost_in_samples,
+            self.vx_scale,
         )
 
     @property

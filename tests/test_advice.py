@@ -288,19 +288,32 @@ def test_a_lost_filter_names_the_process_noise_of_each_sensor_it_lost(config: Co
     assert advice.filter_lost(elsewhere) is None
     said = advice.filter_lost(replace(elsewhere, lost_in_samples=2)) or ""
     assert said.startswith("the filter lost the car 3 times (vehicle speed 2, yaw 1:")
-    assert "then believed), 2 of them in the cornering C2n is measured on:" in said
+    assert "then believed), and in 2 samples of the cornering C2n is measured on:" in said
     assert "raise [filter] q_r (0.5), q_u (0.05), or check" in said  # the defaults: no "default" said
     assert advice.filter_lost(replace(elsewhere, lost_in_samples=2, backwards=True)) is None  # vx's sign
     gated = replace(config, filter=replace(config.filter, innovation_gate=4.0, q_r=1e-4))
     one = Findings(config=gated, filter_counts=FilterCounts(lost_yaw=1), lost_in_samples=1)
     said = advice.filter_lost(one) or ""
     assert "the filter lost the car 1 time (yaw 1:" in said
-    assert "raise [filter] q_r (0.0001; default 0.5) or innovation_gate (4; default 30)" in said
+    assert "raise [filter] innovation_gate (4; default 30), or check" in said  # not q_r: the gate first
 
 
 def test_a_drive_backwards_more_than_it_cornered_forwards_is_a_sign_not_a_manoeuvre() -> None:
     said = refusal.refusal(None, None, None, None, Cornering(backwards_s=100.4))
-    assert said.startswith("the optical speed reads backwards (100 s of the drive moving backwards, 0 s")
+    assert said.startswith("the optical speed reads backwards (100 s cornering backwards, 0 s forwards)")
+    assert "set [roles] vx's scale = -1 (and vy's" in said
+    flipped = refusal.refusal(None, None, None, None, Cornering(backwards_s=100.4), vx_scale=-1.0)
+    assert "set [roles] vx's scale = 1 (and vy's" in flipped  # already -1: the fix turns it back
     reversed_to_park = Cornering(turning_s=60.0, usable_s=40.0, backwards_s=20.0)  # a test drive's own
     assert "backwards" not in refusal.refusal(None, None, None, None, reversed_to_park)
     assert refusal.reads_backwards(0.9, 0.0) is None  # under a second: a roll back at the start
+
+
+def test_a_filter_lost_in_the_samples_is_the_reason_before_any_sign_read_from_them() -> None:
+    """q_u = 1e-6 on track laps read `the sideslip and the yaw rate disagree in sign … check
+    scale of vy and beta`: the signs were the lagging filter's."""
+    said = refusal.refusal(
+        "the sideslip and the yaw rate disagree", None, None, None, Cornering(), lost_in_samples=760
+    )
+    assert said.startswith("the filter lost the car in 760 of the samples C2n is measured on:")
+    assert refusal.refusal("sign", None, None, None, Cornering()) == "sign"

@@ -55,10 +55,12 @@ def test_the_dashboard_says_when_the_filter_lost_the_car(analysed: Pipeline) -> 
 
     snapshot = analysed.snapshot()
     assert "lost the car" not in render(shown(analysed, "vcan0"))
-    lost = replace(snapshot.filter, counts=FilterCounts(outliers=9, lost_vx=2, lost_yaw=1))
+    elsewhere = replace(snapshot.filter, counts=FilterCounts(outliers=9, lost_vx=2, lost_yaw=1))
     dashboard = Dashboard("can0")
-    dashboard.on_snapshot(replace(snapshot, filter=lost))
-    assert "lost the car 3× (vx, yaw)" in render(dashboard)
+    dashboard.on_snapshot(replace(snapshot, filter=elsewhere))  # a hard stop's: no sample touched
+    assert "lost the car" not in render(dashboard)
+    dashboard.on_snapshot(replace(snapshot, filter=replace(elsewhere, lost_in_samples=2)))
+    assert "lost the car in 2 samples (vx, yaw)" in render(dashboard)
 
 
 def test_guidance_for_the_driver() -> None:

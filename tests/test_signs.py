@@ -203,8 +203,8 @@ def test_a_flipped_optical_speed_is_named_not_blamed_on_the_driving(drive_log: P
     out, result = analyse(drive_log, tmp_path, FLIPPED_VX)
     assert result["c2n"] is None and result["cornering"]["backwards_s"] > 30.0
     assert "C2n: no result (the optical speed reads backwards (" in out
-    assert "s cornering forwards): vx's sign is the wrong way round, or the head faces the rear" in out
-    assert 'set [roles] vx = {signal = "…", scale = -1.0}' in out
+    assert "s forwards): vx's sign is the wrong way round, or the head faces the rear" in out
+    assert "set [roles] vx's scale = 1 (and vy's turned too" in out  # the config's -1.0, turned back
     assert not result["warnings"] or not any(  # nothing else blamed: the driving, the filter's noise
         "sweep the speed" in w or "lost the car" in w for w in result["warnings"]
     )
@@ -214,7 +214,10 @@ def test_a_flipped_optical_speed_is_named_not_blamed_on_the_driving(drive_log: P
 @pytest.mark.parametrize(
     ("change", "said"),
     [
-        (NO_STEER, "no steering angle in the drive: the model is driven by it — give the steering-wheel"),
+        (
+            NO_STEER,
+            "no steering angle in the drive: the model is driven by it — give its signal as [roles] steer",
+        ),
         (FLIPPED_VX, "the optical speed reads backwards ("),
     ],
 )
@@ -226,3 +229,20 @@ def test_gap_names_what_the_drive_lacks_not_its_length(
     code, _, err = run_cli(["gap", str(drive_log), "--config", str(config)])
     assert code == 1 and err.count("\n") == 1, err
     assert f"c2n: error: {said}" in err and "too short" not in err
+
+
+def test_gap_names_a_role_whose_frames_the_log_lacks(drive_log: Path, tmp_path: Path) -> None:
+    """The steering's role set but its message not in the log: gap said `give its signal as
+    [roles] steer` of a role the config gives."""
+    import can
+
+    steer_id = 0x7E  # SteeringPinion_Data (vehicle_ford.dbc)
+    log = tmp_path / "no-steer-frames.blf"
+    with can.LogReader(drive_log) as reader, can.Logger(log) as writer:
+        for message in reader:
+            if message.arbitration_id != steer_id:
+                writer.on_message_received(message)
+    code, _, err = run_cli(["gap", str(log)])
+    assert code == 1 and err.count("\n") == 1, err
+    assert "no steering angle in the drive: the log has no frames of [roles] steer's " in err
+    assert "SteeringPinion_Data.StePinComp_An_Est — the model is driven by it: record it" in err

@@ -4,6 +4,7 @@ import argparse
 import gc
 import logging
 import os
+import re
 import sys
 import threading
 import traceback
@@ -101,11 +102,14 @@ def _ended_as_by_ctrl_c() -> AbstractContextManager[None]:
     return interrupted_by(*ENDING)
 
 
+_OPTION_LIKE = re.compile(r"--?[A-Za-z][\w-]*")
+
+
 def _files_read_as_options(argv: Sequence[str]) -> None:
     """After a usage error: a word that begins with '-' and names a file (`c2n gap -x.log`) was
     taken for an option, so argparse said "LOG is required" of a log it was given. Say how."""
-    for word in argv:
-        if word.startswith("-") and word != "-" and os.path.lexists(word):
+    for word in argv:  # a file, named otherwise than an option is (`--force`, `-v`)
+        if word.startswith("-") and not _OPTION_LIKE.fullmatch(word) and os.path.isfile(word):
             say(f"c2n: hint: {printable(word)} is a file, read as an option: write ./{printable(word)}")
 
 

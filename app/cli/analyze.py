@@ -3,6 +3,7 @@
 import argparse
 import itertools
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -230,6 +231,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     snapshot = pipeline.snapshot()
     clock = clock_notes(read, config)
     result = summary.build(snapshot, config, [str(p) for p in args.logs], [*clock, *notes])
+    if clock:  # the file's reason is the clock's (it said "drive steady circles …")
+        result = replace(result, no_result=f"{clock[0].path}: {clock[0].stopped}")
     if args.json:
         summary.write(args.json, result)
     if clock:  # the run's every figure is on the wrong time: its result and warnings would mislead

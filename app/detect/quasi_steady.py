@@ -46,7 +46,7 @@ class Cornering:
     tight_s: float = 0.0  # of which on a radius under eight wheelbases (``tightest_curvature``)
     usable_ay_mps2: tuple[float, float] | None = None  # the quasi-steady samples' |a_y|: least, most
     usable_samples: int = 0  # the quasi-steady samples
-    backwards_s: float = 0.0  # the optical speed at or below −speed_min: a head facing back, a vx flipped
+    backwards_s: float = 0.0  # cornering as above but the optical speed at or below −speed_min: vx flipped
 
 
 NO_CORNERING = Cornering()
@@ -78,8 +78,10 @@ class QuasiSteadyGate:
         """Is this estimate a quasi-steady sample? ``steps`` for one, without arrays: this runs
         for every filtered frame of a live drive."""
         s, u, r, ay, r_dot = self.settings, e.u_mps, e.r_radps, e.ay_mps2, e.r_dot_radps2
-        curvature = abs(r) / u if r is not None and u >= s.speed_min_mps and u > 0 else -1.0  # -1: none
+        curvature = abs(r) / abs(u) if r is not None and abs(u) >= s.speed_min_mps and u != 0 else -1.0
         turning = sensor_ok and curvature >= self._min_curvature and ay is not None and abs(ay) >= AY_MIN_MPS2
+        backwards = turning and u < 0  # cornering by the optical speed driven backwards: vx's sign
+        turning = turning and u > 0
         ay_ok = ay is not None and abs(ay) <= s.ay_max_mps2
         wide = curvature <= self._max_curvature  # not too tight a turn
         slow = (
@@ -101,7 +103,7 @@ class QuasiSteadyGate:
             tally = self._seconds
             tally[0] += dt
             tally[1 if not ay_ok else 4 if not wide else 3 if quasi else 2] += dt
-        elif u <= -s.speed_min_mps:
+        elif backwards:
             self._seconds[5] += dt
         if quasi:
             assert ay is not None  # a quasi-steady sample is turning: it has an a_y
@@ -118,9 +120,10 @@ class QuasiSteadyGate:
             return np.zeros(0, bool)
         u, u_dot, v_dot, r, r_dot, ay = (estimates[:, k] for k in (0, 1, 3, 4, 5, 8))
         with np.errstate(divide="ignore", invalid="ignore"):
-            curvature = np.abs(r) / u
-            turning = sensor_ok & (u >= s.speed_min_mps) & (u > 0) & (curvature >= self._min_curvature)
-            turning &= np.abs(ay) >= AY_MIN_MPS2
+            curvature = np.abs(r) / np.abs(u)
+            cornering = sensor_ok & (np.abs(u) >= s.speed_min_mps) & (curvature >= self._min_curvature)
+            cornering &= np.abs(ay) >= AY_MIN_MPS2
+            turning, backwards = cornering & (u > 0), cornering & (u < 0)
             wide = curvature <= self._max_curvature
         ay_ok = np.abs(ay) <= s.ay_max_mps2
         slow = (
@@ -145,7 +148,7 @@ class QuasiSteadyGate:
         tally[2] += float(dt[turning & ay_ok & wide & ~quasi].sum())
         tally[3] += float(dt[quasi].sum())
         tally[4] += float(dt[turning & ay_ok & ~wide].sum())
-        tally[5] += float(dt[u <= -s.speed_min_mps].sum())
+        tally[5] += float(dt[backwards].sum())
         if quasi.any():
             usable = np.abs(ay[quasi])
             spread = self._usable_ay

@@ -138,16 +138,24 @@ def _usable(m: Measured) -> np.ndarray:
 def _lacking(m: Measured, config: Config) -> str | None:
     """What the drive lacks that the model needs, named (it said "too short to diagnose: 0 s"):
     the steering that drives the model, the yaw rate it is compared on, a forward speed."""
-    if not np.isfinite(m.delta).any():
+    for values, what, role, why in (
+        (m.delta, "steering angle", "steer", "driven by it"),
+        (m.r, "yaw rate", "yaw_rate", "compared on it"),
+    ):
+        if np.isfinite(values).any():
+            continue
+        spec = config.roles.get(role)
+        if spec is None:
+            return f"no {what} in the drive: the model is {why} — give its signal as [roles] {role}"
         return (
-            "no steering angle in the drive: the model is driven by it — give the steering-wheel "
-            "angle's signal as [roles] steer (and [vehicle] steering_ratio)"
+            f"no {what} in the drive: the log has no frames of [roles] {role}'s {spec.message}.{spec.signal} "
+            f"— the model is {why}: record it, or check the message's id and channel"
         )
-    if not np.isfinite(m.r).any():
-        return "no yaw rate in the drive: the model is compared on it — give its signal as [roles] yaw_rate"
     u, speed_min = np.nan_to_num(m.u_optical), config.detector.speed_min_mps
-    forwards = float(np.count_nonzero((u >= speed_min) & (np.abs(u * np.nan_to_num(m.r)) >= AY_MIN_MPS2)))
-    return reads_backwards(np.count_nonzero(u <= -speed_min) * m.dt, forwards * m.dt)
+    turning = np.abs(u * np.nan_to_num(m.r)) >= AY_MIN_MPS2
+    forwards = np.count_nonzero(turning & (u >= speed_min)) * m.dt
+    scale = config.roles["vx"].scale if "vx" in config.roles else 1.0
+    return reads_backwards(np.count_nonzero(turning & (u <= -speed_min)) * m.dt, forwards, scale)
 
 
 def _noise(x: np.ndarray) -> float:

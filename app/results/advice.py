@@ -218,22 +218,20 @@ def filter_lost(f: Findings) -> str | None:
     settings, default = f.config.filter, FilterSettings()
     times = sum(lost.values())
     where = ", ".join(f"{_SENSOR[kind]} {n:,}" for kind, n in lost.items())
-    knobs = ", ".join(
-        f"{q} ({now:g}{'' if now == was else f'; default {was:g}'})"
-        for q in sorted({_FOLLOWS[kind] for kind in lost})
-        for now, was in [(getattr(settings, q), getattr(default, q))]
-    )
     gate = settings.innovation_gate
-    narrow = (
-        f" or innovation_gate ({gate:g}; default {default.innovation_gate:g})"
-        if gate < default.innovation_gate
-        else ""
-    )
+    if gate < default.innovation_gate:  # a narrow gate rejects the sensor's own noise: it first
+        knobs = f"innovation_gate ({gate:g}; default {default.innovation_gate:g})"
+    else:
+        knobs = ", ".join(
+            f"{q} ({now:g}{'' if now == was else f'; default {was:g}'})"
+            for q in sorted({_FOLLOWS[kind] for kind in lost})
+            for now, was in [(getattr(settings, q), getattr(default, q))]
+        )
     return (
         f"the filter lost the car {times:,} time{'s' if times != 1 else ''} ({where}: frames beyond its "
-        f"innovation gate {MAX_CONSECUTIVE_REJECTS} running, then believed), {f.lost_in_samples:,} of "
-        "them in the cornering C2n is measured on: its speeds and sideslip lagged the car there, and "
-        f"C2n with them — raise [filter] {knobs}{narrow}, or check the sensor's signal"
+        f"innovation gate {MAX_CONSECUTIVE_REJECTS} running, then believed), and in {f.lost_in_samples:,} "
+        "samples of the cornering C2n is measured on: its speeds and sideslip lagged the car there, "
+        f"and C2n with them — raise [filter] {knobs}, or check the sensor's signal"
     )
 
 

@@ -36,19 +36,29 @@ def sensor_messages(config: Config) -> dict[int, float | None]:
     return found
 
 
+# A pause the filter restarts on is longer than a frame lost: two of the sensor's cycles, and a
+# third for the timestamps' jitter. gap_reset_s equal to the cycle restarted it at half the frames.
+BRIDGED_CYCLES = 3.0
+
+
 def clock_problem(spacing: Spacing, gap_reset_s: float, cycle_s: float | None) -> str | None:
     """Why a log's timestamps are not in seconds: the optical sensor's frames (``spacing``, in
     the log's unit) lie beyond ``gap_reset_s`` apart (median), a power of 1000 or more of the
     sensor's cycle ``cycle_s`` (None: 4–20 ms). None where they do not."""
-    if not (math.isfinite(spacing.median) and spacing.median > gap_reset_s):  # no spacing's overflow
+    if not (math.isfinite(spacing.median) and spacing.median > 0):  # no spacing's overflow
         return None
     expected = cycle_s if cycle_s else 1.0 / math.sqrt(SENSOR_HZ[0] * SENSOR_HZ[1])
     power = round(math.log(spacing.median / expected, 1000))
-    if power < 1:  # the sensor's own spacing, in seconds: the setting is shorter than a frame's
+    shorter = gap_reset_s < spacing.median
+    if not shorter and (power >= 1 or gap_reset_s >= BRIDGED_CYCLES * spacing.median):
+        return None  # bridged, a lost frame and all (or a log thinned, not the setting's)
+    if power < 1:  # the sensor's own spacing, in seconds: the setting is not above a lost frame's
         return (  # it said "the optical data stopped 10343 times" and blamed the driving
-            f"[filter] gap_reset_s = {gap_reset_s:g} s is shorter than the optical sensor's frame "
-            f"spacing (id 0x{spacing.frame_id:X}, {_amount(spacing.median * 1000)} ms median): the filter "
-            "restarts at every frame — set it to a few of the sensor's cycles or more (the default is 1 s)"
+            f"[filter] gap_reset_s = {gap_reset_s:g} s is "
+            f"{'shorter than' if shorter else 'within a lost frame of'} the optical "
+            f"sensor's frame spacing (id 0x{spacing.frame_id:X}, {_amount(spacing.median * 1000)} ms "
+            f"median): the filter restarts at every {'frame' if shorter else 'late or lost frame'} "
+            f"— set it to {BRIDGED_CYCLES:g} of the sensor's cycles or more (the default is 1 s)"
         )
     sends = (
         f"{cycle_s * 1000:g} ms (its DBC's cycle)"

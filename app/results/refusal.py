@@ -127,16 +127,16 @@ def unbounded_fit(fit: RegressionFit | None) -> str | None:
     )
 
 
-def reads_backwards(backwards_s: float, forwards_s: float) -> str | None:
-    """The optical speed backwards for more of the drive than it cornered forwards (a test drive
-    is driven forwards): vx the wrong way round, or the head turned; None otherwise."""
+def reads_backwards(backwards_s: float, forwards_s: float, vx_scale: float = 1.0) -> str | None:
+    """The car cornering backwards by the optical speed for longer than forwards (a test drive
+    corners forwards; reversing is driven straight): vx the wrong way round, or the head turned;
+    None otherwise. ``vx_scale`` is the config's, whose sign the fix turns."""
     if backwards_s <= max(forwards_s, 1.0):
         return None
     return (
-        f"the optical speed reads backwards ({backwards_s:.0f} s of the drive moving backwards, "
-        f"{forwards_s:.0f} s cornering forwards): vx's sign is the wrong way round, or the head "
-        'faces the rear — set [roles] vx = {signal = "…", scale = -1.0} (and vy\'s too where the '
-        "head faces the rear)"
+        f"the optical speed reads backwards ({backwards_s:.0f} s cornering backwards, "
+        f"{forwards_s:.0f} s forwards): vx's sign is the wrong way round, or the head faces the rear "
+        f"— set [roles] vx's scale = {-vx_scale:g} (and vy's turned too where the head faces the rear)"
     )
 
 
@@ -147,10 +147,19 @@ def refusal(
     regression: RegressionFit | None,
     cornering: Cornering,
     unbounded: str | None = None,
+    lost_in_samples: int = 0,
+    vx_scale: float = 1.0,
 ) -> str:
-    """Why there is no C2n: a wrong sign (``sign_problem``), drives apart (``drives_disagree``),
-    a fit that does not bound C2n (``unbounded_fit``), crossings whose sweeps disagree or that do
-    not bound it (``support``), or the manoeuvre the drive lacked."""
+    """Why there is no C2n: the filter lost the car in the samples (its estimates there lag the
+    car, so a sign or a fit read from them is the filter's), a wrong sign (``sign_problem``),
+    drives apart (``drives_disagree``), a fit that does not bound C2n (``unbounded_fit``),
+    crossings whose sweeps disagree or that do not bound it (``support``), or the manoeuvre the
+    drive lacked."""
+    if lost_in_samples:  # q_u = 1e-6 on track laps read as "the sideslip and the yaw rate disagree"
+        return (
+            f"the filter lost the car in {lost_in_samples:,} of the samples C2n is measured on: its "
+            "estimates lag the car there (the warning below names the process noise to raise)"
+        )
     if sign:
         return sign
     if disagree:
@@ -160,7 +169,7 @@ def refusal(
     if unsteady and (regression is None or not positive(regression.c2n)):
         return unsteady
     c = cornering
-    backwards = reads_backwards(c.backwards_s, c.turning_s)
+    backwards = reads_backwards(c.backwards_s, c.turning_s, vx_scale)
     if backwards:
         return backwards
     if c.turning_s < 1.0:

@@ -24,7 +24,7 @@ from app.sinks.sideslip_plot import MIN_HEIGHT as PLOT_MIN_LINES
 from app.sinks.sideslip_plot import SideslipPlot
 from app.sinks.sink import Display
 from app.sinks.summary import format_id
-from app.snapshot import Snapshot
+from app.snapshot import FilterState, Snapshot
 
 WIDE, TALL = 100, 40  # below either, the compact layout (an 80×24 laptop terminal)
 
@@ -104,10 +104,13 @@ def _waiting(snapshot: Snapshot) -> Text:
     return Text("waiting for optical sensor frames", style="yellow")
 
 
-def _lost(lost: dict[str, int]) -> str:
-    """How often the filter lost the car so far (its gate rejected a sensor that insisted): the
-    summary's warning names the process noise to raise."""
-    return f"  lost the car {sum(lost.values()):,}× ({', '.join(lost)})" if lost else ""
+def _lost(state: FilterState) -> str:
+    """In how many samples C2n is measured on the filter lost the car so far (its gate rejected a
+    sensor that insisted), as the summary's warning says it; a loss elsewhere (a hard stop, a
+    lap's braking) touches no sample and is not shown."""
+    if not state.lost_in_samples:
+        return ""
+    return f"  lost the car in {state.lost_in_samples:,} samples ({', '.join(state.counts.lost)})"
 
 
 def _pairs(rows: list[tuple[str, str]]) -> Text:
@@ -231,7 +234,7 @@ class Dashboard(Display):
             ("lat. acc.", f"{e.ay_mps2:+6.2f} m/s²" if e.ay_mps2 is not None else "—"),
             ("yaw rate", f"{math.degrees(e.r_radps):+6.2f} °/s" if e.r_radps is not None else "—"),
             ("steering", f"{math.degrees(steer):+6.1f}°" if steer is not None else "—"),
-            ("filter health", f"{e.health:5.2f}" + _lost(snapshot.filter.counts.lost)),
+            ("filter health", f"{e.health:5.2f}" + _lost(snapshot.filter)),
             ("optical noise", f"σ {noise['vx_mps'] * 1000:.0f} / {noise['lateral_mps'] * 1000:.0f} mm/s"),
         ]
         return Panel(_pairs(rows), title="Motion")

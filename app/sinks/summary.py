@@ -307,7 +307,6 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         reports=tuple(reports),
         frames=snapshot.frames,
         filter_counts=snapshot.filter.counts,
-        lost_in_samples=snapshot.filter.lost_in_samples,
         result_fit=snapshot.fit,
         regression=snapshot.regression,
         quasi=snapshot.quasi,
@@ -324,6 +323,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         replay_hint=snapshot.replay_hint,
         d_witnessed=snapshot.d_witnessed,
         backwards=refusal.reads_backwards(cornering.backwards_s, cornering.turning_s) is not None,
+        lost_in_samples=snapshot.filter.lost_in_samples,
     )
 
 

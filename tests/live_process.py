@@ -1,5 +1,6 @@
 """`c2n live` in a child process, for the tests that stop, kill or hang it up."""
 
+import signal
 import subprocess
 import sys
 import time
@@ -11,6 +12,25 @@ from typing import IO
 import pytest
 
 from tests.simulated import REPO
+
+
+def foreground() -> None:
+    """A child's ``preexec_fn``: the signals a terminal sends at their defaults and none blocked,
+    whatever started the suite — `nohup` and a shell's background job pass SIGHUP and SIGINT on
+    ignored, and a child would then run on where a test stops it by them."""
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_SETMASK, set())
+
+
+def _foreground_then(before: Callable[[], object] | None) -> Callable[[], None]:
+    def preexec() -> None:
+        foreground()
+        if before is not None:
+            before()
+
+    return preexec
 
 
 def start_live(
@@ -35,7 +55,7 @@ def start_live(
         cwd=REPO,
         stdout=stdout,
         stderr=subprocess.PIPE,
-        preexec_fn=before,
+        preexec_fn=_foreground_then(before),
     )
     return child, record, sent
 

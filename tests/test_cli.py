@@ -15,6 +15,7 @@ from rich.console import Console
 
 from app.cli import main
 from app.sim.simulated_drive import write_drive
+from tests.live_process import foreground
 from tests.simulated import REPO, cached_drive
 
 
@@ -420,7 +421,9 @@ def test_ctrl_c_while_c2n_s_modules_load_is_one_line_and_exit_130(tmp_path: Path
         "from app.__main__ import run\n"
         "run()\n"
     )
-    ended = subprocess.run([sys.executable, "early.py"], cwd=tmp_path, capture_output=True, timeout=120)
+    ended = subprocess.run(
+        [sys.executable, "early.py"], cwd=tmp_path, capture_output=True, timeout=120, preexec_fn=foreground
+    )
     assert ended.returncode == 130 and ended.stderr == b"c2n: interrupted\n", ended.stderr
     assert not (tmp_path / "c2n-demo").exists()
 

@@ -17,7 +17,7 @@ import pytest
 
 from app.cli import main
 from app.sim.simulated_drive import write_drive
-from tests.live_process import start_live, wait_for_lines
+from tests.live_process import foreground, start_live, wait_for_lines
 from tests.simulated import cached_drive
 
 
@@ -142,6 +142,7 @@ def test_a_closed_terminal_ends_a_demo_and_removes_its_folder(tmp_path: Path) ->
         [sys.executable, "-m", "app", "demo", "--speedup", "1"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
+        preexec_fn=foreground,
         env={**os.environ, "TMPDIR": str(tmp_path)},
     )
     try:

@@ -12,6 +12,7 @@ from pathlib import Path
 import can
 import pytest
 
+from tests.live_process import foreground
 from tests.simulated import REPO, cached_drive, sent_on_virtual_bus
 from tests.test_reliability_inputs import MONDEO, run_cli
 
@@ -417,6 +418,7 @@ def test_sigterm_while_export_writes_leaves_no_hidden_folder(
         cwd=REPO,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
+        preexec_fn=foreground,
     )
     deadline = time.monotonic() + 120
     while not list(tmp_path.glob(".export.partial-*")) and child.poll() is None:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.live_process import foreground
 from tests.simulated import REPO
 from tests.test_reliability_inputs import run_cli
 
@@ -30,15 +31,8 @@ def _start(out: Path, kind: str) -> subprocess.Popen[str]:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=_foreground,
+        preexec_fn=foreground,
     )
-
-
-def _foreground() -> None:
-    """The child as a terminal starts a foreground command: Ctrl-C delivered and acted on, whatever
-    the test process inherited or left behind."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
 def _children(pid: int) -> list[int]:

@@ -206,6 +206,11 @@ _FOLLOWS = {"vx": "q_u", "speed": "q_u", "lateral": "q_v", "yaw": "q_r"}
 _SENSOR = {"vx": "optical vx", "speed": "vehicle speed", "lateral": "optical lateral", "yaw": "yaw"}
 
 
+def _setting(key: str, value: float, default: float) -> str:
+    """A [filter] key with its value, and its default where the value is not it."""
+    return f"{key} ({value:g})" if value == default else f"{key} ({value:g}; default {default:g})"
+
+
 def filter_lost(f: Findings) -> str | None:
     """The filter left behind by the car where C2n is measured: a sensor's frames beyond the gate
     several times running in a steady or quasi-steady sample, which its noise model gives no
@@ -220,12 +225,11 @@ def filter_lost(f: Findings) -> str | None:
     where = ", ".join(f"{_SENSOR[kind]} {n:,}" for kind, n in lost.items())
     gate = settings.innovation_gate
     if gate < default.innovation_gate:  # a narrow gate rejects the sensor's own noise: it first
-        knobs = f"innovation_gate ({gate:g}; default {default.innovation_gate:g})"
+        knobs = _setting("innovation_gate", gate, default.innovation_gate)
     else:
         knobs = ", ".join(
-            f"{q} ({now:g}{'' if now == was else f'; default {was:g}'})"
+            _setting(q, getattr(settings, q), getattr(default, q))
             for q in sorted({_FOLLOWS[kind] for kind in lost})
-            for now, was in [(getattr(settings, q), getattr(default, q))]
         )
     return (
         f"the filter lost the car {times:,} time{'s' if times != 1 else ''} ({where}: frames beyond its "

@@ -105,7 +105,7 @@ class CorneringRow:
     transient_s: float  # speed or steering changing too fast for quasi-steady, or settling
     usable_s: float  # quasi-steady
     tight_s: float  # on a radius under eight wheelbases: the bicycle model's small steer angles fail
-    backwards_s: float  # the optical speed backwards (not cornering): a head facing back, a vx flipped
+    backwards_s: float  # cornering with the optical speed backwards: vx's sign flipped, the head turned
 
 
 @dataclass(frozen=True)

@@ -386,8 +386,10 @@ def _update(
             variance = math.radians(c[_SIGMA_BETA]) ** 2
         else:  # the angle's noise is the lateral velocity's over the speed
             variance = _variance(s, _LAT, c[_RES_BETA], abs(u_s)) / (u_s * u_s)
-        # pseudo-measurement: y = z − h(x) as y = z' − H·x
-        _put(rows, n, beta - h + j0 * u + j1 * v + j2 * r, j0, j1, j2, variance, _LAT)
+        # pseudo-measurement: y = z − h(x) as y = z' − H·x, z − h modulo 180° (angle_innovation)
+        d = beta - h
+        d -= math.pi * math.floor(d / math.pi + 0.5)
+        _put(rows, n, d + j0 * u + j1 * v + j2 * r, j0, j1, j2, variance, _LAT)
         n += 1
     if speed == speed:
         hu = -1.0 if u < 0.0 and speed >= 0.0 else 1.0  # a wheel speed is |u|: reversing reads it so

@@ -12,7 +12,9 @@ Measurement models (y_s: sensor's lateral offset, + left), each a scalar row on 
 (``H = (h_u, h_v, h_r)``):
     optical vx      = u − r·y_s                 (rigid body: the head sees the yaw's share)
     optical vy      = v
-    optical angle β = atan2(v, u − r·y_s)       (linearised about the prior, as in an EKF)
+    optical angle β = atan2(v, u − r·y_s)       (linearised about the prior, as in an EKF; its
+                                                innovation taken modulo 180°, so a head reading
+                                                atan(vy/vx) and one reading atan2 agree reversing)
     vehicle speed   = u, or −u reversing where it reads ≥ 0 (weak: wheel-speed scale errors and
                       lags; a wheel speed is unsigned, |u|, on most cars)
     yaw rate        = r                         (or ay/u without a gyro)
@@ -20,6 +22,7 @@ Measurement models (y_s: sensor's lateral offset, + left), each a scalar row on 
 The constants below tune both filters alike; numba compiles them in as they are.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +38,15 @@ MIN_SPEED_FOR_ANGLE = 1.0  # m/s: below this the angle says nothing about v
 MAX_CONSECUTIVE_REJECTS = 3  # a sensor rejected this often in a row is right and the model wrong
 NOISE_ALPHA = 0.002  # memory of the measured noise: about 500 optical frames
 NOISE_CEILING = 5.0  # the measured noise may grow to this many times the configured σ
+
+
+def angle_innovation(beta: float, h: float) -> float:
+    """β − h taken into [−90°, 90°): reversing, the angle is about ±180° as atan2 reads it (and
+    flips sign with the noise) but about 0° as atan(vy/vx) reads it (the S-Motion's ``Angle`` is
+    ±45°): the two are one angle modulo 180°, and its slope on u and v is the same. The compiled
+    filter writes the same arithmetic inline."""
+    d = beta - h
+    return d - math.pi * math.floor(d / math.pi + 0.5)
 
 
 @dataclass

@@ -23,6 +23,7 @@ from app.estimate.motion_model import (
     FilterCounts,
     H,
     Row,
+    angle_innovation,
     full_row,
     transition,
 )
@@ -188,7 +189,8 @@ class MotionFilter:
             else:  # the angle's noise is the lateral velocity's over the speed
                 variance = self._variance("lateral", "beta", abs(u_s)) / (u_s * u_s)
             # pseudo-measurement: filterpy forms y = z − Hx, the EKF needs y = z − h(x)
-            rows.append((beta - h + jac[0] * u + jac[1] * v + jac[2] * r, jac, variance, "lateral"))
+            z = angle_innovation(beta, h) + jac[0] * u + jac[1] * v + jac[2] * r
+            rows.append((z, jac, variance, "lateral"))
         if "speed" in s:  # a wheel speed is |u| (unsigned): reversing, it reads −u
             row = _MINUS_U_ROW if u < 0.0 and s["speed"] >= 0.0 else _U_ROW
             rows.append((s["speed"], row, self.settings.sigma_speed_mps**2, "speed"))

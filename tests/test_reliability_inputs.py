@@ -343,6 +343,11 @@ def test_a_log_named_like_an_option_gets_the_way_to_write_it(
     assert code == 2 and "c2n: hint: -x.log is a file, read as an option: write ./-x.log" in err
     code, _, err = run_cli([command, "--no-such-option", "y.log"])
     assert code == 2 and "hint" not in err
+    code, _, err = run_cli(["-x.log"])  # no command at all: ./-x.log alone would still lack one
+    assert (
+        code == 2
+        and "-x.log is a file, read as an option: write a command and ./-x.log, as c2n analyze" in err
+    )
     (tmp_path / "--force").write_text("")  # a stray file named as an option is no log of the user's
     code, _, err = run_cli([command, "--force", "--bogus"])
     assert code == 2 and "hint" not in err

@@ -107,10 +107,14 @@ _OPTION_LIKE = re.compile(r"--?[A-Za-z][\w-]*")
 
 def _files_read_as_options(argv: Sequence[str]) -> None:
     """After a usage error: a word that begins with '-' and names a file (`c2n gap -x.log`) was
-    taken for an option, so argparse said "LOG is required" of a log it was given. Say how."""
+    taken for an option, so argparse said "LOG is required" of a log it was given. Say how, and
+    where no command was given (`c2n -x.log`), that one goes before it."""
+    command = any(not word.startswith("-") for word in argv)  # c2n's own options take no value
     for word in argv:  # a file, named otherwise than an option is (`--force`, `-v`)
         if word.startswith("-") and not _OPTION_LIKE.fullmatch(word) and os.path.isfile(word):
-            say(f"c2n: hint: {printable(word)} is a file, read as an option: write ./{printable(word)}")
+            name = printable(word)
+            how = f"./{name}" if command else f"a command and ./{name}, as c2n analyze ./{name}"
+            say(f"c2n: hint: {name} is a file, read as an option: write {how}")
 
 
 def main(argv: Sequence[str] | None = None, console: Console | None = None) -> int:

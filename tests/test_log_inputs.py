@@ -77,8 +77,17 @@ def test_an_export_where_no_role_decodes_says_so_exits_1_and_writes_nothing(tmp_
     ]
     log = _write_log(tmp_path / "other.log", other)
     out = tmp_path / "exp"
-    code, _, err = run_cli(["analyze", str(log)])
+    result = tmp_path / "result.json"  # its reason is the refusal's (it had none; without the sensor,
+    code, _, err = run_cli(["analyze", str(log), "--json", str(result)])  # one that blamed the driving)
     assert code == 1 and f"c2n: error: {log}: no frames for any role of " in err
+    assert json.loads(result.read_text())["no_result"] == err.strip().splitlines()[-1].removeprefix(
+        "c2n: error: "
+    )
+    vehicle = _write_log(tmp_path / "vehicle.log", _speed_frames())
+    code, _, err = run_cli(["analyze", str(vehicle), "--json", str(result)])
+    reason = json.loads(result.read_text())["no_result"]
+    assert code == 1 and reason == err.strip().splitlines()[-1].removeprefix("c2n: error: ")
+    assert "cornering" not in reason
     code, _, err = run_cli(["export", str(log), "--out", str(out), "--no-plots"])
     assert code == 1 and "Traceback" not in err
     error = err.strip().splitlines()[-1]

@@ -7,7 +7,9 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import can
 import pytest
@@ -430,3 +432,32 @@ def test_sigterm_while_export_writes_leaves_no_hidden_folder(
     assert child.returncode == 130, err.decode()  # was -2 (SIGINT) 1 run in 4: see test_cli.py
     assert b"c2n: interrupted" in err and b"Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_analyze_ended_by_a_signal_says_so_and_keeps_the_older_result_file(
+    drive_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C, SIGTERM or a closed terminal during `analyze --json J` ended it with exit 0, the C2n of
+    the part read printed as the drive's and J replaced by it (14.935 from the first 170 s of a
+    563-s drive whose whole read 14.866), without a word."""
+    from app.sources.logs import LogSource
+
+    result = tmp_path / "result.json"
+    assert run_cli(["analyze", str(drive_log), "--json", str(result)])[0] == 0
+    whole = result.read_bytes()
+    items = LogSource.items
+
+    def cut_short(self: LogSource, *args: Any, **kwargs: Any) -> Iterator[Any]:
+        for n, item in enumerate(items(self, *args, **kwargs)):
+            if n == 2:
+                raise KeyboardInterrupt  # as SIGTERM and SIGHUP are raised (app.cli.common.interrupt)
+            yield item
+
+    monkeypatch.setattr(LogSource, "items", cut_short)
+    code, _, err = run_cli(["analyze", str(drive_log), "--json", str(result)])
+    assert code == 130, err
+    said = err.split("c2n: interrupted — the result above is of the first ")[1]
+    frames = int(said.split("s read (")[1].split(" frames)")[0].replace(",", ""))
+    assert 0 < frames < json.loads(whole)["frames"]["total"]
+    assert said.rstrip().endswith(f"not the whole of {drive_log}; {result} not written"), err
+    assert result.read_bytes() == whole

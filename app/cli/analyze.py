@@ -9,12 +9,20 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from rich.console import Console
 
-from app.cli.common import add_config, add_force, error_console, no_role_decoded, parts_disagree
+from app.cli.common import (
+    INTERRUPTED,
+    add_config,
+    add_force,
+    error_console,
+    no_role_decoded,
+    parts_disagree,
+)
+from app.cli.terminal import say
 from app.config import load_config
 from app.errors import NoResultError, printable
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
 from app.results.headline import Method
-from app.user_text import argument
+from app.user_text import argument, shown
 
 if TYPE_CHECKING:
     from app.config import Config
@@ -231,21 +239,30 @@ def run(args: argparse.Namespace, console: Console) -> int:
     snapshot = pipeline.snapshot()
     clock = clock_notes(read, config)
     result = summary.build(snapshot, config, [str(p) for p in args.logs], [*clock, *notes])
-    if clock:  # the file's reason is the clock's (it said "drive steady circles …")
-        result = replace(result, no_result=f"{clock[0].path}: {clock[0].stopped}")
-    if args.json:
-        summary.write(args.json, result)
-    if clock:  # the run's every figure is on the wrong time: its result and warnings would mislead
-        raise NoResultError(f"{clock[0].path}: {clock[0].stopped}")
     missing = summary.missing_required(snapshot, config)
     refused = no_role_decoded(snapshot, config, args.logs) or (
         f"{', '.join(str(p) for p in args.logs)}: {missing}" if missing else None
     )
+    if clock:  # the run's every figure is on the wrong time: its result and warnings would mislead
+        refused = f"{clock[0].path}: {clock[0].stopped}"
+    if refused is not None:  # the file's reason is the refusal's (it said "drive steady circles …", or none)
+        result = replace(result, no_result=refused)
+    if args.json and completed:  # an interrupted run's result is of part of the drive: the file stays
+        summary.write(args.json, result)
+    if clock:
+        raise NoResultError(refused)
     if refused is None:  # else the result line would blame the drive ("no cornering") for the log
         print_result(console, snapshot)
     errors = error_console()
     for warning in result.warnings:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
+    if not completed:  # Ctrl-C, SIGTERM, a closed terminal: said, not taken for the whole drive's
+        kept = f"; {shown(args.json)} not written" if args.json and str(args.json) != "-" else ""
+        say(
+            f"c2n: interrupted — the result above is of the first {snapshot.elapsed_s:,.0f} s read "
+            f"({snapshot.frames.total:,} frames), not the whole of {', '.join(map(shown, args.logs))}{kept}"
+        )
+        return INTERRUPTED
     if refused is not None:
         raise NoResultError(refused)
     return 0

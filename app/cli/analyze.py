@@ -258,10 +258,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
         errors.print(f"c2n: warning: {printable(warning)}", markup=False)
     if not completed:  # Ctrl-C, SIGTERM, a closed terminal: said, not taken for the whole drive's
         unwritten = f"; {shown(args.json)} not written" if args.json and str(args.json) != "-" else ""
-        logs = ", ".join(map(shown, args.logs))
+        read_from = ", ".join(map(shown, args.logs))
         say(
             f"c2n: interrupted — the result above is of the first {snapshot.elapsed_s:,.0f} s read "
-            f"({snapshot.frames.total:,} frames), not the whole of {logs}{unwritten}"
+            f"({snapshot.frames.total:,} frames), not the whole of {read_from}{unwritten}"
         )
         return INTERRUPTED
     if refused is not None:

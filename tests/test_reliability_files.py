@@ -272,7 +272,7 @@ def test_two_exports_into_one_folder_at_once_or_a_kill_leave_one_runs_folder(
     os.kill(run.pid, signal.SIGKILL)
     run.wait()
     assert (out / "summary.json").read_bytes() == before
-    assert _export(short, out, "--format", "csv")[0] == 0  # the next run clears what the kill left
+    assert _export(Path(log), out, "--format", "csv")[0] == 0  # the next run clears what the kill left
     assert not list(tmp_path.glob(".out.*"))
 
 
@@ -434,12 +434,13 @@ def test_sigterm_while_export_writes_leaves_no_hidden_folder(
     assert list(tmp_path.iterdir()) == []
 
 
-def test_analyze_ended_by_a_signal_says_so_and_keeps_the_older_result_file(
+def test_analyze_or_export_ended_by_a_signal_says_so_and_keeps_the_older_output(
     drive_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Ctrl-C, SIGTERM or a closed terminal during `analyze --json J` ended it with exit 0, the C2n of
     the part read printed as the drive's and J replaced by it (14.935 from the first 170 s of a
-    563-s drive whose whole read 14.866), without a word."""
+    563-s drive whose whole read 14.866), without a word; `export` swapped the part's export in
+    for the whole drive's (98 s of 563)."""
     from app.sources.logs import LogSource
 
     result = tmp_path / "result.json"
@@ -453,6 +454,11 @@ def test_analyze_ended_by_a_signal_says_so_and_keeps_the_older_result_file(
                 raise KeyboardInterrupt  # as SIGTERM and SIGHUP are raised (app.cli.common.interrupt)
             yield item
 
+    exported = tmp_path / "exported"  # export: exit 0, the older export swapped for the part's
+    assert (
+        run_cli(["export", str(drive_log), "--out", str(exported), "--no-plots", "--format", "csv"])[0] == 0
+    )
+    export = {entry.name: entry.read_bytes() for entry in exported.iterdir()}
     monkeypatch.setattr(LogSource, "items", cut_short)
     code, _, err = run_cli(["analyze", str(drive_log), "--json", str(result)])
     assert code == 130, err
@@ -461,3 +467,38 @@ def test_analyze_ended_by_a_signal_says_so_and_keeps_the_older_result_file(
     assert 0 < frames < json.loads(whole)["frames"]["total"]
     assert said.rstrip().endswith(f"not the whole of {drive_log}; {result} not written"), err
     assert result.read_bytes() == whole
+    code, _, err = run_cli(
+        ["export", str(drive_log), "--out", str(exported), "--no-plots", "--format", "csv"]
+    )
+    assert code == 130, err
+    assert f"c2n: interrupted — {drive_log} not read to its end: nothing written to {exported}" in err
+    assert {entry.name: entry.read_bytes() for entry in exported.iterdir()} == export
+
+
+def test_export_replaces_only_an_older_export_of_the_same_log(drive_log: Path, tmp_path: Path) -> None:
+    """`export --out DIR` replaced a folder of files named and begun as an export's, whatever they
+    were: a `gap` report alone, an `analyze` summary alone, another drive's whole export — each
+    deleted, exit 0, no word."""
+    fast = ["--no-plots", "--format", "csv"]
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "report.html").write_text('<html><head><meta name="generator" content="c2n"></head></html>')
+    results = tmp_path / "results"
+    assert run_cli(["analyze", str(drive_log), "--json", str(results / "summary.json")])[0] == 0
+    for folder in (notes, results):
+        before = {entry.name: entry.read_bytes() for entry in folder.iterdir()}
+        code, _, err = run_cli(["export", str(drive_log), "--out", str(folder), *fast])
+        assert code == 1 and f"c2n: error: --out {folder}: holds c2n's files but no export (" in err, err
+        assert {entry.name: entry.read_bytes() for entry in folder.iterdir()} == before
+    other = tmp_path / "other.blf"
+    shutil.copy(drive_log, other)
+    exported = tmp_path / "exported"
+    assert run_cli(["export", str(drive_log), "--out", str(exported), *fast])[0] == 0
+    before = {entry.name: entry.read_bytes() for entry in exported.iterdir()}
+    code, _, err = run_cli(["export", str(other), "--out", str(exported), *fast])
+    assert code == 1, err
+    assert f"--out {exported}: holds the export of {drive_log}, not of {other} — choose another folder" in err
+    assert {entry.name: entry.read_bytes() for entry in exported.iterdir()} == before
+    assert run_cli(["export", str(drive_log), "--out", str(exported), *fast])[0] == 0  # its own: replaced
+    for _ in range(2):  # the default folder beside the log is the log's own
+        assert run_cli(["export", str(other), *fast])[0] == 0

@@ -2,15 +2,17 @@
 table, the summary, plots and one self-contained HTML report."""
 
 import argparse
+import os
 import stat
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rich.console import Console
 
-from app.cli.common import error_console, no_role_decoded, parts_disagree
+from app.cli.common import INTERRUPTED, error_console, no_role_decoded, parts_disagree
+from app.cli.terminal import say
 from app.config import DEFAULT_CONFIG, Config, load_config
-from app.errors import NoResultError, need, printable
+from app.errors import NoResultError, OutputError, need, printable
 from app.output.csv_dialects import CSV_DIALECT_HELP, CSV_DIALECTS
 from app.output.files import folder_atomically
 from app.output.paths import HTML_REPORT, SUMMARY_JSON, Output, check, config_files
@@ -150,6 +152,33 @@ def _ours_by_content(path: Path) -> bool:
     return head.startswith(starts)
 
 
+def _not_an_older_export(out: Path, logs: list[Path]) -> str | None:
+    """Why ``--out``'s folder, which holds only files named and begun as an export's, is no older
+    export of ``logs`` to replace: it lacks the summary and events every export writes (a `gap`
+    report, an `analyze` summary, alone), or its summary names other logs (another drive's
+    export). Those were replaced, and lost, when names and contents were enough."""
+    import json
+
+    if not out.is_dir() or not any(out.iterdir()):
+        return None
+    lacking = [name for name in ("summary.json", "events.csv") if not (out / name).is_file()]
+    if lacking:
+        held = ", ".join(sorted(entry.name for entry in out.iterdir())[:3])
+        return f"--out {out}: holds c2n's files but no export ({held}) — choose a new or empty folder"
+    try:
+        made_from = [
+            str(log) for log in json.loads((out / "summary.json").read_text(encoding="utf-8"))["inputs"]
+        ]
+    except (OSError, ValueError, TypeError, KeyError):
+        made_from = []
+    if [os.path.realpath(log) for log in made_from] != [os.path.realpath(log) for log in logs]:
+        return (
+            f"--out {out}: holds the export of {', '.join(made_from) or 'another log'}, not of "
+            f"{', '.join(map(str, logs))} — choose another folder, or remove that one to export there"
+        )
+    return None
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     from app.pipeline import Pipeline
@@ -169,6 +198,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     logs, config, out = _inputs(args)
     check([Output("--out", out, _ours_by_content, folder=True)], [*logs, *config_files(config)])
+    if args.out is not None:  # the default place, beside the log or in the session, is its own export's
+        refused = _not_an_older_export(out, logs)
+        if refused is not None:
+            raise OutputError(refused)
     unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began
     pipeline = Pipeline(config)
     source = LogSource(
@@ -179,7 +212,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     )
     trace_recorder = TraceRecorder(config.roles)
     progress = ReadProgress(source, logs[0].name)
-    run_pipeline(
+    completed = run_pipeline(
         source,
         pipeline,
         [EventPrinter(console), trace_recorder],
@@ -187,6 +220,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console=console,
         transient=True,
     )
+    if not completed:  # Ctrl-C, SIGTERM, a closed terminal: a part of the drive is no export of it
+        say(f"c2n: interrupted — {shown(args.input)} not read to its end: nothing written to {shown(out)}")
+        return INTERRUPTED
     clock = clock_notes(source.reports, config)
     if clock:  # every channel is on the wrong time: nothing is written
         raise NoResultError(f"{clock[0].path}: {clock[0].stopped} (nothing written to {out})")
@@ -198,7 +234,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)
-    result = summary.build(snapshot, config, [str(p) for p in logs], [*unfinished, *source.reports])
+    inputs = [os.path.abspath(p) for p in logs]  # which logs: an export found again by its --out
+    result = summary.build(snapshot, config, inputs, [*unfinished, *source.reports])
     nothing = _nothing_to_export(snapshot, config, logs, out)
     if nothing is not None:  # the warnings name each role's ids; a result line would blame the drive
         _say_result(console, snapshot, result, line=False)

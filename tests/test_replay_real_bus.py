@@ -142,3 +142,12 @@ def test_without_ip_a_link_s_kind_is_not_known(monkeypatch: pytest.MonkeyPatch) 
 
     monkeypatch.setattr(subprocess, "run", missing)
     assert bus_kind.link_kind("can0") is None
+
+
+def test_an_interface_name_python_can_does_not_know_is_no_bus_not_a_real_one(tmp_path: Path) -> None:
+    """`-i virutal` was refused as a real bus, `--real-bus` offered as the way on — the one option
+    that would let the replay reach a car's ECUs once the name is put right. It is no bus at all."""
+    log = candump(tmp_path / "d.log", ["can0"])
+    code, _, err = run_cli(["replay", str(log), "-i", "virutal"])
+    assert code == 1 and "--real-bus" not in err, err
+    assert 'Unknown interface type "virutal"' in err and "check the interface name" in err

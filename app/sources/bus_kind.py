@@ -42,11 +42,19 @@ def resolved(interface: str | None, channel: str | int | None) -> tuple[str | No
     return config.get("interface"), config.get("channel")
 
 
+def _known_interfaces() -> frozenset[str]:
+    """python-can's interface names (its own and its plugins'): a typo (``virutal``) is no bus
+    at all, and was refused as a real one, with ``--real-bus`` offered as the way on."""
+    import can.interfaces
+
+    return frozenset(can.interfaces.VALID_INTERFACES)
+
+
 def kind(interface: str | None, channel: str | int | None) -> Kind:
     """``virtual``, ``real``, ``unknown`` (a SocketCAN link whose kind ``ip`` could not tell), or
     ``missing`` (no interface named anywhere, no such SocketCAN device: opening it fails with its
     own hint)."""
-    if interface is None:
+    if interface is None or interface not in _known_interfaces():  # opening it: "Unknown interface type"
         return "missing"
     if interface in _VIRTUAL_INTERFACES:
         return "virtual"

@@ -160,3 +160,50 @@ def test_the_sensor_s_ids_and_cycle_come_from_the_config_s_roles_and_dbc() -> No
     report.spacing.add(_block([10.0 * k for k in range(5)], [SENSOR_ID] * 5))
     (note,) = clock_notes([report, LogReport(Path("other.csv"))], config)
     assert note.path == Path("drive.csv") and note.done and "1000× too slow" in str(note.stopped)
+
+
+def test_where_the_watched_clock_goes_back_is_kept_frames_and_blocks_alike() -> None:
+    """A second recording appended, or the logger's clock set back: the watched frames' time
+    falls more than pause_s below the latest — kept in file order, and the pauses after it are
+    measured from there (each tagged with the rewinds before it). A jitter within pause_s is none,
+    nor is another id's stray time."""
+    first = [0.02 * k for k in range(500)]  # 0–9.98 s
+    second = [-300.0 + 0.02 * k for k in range(300)]  # back to −300 s
+    times = [*first, 9.5, *second, 100.0, 100.02]  # 9.5: half a second late, no rewind
+    ids = [SENSOR_ID] * len(times)
+    by_frame, by_block = FrameSpacing(frozenset({SENSOR_ID}), 1.0), FrameSpacing(frozenset({SENSOR_ID}), 1.0)
+    for t, frame_id in zip(times, ids, strict=True):
+        by_frame.add(can.Message(timestamp=t, arbitration_id=frame_id))
+        if t == 5.0:
+            by_frame.add(can.Message(timestamp=-500.0, arbitration_id=0x123))  # another id's: none
+    by_block.add(_block(times[:400], ids[:400]))
+    by_block.add(_block(times[400:], ids[400:]))  # the rewind and the pause after it in one block
+    for spacing in (by_frame, by_block):
+        assert spacing.rewinds == [(pytest.approx(9.98), -300.0)]
+        assert spacing.pauses == [(pytest.approx(-300.0 + 0.02 * 299), 100.0)]
+        assert spacing.pause_rewinds == [1]
+
+
+def test_the_parts_of_a_file_whose_clock_goes_back_follow_the_file_frames_and_blocks_alike() -> None:
+    """A file in whose second recording a pause falls: three parts — by order where the clock goes
+    back, by time at the pause — every frame of another id with the sensor's frames around it,
+    those of the next recording before its sensor's first frame with that recording."""
+    from app.results.within_file import Parting
+
+    first = [0.02 * k for k in range(500)]
+    second = [-300.0 + 0.02 * k for k in range(300)]
+    times = [*first, -300.5, *second, 100.0, 100.02, 99.0]  # the next recording's bus wakes first
+    ids = [SENSOR_ID] * len(first) + [0x123] + [SENSOR_ID] * (len(second) + 2) + [0x123]
+    spacing = FrameSpacing(frozenset({SENSOR_ID}), 1.0)
+    spacing.add(_block(times, ids))
+    expected = [0] * len(first) + [1] * (1 + len(second)) + [2, 2, 2]
+    assert Parting(spacing)(ids, times).tolist() == expected
+    parting = Parting(spacing)
+    assert [int(parting([i], [t])[0]) for i, t in zip(ids, times, strict=True)] == expected
+    parting = Parting(spacing)
+    assert [*parting(ids[:450], times[:450]).tolist(), *parting(ids[450:], times[450:]).tolist()] == expected
+    assert Parting(spacing).spans((0.0, 99.0)) == [
+        (0.0, pytest.approx(9.98)),
+        (-300.5 + 0.5, pytest.approx(-300.0 + 0.02 * 299)),
+        (100.0, 99.0),
+    ]

@@ -30,10 +30,10 @@ from app.user_text import argument, shown
 # loaded when the command runs, not at import: `c2n --help` needs none of them
 if TYPE_CHECKING:
     import can
-    import numpy as np
 
     from app.output.can_logs import Format, PartFile
     from app.sources.logs import LogReport, LogSource
+    from app.sources.spacing import FrameSpacing
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -62,12 +62,18 @@ _OPEN_AT_MOST = 16
 
 @dataclass(frozen=True)
 class Cut:
-    """Where a log is cut: ``at`` the middle of each pause (``within_file.cuts``), ``spans_s``
-    each part's sensor's seconds from the log's first frame, as ``within_file`` names them."""
+    """Where a log is cut: at its pauses and where its clock goes back (``spacing``, read again
+    by ``within_file.Parting``), ``spans_s`` each part's sensor's seconds from the log's first
+    frame, as ``within_file`` names them."""
 
-    at: "np.ndarray"
+    spacing: "FrameSpacing"
     spans_s: list[tuple[float, float]]
     t0_s: float  # the log's first frame's time
+
+    @property
+    def between(self) -> str:
+        """What the parts lie between, as the listing says it."""
+        return "pauses" if not self.spacing.rewinds else "pauses and where its clock goes back"
 
     def names(self, stem: str, suffix: str) -> list[str]:
         """``day part 07 of 12 (300–450 s).blf``: numbered to sort as they follow each other."""
@@ -81,13 +87,11 @@ class Cut:
 
 def cut_of(report: "LogReport") -> Cut:
     """The parts of ``report``'s log between its pauses, bounded as ``within_file`` bounds them."""
-    from app.results.within_file import cuts
+    from app.results.within_file import Parting
 
-    pauses = report.spacing.pauses
-    t0, t1 = report.span_s if report.span_s is not None else (0.0, float("nan"))
-    bounds = [t0, *(t for pause in pauses for t in pause), t1]
-    spans = [(bounds[2 * k] - t0, bounds[2 * k + 1] - t0) for k in range(len(pauses) + 1)]
-    return Cut(cuts(pauses), spans, t0)
+    t0 = report.span_s[0] if report.span_s is not None else 0.0
+    spans = [(begin - t0, end - t0) for begin, end in Parting(report.spacing).spans(report.span_s)]
+    return Cut(report.spacing, spans, t0)
 
 
 @dataclass
@@ -157,10 +161,11 @@ def refusal(found: _Found, config: Config) -> str | None:
     clock = clock_notes([report], config)
     if clock:
         return f"{report.path}: {clock[0].stopped} (nothing written)"
-    if not report.spacing.pauses:
+    if not (report.spacing.pauses or report.spacing.rewinds):
         return (
             f"{report.path}: the optical sensor's frames never pause longer than gap_reset_s "
-            f"({config.filter.gap_reset_s:g} s) — one part, nothing to split (nothing written)"
+            f"({config.filter.gap_reset_s:g} s), nor does their clock go back further — one part, "
+            "nothing to split (nothing written)"
         )
     return None
 
@@ -183,9 +188,10 @@ def write_parts(
     frames too), written in file order into its part's file in ``folder``. Whatever stops the
     writing takes every temporary with it; an OS error is an OutputError naming the file."""
     from app.output.can_logs import PartFile, open_part
-    from app.results.within_file import part_of
+    from app.results.within_file import Parting
     from app.sources.logs import LogSource
 
+    part_of = Parting(cut.spacing)
     source = LogSource([log])
     report = source.reports[0]
     parts: dict[int, PartFile] = {}
@@ -194,7 +200,8 @@ def write_parts(
     try:
         with _bar(console, f"writing the parts of {log.name}", source.total_bytes) as progress:
             for chunk in _chunks(source):
-                for k, msg in zip(part_of(cut.at, [m.timestamp for m in chunk]).tolist(), chunk, strict=True):
+                index = part_of([m.arbitration_id for m in chunk], [m.timestamp for m in chunk])
+                for k, msg in zip(index.tolist(), chunk, strict=True):
                     part = writing.get(k)
                     if part is None:
                         if k in parts:  # finished: in the file after _OPEN_AT_MOST later parts began
@@ -360,7 +367,7 @@ def _say(
         error_console().print(f"c2n: note: {printable(f'{log}: {fmt.note}')}", markup=False)
     t0 = cut.t0_s
     console.print(
-        printable(f"{log}: {len(cut.spans_s)} parts between the optical sensor's pauses → {out}"),
+        printable(f"{log}: {len(cut.spans_s)} parts between the optical sensor's {cut.between} → {out}"),
         markup=False,
     )
     console.print(printable(f"  {PARTS_JSON}  the log, and each part's seconds and frames"), markup=False)

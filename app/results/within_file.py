@@ -27,6 +27,7 @@ from app.results.headline import Headline
 from app.results.log_clock import clock_notes
 from app.sources.blocks import FrameBlock, rows
 from app.sources.logs import LogReport, LogSource
+from app.sources.spacing import FrameSpacing, rewound_at
 from app.sources.triage import Triage
 
 
@@ -62,33 +63,95 @@ def part_of(cut: np.ndarray, t: np.ndarray | Sequence[float]) -> np.ndarray:
     return np.searchsorted(cut, t, side="right")
 
 
+class Parting:
+    """Which part of a file each of its frames is in, read in file order: cut at the middle of
+    each pause of its sensor's frames (``cuts``), and wherever the sensor's clock went back
+    beyond ``gap_reset_s`` (``FrameSpacing.rewinds``: a second recording appended, a logger's
+    clock set back) — there by order in the file, the pauses by time within each stretch of
+    the clock. A frame of another id goes to the stretch of the sensor's frames before it."""
+
+    def __init__(self, spacing: FrameSpacing) -> None:
+        self.ids = np.array(sorted(spacing.ids))
+        self.pause_s = spacing.pause_s
+        stretches: list[list[tuple[float, float]]] = [[] for _ in range(len(spacing.rewinds) + 1)]
+        for pause, before in zip(spacing.pauses, spacing.pause_rewinds, strict=True):
+            stretches[before].append(pause)
+        self.pauses = stretches
+        self.cuts = [cuts(pauses) for pauses in stretches]
+        self.first = np.cumsum([0, *(len(c) + 1 for c in self.cuts)])[:-1]  # each stretch's first part
+        self.count = int(self.first[-1]) + len(self.cuts[-1]) + 1
+        self.rewinds = spacing.rewinds
+        self._stretch, self._latest = 0, -math.inf
+
+    def spans(self, span_s: tuple[float, float] | None) -> list[tuple[float, float]]:
+        """Each part's first and last time of the sensor (the file's first and last frame at its
+        ends: ``LogReport.span_s``), in the log's own seconds."""
+        first, last = span_s if span_s is not None else (0.0, math.nan)
+        starts = [first, *(after for _, after in self.rewinds)]
+        ends = [*(before for before, _ in self.rewinds), last]
+        bounds = []
+        for pauses, start, end in zip(self.pauses, starts, ends, strict=True):
+            edges = [start, *(t for pause in pauses for t in pause), end]
+            bounds += [(edges[2 * k], edges[2 * k + 1]) for k in range(len(pauses) + 1)]
+        return bounds
+
+    def __call__(self, frame_id: np.ndarray | Sequence[int], t: np.ndarray | Sequence[float]) -> np.ndarray:
+        """The part of each frame (ids ``frame_id``, times ``t``), the file's next frames in order."""
+        t = np.asarray(t, dtype=float)
+        if not self.rewinds:
+            return part_of(self.cuts[0], t)
+        stretch = np.empty(len(t), dtype=np.int64)
+        rows = np.flatnonzero(np.isin(np.asarray(frame_id), self.ids) & np.isfinite(t))
+        times = t[rows]
+        start = done = 0  # the first row of this stretch; the sensor's frames seen
+        while True:
+            back = done + rewound_at(times[done:], self._latest, self.pause_s)
+            if back > done:
+                self._latest = max(self._latest, float(times[done:back].max()))
+            end = int(rows[back]) if back < len(times) else len(t)
+            # frames of other ids after the sensor's last, already behind its clock: the next
+            # recording's bus woken before its sensor
+            tail = int(rows[back - 1]) + 1 if back > done else start
+            behind = ~(t[tail:end] < self._latest - self.pause_s)
+            ahead = tail + (int(np.flatnonzero(behind)[-1]) + 1 if behind.any() else 0)
+            stretch[start:ahead] = self._stretch
+            stretch[ahead:end] = min(self._stretch + 1, len(self.cuts) - 1)
+            if back == len(times):
+                break
+            self._stretch = min(self._stretch + 1, len(self.cuts) - 1)
+            self._latest, start, done = float(times[back]), end, back + 1
+        out = np.empty(len(t), dtype=np.int64)
+        for k in np.unique(stretch).tolist():
+            own = stretch == k
+            out[own] = self.first[k] + part_of(self.cuts[k], t[own])
+        return out
+
+
 def parts_disagree(report: LogReport, config: Config, part: Callable[[Config], Part]) -> str | None:
     """One line naming each part's result and the pair that differs most, where the parts of
     ``report``'s file between its pauses (``report.spacing.pauses``) disagree, each alone (each
     run through its own ``part(config)``); None where they agree, where the file did not pause
     (it is not read again), and where its clock is not in seconds (every frame is a pause then,
     and ``log_clock`` says why)."""
-    pauses = report.spacing.pauses
-    if not pauses or clock_notes([report], config):
+    spacing = report.spacing
+    if not (spacing.pauses or spacing.rewinds) or clock_notes([report], config):
         return None
-    cut = cuts(pauses)
-    parts = [part(config) for _ in range(len(pauses) + 1)]
+    parting = Parting(spacing)
+    parts = [part(config) for _ in range(parting.count)]
     for item in LogSource([report.path], triage=parts[0].decoder).items(blocks=True):
         if isinstance(item, FrameBlock):
-            index = part_of(cut, item.t)
+            index = parting(item.frame_id, item.t)
             edges = [0, *(np.flatnonzero(np.diff(index)) + 1), len(index)]
             for begin, end in itertools.pairwise(edges):
                 parts[int(index[begin])].process_block(rows(item, begin, end))
         elif item is not None:
-            parts[int(part_of(cut, [item.timestamp])[0])].process(item)
+            parts[int(parting([item.arbitration_id], [item.timestamp])[0])].process(item)
     t0 = report.span_s[0] if report.span_s is not None else 0.0
-    bounds = [t0, *(t for pause in pauses for t in pause), report.span_s[1] if report.span_s else math.nan]
     alone = []
-    for k, pipeline in enumerate(parts):
+    for pipeline, (begin, end) in zip(parts, parting.spans(report.span_s), strict=True):
         pipeline.finish()
         headline = pipeline.snapshot().headline
         if headline is not None:
-            begin, end = bounds[2 * k] - t0, bounds[2 * k + 1] - t0
-            name = f"{report.path.name} {begin:.0f}–{end:.0f} s"
+            name = f"{report.path.name} {begin - t0:.0f}–{end - t0:.0f} s"
             alone.append(DriveResult(name, headline.c2n, headline.ci95))
     return disagreement(alone)

@@ -41,6 +41,10 @@ class FrameSpacing:
     pause_s: float = math.inf
     watching: set[int] = field(init=False)  # the ids still short of SPACINGS_KEPT
     pauses: list[tuple[float, float]] = field(default_factory=list, init=False)  # (last before, first after)
+    # where the watched frames' clock went back by more than pause_s: (the latest before, the
+    # frame's), in file order — a second recording appended, a logger's clock set back
+    rewinds: list[tuple[float, float]] = field(default_factory=list, init=False)
+    pause_rewinds: list[int] = field(default_factory=list, init=False)  # how many came before each pause
     _last: dict[int, float] = field(default_factory=dict, init=False)
     _gaps: dict[int, list[float]] = field(default_factory=dict, init=False)
     _latest: float = field(default=-math.inf, init=False)  # the latest watched frame's time
@@ -59,16 +63,33 @@ class FrameSpacing:
                 own = times[ids == frame_id]
                 if len(own):
                     self._note(frame_id, own.tolist())
-            latest = np.maximum.accumulate(np.concatenate(([self._latest], times)))
-            for k in np.flatnonzero((np.diff(latest) > self.pause_s) & np.isfinite(latest[:-1])):
-                self.pauses.append((float(latest[k]), float(latest[k + 1])))
-            self._latest = float(latest[-1])
+            while len(times):  # each stretch up to where the clock goes back
+                back = rewound_at(times, self._latest, self.pause_s)
+                latest = np.maximum.accumulate(np.concatenate(([self._latest], times[:back])))
+                for k in np.flatnonzero((np.diff(latest) > self.pause_s) & np.isfinite(latest[:-1])):
+                    self._pause(float(latest[k]), float(latest[k + 1]))
+                self._latest = float(latest[-1])
+                if back >= len(times):
+                    break
+                self._rewind(float(times[back]))
+                times = times[back + 1 :]
         elif item.arbitration_id in self.ids and math.isfinite(item.timestamp):
             if item.arbitration_id in self.watching:
                 self._note(item.arbitration_id, [item.timestamp])
-            if item.timestamp - self._latest > self.pause_s and self._latest > -math.inf:
-                self.pauses.append((self._latest, item.timestamp))
+            if item.timestamp < self._latest - self.pause_s:
+                self._rewind(item.timestamp)
+            elif item.timestamp - self._latest > self.pause_s and self._latest > -math.inf:
+                self._pause(self._latest, item.timestamp)
             self._latest = max(self._latest, item.timestamp)
+
+    def _pause(self, before: float, after: float) -> None:
+        self.pauses.append((before, after))
+        self.pause_rewinds.append(len(self.rewinds))
+
+    def _rewind(self, t: float) -> None:
+        """The clock went back to ``t``: what follows is measured from there (its pauses too)."""
+        self.rewinds.append((self._latest, t))
+        self._latest = t
 
     def _note(self, frame_id: int, times: list[float]) -> None:
         last = self._last.get(frame_id)
@@ -89,3 +110,12 @@ class FrameSpacing:
             return None
         count, frame_id, gaps = max(kept, key=lambda entry: entry[0])
         return Spacing(frame_id, statistics.median(gaps), count)
+
+
+def rewound_at(times: np.ndarray, latest: float, pause_s: float) -> int:
+    """The index of the first of ``times`` (finite, in file order) more than ``pause_s`` before the
+    latest time seen (``latest`` before the first): where the clock went back; ``len(times)``
+    where it never did."""
+    before = np.maximum.accumulate(np.concatenate(([latest], times[:-1])))
+    back = np.flatnonzero(times < before - pause_s)
+    return int(back[0]) if len(back) else len(times)

@@ -36,6 +36,11 @@ class UsageError(C2nError):
     """The command line asks for something impossible: exit code 2, like argparse's own errors."""
 
 
+class Interrupted(C2nError):
+    """Ended by Ctrl-C, SIGTERM or a closed terminal, what was done kept: exit 130, as any
+    command so ended; the message says what is kept and how to go on."""
+
+
 class NoResultError(C2nError):
     """The input was read but cannot give a C2n (e.g. a required role had no frames)."""
 

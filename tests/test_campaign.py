@@ -6,8 +6,10 @@ import json
 import math
 import subprocess
 import sys
+from collections.abc import Iterator
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -377,13 +379,18 @@ def test_manifest_mistakes_are_one_line(tmp_path: Path) -> None:
 
 
 def test_an_interrupted_campaign_keeps_what_is_done_and_goes_on_from_there(campaign: Path) -> None:
-    """Ctrl-C (SIGINT) once two drives are in: the run says how many are kept and how to go on,
-    exit 1; the same command again analyses only the rest. A copy of a log under another name is
-    known by its content."""
+    """SIGTERM to the whole process group (systemd's stop, a scheduler's cancel, `kill -- -PGID`)
+    once two drives are in: the run says how many are kept and how to go on, exit 130; the same
+    command again analyses only the rest. (The workers died of it, and Python 3.11's pool then
+    waited for good, its folder claimed; Ctrl-C said `c2n: error: interrupted`, exit 1.) A copy
+    of a log under another name is known by its content."""
+    import os
     import signal
     import subprocess
     import sys
     import time
+
+    from tests.live_process import foreground
 
     lines = campaign.read_text().splitlines()[:9]
     subset = campaign.parent / "interrupted.csv"
@@ -391,15 +398,29 @@ def test_an_interrupted_campaign_keeps_what_is_done_and_goes_on_from_there(campa
     (campaign.parent / "logs" / "copy.blf").write_bytes((campaign.parent / "logs" / "s001.blf").read_bytes())
     out = campaign.parent / "interrupted"
     argv = [sys.executable, "-m", "app", "campaign", str(subset), "--workers", "1", "--out", str(out)]
-    child = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    child = subprocess.Popen(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=foreground,
+    )
     deadline = time.monotonic() + 120
     while len(list((out / "cache").glob("*-*.json"))) < 2 and time.monotonic() < deadline:
         time.sleep(0.2)
-    child.send_signal(signal.SIGINT)
-    _, err = child.communicate(timeout=120)
+    os.killpg(child.pid, signal.SIGTERM)
+    try:
+        _, err = child.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        left = subprocess.run(
+            ["ps", "-o", "pid,stat,wchan,cmd", "-g", str(child.pid)], capture_output=True, text=True
+        )
+        os.killpg(child.pid, signal.SIGKILL)
+        raise AssertionError(left.stdout + child.communicate()[1]) from None
     cached = {path.stem for path in (out / "cache").glob("*-*.json")}
-    assert child.returncode == 1 and "Traceback" not in err
-    assert f"c2n: error: interrupted: {len(cached)} of 9 sessions are done and kept" in err
+    assert child.returncode == 130 and "Traceback" not in err, err
+    assert f"c2n: interrupted — {len(cached)} of 9 sessions are done and kept" in err
     assert 2 <= len(cached) < 8 and not (out / "results.csv").exists()
     code, text, _ = run_cli(["campaign", str(subset), "--workers", "2", "--out", str(out)])
     assert code == 0
@@ -494,8 +515,40 @@ _HOLDS_A_CAMPAIGN = """
 import sys
 import time
 from pathlib import Path
+from typing import Any
 from app.campaign.work import claimed
 with claimed(Path(sys.argv[1])):
     print("held", flush=True)
     time.sleep(600)
 """
+
+
+def test_a_worker_killed_outright_is_said_with_what_is_kept(
+    campaign: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A worker process killed by the kernel's OOM killer or kill -9 breaks the pool: it was
+    BrokenProcessPool's traceback, exit 1, and no word of what was kept or how to go on."""
+    import concurrent.futures as cf
+    from concurrent.futures.process import BrokenProcessPool
+    from contextlib import contextmanager
+
+    from app.campaign import work
+
+    class Broken(cf.Executor):
+        def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> cf.Future[Any]:
+            future: cf.Future[Any] = cf.Future()
+            future.set_exception(BrokenProcessPool("A process in the process pool was terminated abruptly"))
+            return future
+
+    @contextmanager
+    def broken(n: int) -> Iterator[cf.Executor]:
+        yield Broken()
+
+    monkeypatch.setattr(work, "local_workers", broken)
+    lines = campaign.read_text().splitlines()[:4]
+    manifest = tmp_path / "three.csv"
+    manifest.write_text("\n".join(lines).replace("logs/", f"{campaign.parent}/logs/") + "\n")
+    code, _, err = run_cli(["campaign", str(manifest), "--out", str(tmp_path / "out")])
+    assert code == 1 and "Traceback" not in err, err
+    assert "c2n: error: a worker process ended in the middle of a drive (killed: out of memory?)" in err
+    assert "0 of 3 sessions are done and kept" in err and "--workers 1 shows which log it was" in err

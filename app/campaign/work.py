@@ -25,7 +25,7 @@ from typing import Any
 from app.campaign.analysis import Job, analyse, config_hash, content_hash, logs_hash, where
 from app.campaign.manifest import Manifest
 from app.campaign.row import SessionRow
-from app.errors import C2nError, printable
+from app.errors import C2nError, Interrupted, printable
 from app.output.files import partial_pid, write_json
 from app.sim.workers import ends_with_parent
 
@@ -62,7 +62,14 @@ def run_task(task: Task) -> SessionRow | str:
 
 # what every worker needs, imported once in the fork server (~2.5 s of numba, scipy, python-can
 # and the pipeline) instead of once per worker on cores the workers share
-PRELOAD = ["app.campaign.analysis", "app.pipeline", "app.run_loop", "app.sinks.summary", "app.sources.logs"]
+PRELOAD = [
+    "app.campaign.fork_server",  # the server's own signals
+    "app.campaign.analysis",
+    "app.pipeline",
+    "app.run_loop",
+    "app.sinks.summary",
+    "app.sources.logs",
+]
 
 
 @contextmanager
@@ -79,11 +86,13 @@ def local_workers(n: int) -> Iterator[cf.Executor]:
 
 
 def _start_worker() -> None:
-    """A worker leaves Ctrl-C (sent to the whole terminal's process group) to the campaign, which
-    keeps what is done and stops the rest; a worker killed by it would break the pool. And it
+    """A worker leaves Ctrl-C, SIGTERM and SIGHUP (sent to the whole process group: a terminal's,
+    systemd's, a scheduler's) to the campaign, which keeps what is done and stops the rest; a
+    worker killed by one broke the pool, and Python 3.11's pool then waited for good. And it
     ends when the campaign does, however that ends: a fork server's children are not the
     campaign's, and would live on after a kill -9 of it."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for ending in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # the campaign's to act on
+        signal.signal(ending, signal.SIG_IGN)
     ends_with_parent()
 
 
@@ -233,9 +242,16 @@ def run_campaign(
                 if rows[i] is None and not future.cancelled() and future.exception() is None:
                     _take(future.result(), i, rows, stored, cache, on_row)
             kept = sum(1 for row in rows if row is not None)
-            raise C2nError(
-                f"interrupted: {kept} of {len(rows)} sessions are done and kept in {cache}; "
+            raise Interrupted(
+                f"{kept} of {len(rows)} sessions are done and kept in {cache}; "
                 "run the same command again to go on"
+            ) from None
+        except cf.BrokenExecutor:  # a worker killed outright: the kernel's OOM killer, kill -9
+            kept = sum(1 for row in rows if row is not None)
+            raise C2nError(
+                f"a worker process ended in the middle of a drive (killed: out of memory?): {kept} of "
+                f"{len(rows)} sessions are done and kept in {cache}; run the same command again to go "
+                "on (--workers 1 shows which log it was)"
             ) from None
     return _all(rows)
 

@@ -18,7 +18,7 @@ from app import __version__
 from app.cli import analyze, campaign, demo, export, gap, gap_check, live, replay, simulate, split
 from app.cli.common import ENDING, INTERRUPTED, interrupted_by
 from app.cli.terminal import LosableStream, say
-from app.errors import C2nError, UsageError, printable
+from app.errors import C2nError, Interrupted, UsageError, printable
 
 COMMANDS = (live, replay, analyze, export, split, simulate, gap, gap_check, campaign, demo)
 
@@ -141,6 +141,9 @@ def main(argv: Sequence[str] | None = None, console: Console | None = None) -> i
     except C2nError as error:
         if args.debug:
             traceback.print_exc()
+        if isinstance(error, Interrupted):
+            say(f"c2n: interrupted — {printable(str(error))}")
+            return INTERRUPTED
         say(f"c2n: error: {printable(str(error))}")
         return 2 if isinstance(error, UsageError) else 1
     except KeyboardInterrupt:

@@ -21,7 +21,7 @@ from app.sim.scenarios import Part
 
 AY_RANGE_MPS2 = (0.3, 4.0)  # the steady gate's linear range, bar the smallest a_y (the step)
 _SETTLE_S = 4.0  # after a sweep's circle begins: turned in and settled
-_STEADY_UDOT = 0.6  # |u̇| [m/s²]: the steady gate's limit
+STEADY_UDOT_MPS2 = 0.6  # |u̇| [m/s²]: the steady gate's limit
 
 
 def axle_c2n(trace: DriveTrace, parts: Sequence[Part], g: float) -> float | None:
@@ -36,7 +36,12 @@ def axle_c2n(trace: DriveTrace, parts: Sequence[Part], g: float) -> float | None
             cornering |= (t >= part.start_s + _SETTLE_S) & (t <= part.end_s)
     ay = u * r
     low, high = AY_RANGE_MPS2
-    keep = cornering & (np.abs(np.gradient(u, t)) < _STEADY_UDOT) & (np.abs(ay) >= low) & (np.abs(ay) <= high)
+    keep = (
+        cornering
+        & (np.abs(np.gradient(u, t)) < STEADY_UDOT_MPS2)
+        & (np.abs(ay) >= low)
+        & (np.abs(ay) <= high)
+    )
     if np.count_nonzero(keep) < 1000:
         return None
     ay = ay[keep]

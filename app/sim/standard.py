@@ -30,7 +30,7 @@ from app.config import Config
 from app.dbc import load_dbc
 from app.errors import C2nError
 from app.sim import commonroad
-from app.sim.axle import axle_c2n
+from app.sim.axle import STEADY_UDOT_MPS2, axle_c2n
 from app.sim.effects import NO_EFFECT, Effect, apply_to_sensor, apply_to_vehicle
 from app.sim.imperfections import NO_IMPERFECTIONS, Imperfections
 from app.sim.laps_and_circles import (
@@ -252,6 +252,16 @@ def _session(config: Config, options: StandardOptions, bicycle: BicycleParams, c
     return standard_session(u0_plan, bicycle, config.vehicle.steering_ratio or 15.0, options.plan)
 
 
+def _axle(options: StandardOptions, trace: TwoTrackTrace, session: Session, g: float) -> float | None:
+    """The car's rear axle read on its sweeps (``axle_c2n``), None where they run faster than the
+    steady gate's |u̇| (``--quick``'s 1 m/s²): its few samples under the gate are the turns of the
+    speed, not steady, and read 7.3 for an axle of 14.9."""
+    plan = options.session_plan
+    if isinstance(plan, StandardPlan) and plan.sweep_mps2 > STEADY_UDOT_MPS2:
+        return None
+    return axle_c2n(trace, session.parts, g)
+
+
 def _drive(
     config: Config,
     options: StandardOptions,
@@ -277,7 +287,7 @@ def _drive(
         "model": model,
         "effect": {"name": options.effect.name, "size": options.effect.size, "unit": options.effect.unit},
         "c2n": c2n,
-        "c2n_axle": axle_c2n(trace, session.parts, g),  # the car's own rear axle (app/sim/axle.py)
+        "c2n_axle": _axle(options, trace, session, g),  # the car's own rear axle (app/sim/axle.py)
         "c1n": c1n,
         "d_m": setup.d_m,
         "config_d_m": config.d_m,

@@ -238,6 +238,9 @@ def test_a_log_name_no_file_system_holds_is_one_line(tmp_path: Path) -> None:
         C2nError, match=r"line 2 names a{40}…, which cannot be looked up \(File name too long\)"
     ):
         read_manifest(manifest)
+    manifest = _manifest(tmp_path, "log,tyre_set\nday1\0.blf,A\n", "nul.csv")  # was ValueError's traceback
+    with pytest.raises(C2nError, match=r"line 2 names a log whose name holds a NUL byte — check the name"):
+        read_manifest(manifest)
 
 
 def test_results_csv_answers_a_semicolon_manifest_in_its_own_dialect(tmp_path: Path) -> None:

@@ -174,6 +174,8 @@ def _pointed(entries: list[Entry], name: str) -> str | None:
 def _log(path: Path, line: int, named: str) -> Path:
     """The log a line names, resolved; a C2nError where it, or a session folder's frames file, is
     no file (a device, a pipe): opening a pipe to hash it would wait for a writer never to come."""
+    if "\0" in named:  # no file system holds one: the path functions raise ValueError
+        raise C2nError(f"{path}: line {line} names a log whose name holds a NUL byte — check the name")
     try:
         return _checked_log(path, line, named)
     except OSError as error:  # a name the system cannot look up (over 255 bytes): the user's to fix

@@ -366,3 +366,17 @@ def test_a_gap_reset_shorter_than_a_frame_is_named_not_the_driving(
         f"c2n: error: {drive_log}: [filter] gap_reset_s = 0.001 s is shorter than the optical sensor's" in err
     )
     assert "drive steady circles" not in out + err and "no optical sideslip" not in err
+
+
+@pytest.mark.parametrize(("command", "option"), [("export", "--out"), ("analyze", "--json"), ("split", None)])
+def test_an_empty_path_is_a_usage_error_not_the_current_folder(
+    command: str, option: str | None, drive_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`--out "$DIR"` with DIR unset gave `--out ''`, read as `.`: the refusals spoke of a folder
+    never named, and an export went on into the current folder where it could."""
+    monkeypatch.chdir(tmp_path)
+    argv = [command, str(drive_log), option, ""] if option else [command, ""]
+    code, _, err = run_cli(argv)
+    name = option or "LOG"
+    assert code == 2 and f"argument {name}: an empty name ('') — an unset shell variable? give a path" in err
+    assert list(tmp_path.iterdir()) == []

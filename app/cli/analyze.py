@@ -16,6 +16,7 @@ from app.cli.common import (
     error_console,
     no_role_decoded,
     parts_disagree,
+    path_argument,
 )
 from app.cli.terminal import say
 from app.config import load_config
@@ -34,11 +35,11 @@ _POOL_GAP_S = 10.0  # between drives pooled: no filter, gate or regression run s
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
     parser = subparsers.add_parser("analyze", help="C2n from recorded CAN logs", description=__doc__)
     parser.add_argument(
-        "logs", nargs="+", type=Path, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4"
+        "logs", nargs="+", type=path_argument, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4"
     )
     add_config(parser)
     parser.add_argument(
-        "--json", type=Path, metavar="OUT", help="write the summary JSON here (- : standard output)"
+        "--json", type=path_argument, metavar="OUT", help="write the summary JSON here (- : standard output)"
     )
     add_force(parser)
     how = parser.add_mutually_exclusive_group()

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from app.cli.common import ENDING, error_console, interrupted_by, number
+from app.cli.common import ENDING, error_console, interrupted_by, number, path_argument
 from app.config import load_config
 from app.errors import UsageError, need, printable
 from app.output.csv_dialects import CSV_DIALECT_HELP, CSV_DIALECTS, dialect_of
@@ -34,10 +34,16 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "campaign", help="analyse and compare many drives (tyre sets, pressures, days)", description=__doc__
     )
     parser.add_argument(
-        "manifest", type=Path, metavar="MANIFEST.csv", help="a 'log' column (relative to it) and tag columns"
+        "manifest",
+        type=path_argument,
+        metavar="MANIFEST.csv",
+        help="a 'log' column (relative to it) and tag columns",
     )
     parser.add_argument(
-        "--out", type=Path, metavar="DIR", help="results go here (default: MANIFEST-campaign beside it)"
+        "--out",
+        type=path_argument,
+        metavar="DIR",
+        help="results go here (default: MANIFEST-campaign beside it)",
     )
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
@@ -58,7 +64,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     parser.add_argument(
         "--config",
-        type=Path,
+        type=path_argument,
         metavar="F",
         help="vehicle config for every log (default: a session's own copy, else config/mondeo.toml)",
     )

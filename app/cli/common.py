@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 def add_config(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config",
-        type=Path,
+        type=path_argument,
         default=DEFAULT_CONFIG,
         metavar="F",
         help="vehicle config (default: config/mondeo.toml)",
@@ -160,6 +160,14 @@ def add_force(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="replace an existing output file that c2n did not write (never an input of the command)",
     )
+
+
+def path_argument(text: str) -> Path:
+    """A path's value on the command line; ``''`` (an unset shell variable: ``--out "$DIR"``) is a
+    usage error — ``Path('')`` is ``.``, and a command went on in a folder never named."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty name ('') — an unset shell variable? give a path")
+    return Path(text)
 
 
 INTERRUPTED = 130  # the exit code of a command ended by Ctrl-C, SIGTERM or SIGHUP (128 + SIGINT)

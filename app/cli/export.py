@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from rich.console import Console
 
-from app.cli.common import INTERRUPTED, error_console, no_role_decoded, parts_disagree
+from app.cli.common import INTERRUPTED, error_console, no_role_decoded, parts_disagree, path_argument
 from app.cli.terminal import say
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import NoResultError, OutputError, need, printable
@@ -31,11 +31,14 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         "export", help="channels, events, plots and a report from a log or session", description=__doc__
     )
     parser.add_argument(
-        "input", type=Path, metavar="LOG_OR_SESSION", help="a CAN log, or a session folder of c2n live"
+        "input",
+        type=path_argument,
+        metavar="LOG_OR_SESSION",
+        help="a CAN log, or a session folder of c2n live",
     )
     parser.add_argument(
         "--config",
-        type=Path,
+        type=path_argument,
         metavar="F",
         help="vehicle config (default: a session's own copy, else config/mondeo.toml)",
     )
@@ -52,7 +55,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help=CSV_DIALECT_HELP,
     )
     parser.add_argument(
-        "--out", type=Path, metavar="DIR", help="output folder (default: SESSION/export or LOG-export)"
+        "--out",
+        type=path_argument,
+        metavar="DIR",
+        help="output folder (default: SESSION/export or LOG-export)",
     )
     parser.add_argument("--no-plots", action="store_true", help="no PNG plots and no HTML report")
     parser.set_defaults(run=run)

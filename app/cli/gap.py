@@ -3,11 +3,10 @@ unmodelled effect explains it, and how far the gap shrinks once it is added."""
 
 import argparse
 import os
-from pathlib import Path
 
 from rich.console import Console
 
-from app.cli.common import ENDING, add_config, add_force, interrupted_by, parts_disagree
+from app.cli.common import ENDING, add_config, add_force, interrupted_by, parts_disagree, path_argument
 from app.config import load_config
 from app.errors import NoResultError, need
 from app.gap.result import GapResult
@@ -19,15 +18,18 @@ from app.user_text import argument
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
     parser = subparsers.add_parser("gap", help="diagnose the sim-to-real gap of a drive", description=__doc__)
     parser.add_argument(
-        "logs", nargs="+", type=Path, metavar="LOG", help="the measured drive (any log format)"
+        "logs", nargs="+", type=path_argument, metavar="LOG", help="the measured drive (any log format)"
     )
     add_config(parser)
     parser.add_argument(
-        "--json", type=Path, metavar="OUT", help="write the diagnosis JSON here (- : standard output)"
+        "--json",
+        type=path_argument,
+        metavar="OUT",
+        help="write the diagnosis JSON here (- : standard output)",
     )
     parser.add_argument(
         "--report",
-        type=Path,
+        type=path_argument,
         metavar="OUT",
         help="write an HTML report with residual maps (- : standard output)",
     )

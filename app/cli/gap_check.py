@@ -3,12 +3,12 @@ open the seal and print the confusion matrix, the accuracy, the false-alarm rate
 and the held-out shrink."""
 
 import argparse
-from pathlib import Path
 
 from rich.console import Console
 from rich.table import Table
 
 from app.cli import common
+from app.cli.common import path_argument
 from app.output.files import write_json
 from app.output.paths import SCORES_JSON, Output
 from app.output.paths import check as guard
@@ -19,7 +19,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser = subparsers.add_parser(
         "gap-check", help="score the gap diagnosis on a blind pack", description=__doc__
     )
-    parser.add_argument("pack", type=Path, metavar="PACK", help="a folder written by c2n simulate --pack")
+    parser.add_argument(
+        "pack", type=path_argument, metavar="PACK", help="a folder written by c2n simulate --pack"
+    )
     parser.add_argument(
         "--workers",
         type=common.number(1, 64, integer=True),
@@ -27,7 +29,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="parallel cases (default: the CPU count)",
     )
     parser.add_argument(
-        "--json", type=Path, metavar="OUT", help="write the scores JSON here (- : standard output)"
+        "--json", type=path_argument, metavar="OUT", help="write the scores JSON here (- : standard output)"
     )
     common.add_force(parser)
     parser.set_defaults(run=run)

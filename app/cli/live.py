@@ -24,6 +24,7 @@ from app.cli.common import (
     channels,
     error_console,
     number,
+    path_argument,
     stopping,
     take_over,
 )
@@ -50,7 +51,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     add_force(parser)
     parser.add_argument(
         "--record",
-        type=Path,
+        type=path_argument,
         default=Path("c2n-sessions"),
         metavar="DIR",
         help="session folders go here (default: c2n-sessions)",
@@ -63,7 +64,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="raw frame log format (default .log, candump)",
     )
     parser.add_argument(
-        "--json", type=Path, metavar="OUT", help="also write the summary JSON here (- : standard output)"
+        "--json",
+        type=path_argument,
+        metavar="OUT",
+        help="also write the summary JSON here (- : standard output)",
     )
     parser.add_argument(
         "--duration", type=number(0.0, 1e7, low_allowed=False), metavar="S", help="stop after S seconds"

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 
-from app.cli.common import INTERRUPTED, add_bus, bus_kwargs, channels, number
+from app.cli.common import INTERRUPTED, add_bus, bus_kwargs, channels, number, path_argument
 from app.cli.terminal import say
 from app.errors import BusError, C2nError, UsageError, printable
 from app.user_text import shown
@@ -24,7 +24,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser = subparsers.add_parser(
         "replay", help="play a CAN log onto a bus in recorded time", description=__doc__
     )
-    parser.add_argument("log", type=Path, metavar="LOG")
+    parser.add_argument("log", type=path_argument, metavar="LOG")
     add_bus(parser)
     parser.add_argument(
         "--rate",

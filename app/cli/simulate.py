@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 
-from app.cli.common import SEED, add_config, add_force, number
+from app.cli.common import SEED, add_config, add_force, number, path_argument
 from app.config import COMMONROAD_CONFIG, DEFAULT_CONFIG, load_config
 from app.errors import C2nError
 from app.output.paths import Output, check, config_files, never
@@ -130,7 +130,7 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     )
     parser.add_argument(
         "--out",
-        type=Path,
+        type=path_argument,
         metavar="LOG",
         help="log to write (.blf, .asc, .log, .csv, .mf4, .trc); with --pack a new folder",
     )

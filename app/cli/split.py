@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 from rich.console import Console
 from rich.progress import BarColumn, DownloadColumn, Progress, TaskProgressColumn, TextColumn
 
-from app.cli.common import ENDING, add_config, error_console, interrupted_by
+from app.cli.common import ENDING, add_config, error_console, interrupted_by, path_argument
 from app.config import Config, load_config
 from app.errors import NoResultError, OutputError, one_line, printable
 from app.output.files import folder_atomically, new_folder, remove_stale
@@ -40,11 +40,13 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
     parser = subparsers.add_parser(
         "split", help="cut a log at its optical sensor's pauses, a file per part", description=__doc__
     )
-    parser.add_argument("log", type=Path, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4")
+    parser.add_argument(
+        "log", type=path_argument, metavar="LOG", help="ASC, BLF, candump .log, CSV, TRC or MF4"
+    )
     add_config(parser)
     parser.add_argument(
         "--out",
-        type=Path,
+        type=path_argument,
         metavar="DIR",
         help="output folder, new or empty (default: a new folder LOG-parts beside the log)",
     )

@@ -502,3 +502,13 @@ def test_export_replaces_only_an_older_export_of_the_same_log(drive_log: Path, t
     assert run_cli(["export", str(drive_log), "--out", str(exported), *fast])[0] == 0  # its own: replaced
     for _ in range(2):  # the default folder beside the log is the log's own
         assert run_cli(["export", str(other), *fast])[0] == 0
+
+
+def test_a_format_asked_twice_is_written_and_listed_once(drive_log: Path, tmp_path: Path) -> None:
+    """`--format csv --format csv` wrote channels.csv twice over and listed it twice."""
+    out = tmp_path / "exported"
+    code, text, err = run_cli(
+        ["export", str(drive_log), "--out", str(out), "--format", "csv", "--format", "csv"]
+    )
+    assert code == 0, err
+    assert text.count("channels.csv") == 1

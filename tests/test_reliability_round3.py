@@ -183,6 +183,15 @@ def test_a_map_naming_a_channel_the_log_lacks_is_one_line_naming_the_logs_channe
     assert code == 1
     said = f"c2n: error: --map can7={channel}: the log has no channel can7 (its channels: can0, can1)"
     assert one_line(err) == said
+    csv_log = tmp_path / "d.csv"  # python-can's CSV keeps no channel: it said `its channels: None`
+    with can.Logger(csv_log) as writer:
+        for message in can.LogReader(log):
+            writer.on_message_received(message)
+    code, _, err = run_cli(["replay", str(csv_log), "-i", "virtual", "-c", channel, "--map", f"0={channel}"])
+    assert code == 1 and one_line(err) == (
+        f"c2n: error: --map 0={channel}: the log keeps no channel of its frames, so none can be mapped — "
+        "replay it without --map (every frame to the first -c bus)"
+    )
 
 
 def test_replay_with_the_readmes_map_form_sends_each_channel_where_asked(tmp_path: Path) -> None:

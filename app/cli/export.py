@@ -198,7 +198,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sinks.trace import TraceRecorder
     from app.sources.logs import LogSource
 
-    formats = tuple(args.format or FORMATS)
+    formats = tuple(dict.fromkeys(args.format or FORMATS))  # `--format csv --format csv`: one file
     export.need_writers(formats)  # before the drive is read: a missing extra is said at once
     if not args.no_plots:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")

@@ -107,9 +107,15 @@ def log_channel(given: str, log_channels: list[str], item: str) -> str:
         named = [c for c in log_channels if (m := _NUMBERED.fullmatch(c)) and int(m[1]) == int(given)]
         if len(named) == 1:
             return named[0]
-    have = printable(", ".join(log_channels) or "none")
+    kept = [c for c in log_channels if c not in ("", "None")]  # a frame without one: python-can's None
+    if not kept:  # a python-can CSV has no channel column
+        raise C2nError(
+            f"--map {printable(item)}: the log keeps no channel of its frames, so none can be mapped — "
+            "replay it without --map (every frame to the first -c bus)"
+        )
     raise C2nError(
-        f"--map {printable(item)}: the log has no channel {printable(given)} (its channels: {have})"
+        f"--map {printable(item)}: the log has no channel {printable(given)} (its channels: "
+        f"{printable(', '.join(kept))})"
     )
 
 

@@ -120,15 +120,16 @@ def parts_disagree(report: "LogReport", config: Config, console: Console) -> str
     """Where the optical sensor's frames paused in ``report``'s file, its parts between the
     pauses each analysed alone (``app.results.within_file``, under a spinner): one line naming
     each part's result where they disagree; None where they agree or the file did not pause."""
-    spacing = report.spacing
-    if not (spacing.pauses or spacing.rewinds):
+    if not (report.spacing.pauses or report.spacing.rewinds):
         return None
     from app.pipeline import Pipeline
+    from app.results.within_file import Parting
     from app.results.within_file import parts_disagree as disagree
 
-    parts = len(spacing.pauses) + len(spacing.rewinds) + 1
-    between = "pauses" if not spacing.rewinds else "pauses and where its clock goes back"
-    with console.status(f"the {parts} parts of {report.path.name} between its {between}, each alone…"):
+    parts = Parting(report.spacing)
+    with console.status(
+        f"the {parts.count} parts of {report.path.name} between its {parts.between}, each alone…"
+    ):
         return disagree(report, config, Pipeline)
 
 

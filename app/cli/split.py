@@ -71,11 +71,7 @@ class Cut:
     spacing: "FrameSpacing"
     spans_s: list[tuple[float, float]]
     t0_s: float  # the log's first frame's time
-
-    @property
-    def between(self) -> str:
-        """What the parts lie between, as the listing says it."""
-        return "pauses" if not self.spacing.rewinds else "pauses and where its clock goes back"
+    between: str = "pauses"  # what the parts lie between (``Parting.between``)
 
     def names(self, stem: str, suffix: str) -> list[str]:
         """``day part 07 of 12 (300–450 s).blf``: numbered to sort as they follow each other."""
@@ -92,8 +88,9 @@ def cut_of(report: "LogReport") -> Cut:
     from app.results.within_file import Parting
 
     t0 = report.span_s[0] if report.span_s is not None else 0.0
-    spans = [(begin - t0, end - t0) for begin, end in Parting(report.spacing).spans(report.span_s)]
-    return Cut(report.spacing, spans, t0)
+    parting = Parting(report.spacing)
+    spans = [(begin - t0, end - t0) for begin, end in parting.spans(report.span_s)]
+    return Cut(report.spacing, spans, t0, parting.between)
 
 
 @dataclass

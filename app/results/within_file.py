@@ -83,6 +83,11 @@ class Parting:
         self.rewinds = spacing.rewinds
         self._stretch, self._latest = 0, -math.inf
 
+    @property
+    def between(self) -> str:
+        """What the parts lie between, as the commands say it."""
+        return "pauses" if not self.rewinds else "pauses and where its clock goes back"
+
     def spans(self, span_s: tuple[float, float] | None) -> list[tuple[float, float]]:
         """Each part's first and last time of the sensor (the file's first and last frame at its
         ends: ``LogReport.span_s``), in the log's own seconds."""
@@ -114,12 +119,11 @@ class Parting:
             tail = int(rows[back - 1]) + 1 if back > done else start
             behind = ~(t[tail:end] < self._latest - self.pause_s)
             ahead = tail + (int(np.flatnonzero(behind)[-1]) + 1 if behind.any() else 0)
-            stretch[start:ahead] = self._stretch
-            stretch[ahead:end] = min(self._stretch + 1, len(self.cuts) - 1)
+            following = min(self._stretch + 1, len(self.cuts) - 1)
+            stretch[start:ahead], stretch[ahead:end] = self._stretch, following
             if back == len(times):
                 break
-            self._stretch = min(self._stretch + 1, len(self.cuts) - 1)
-            self._latest, start, done = float(times[back]), end, back + 1
+            self._stretch, self._latest, start, done = following, float(times[back]), end, back + 1
         out = np.empty(len(t), dtype=np.int64)
         for k in np.unique(stretch).tolist():
             own = stretch == k

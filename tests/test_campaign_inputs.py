@@ -301,3 +301,32 @@ def test_a_results_csv_edited_since_or_a_users_own_is_not_replaced(tmp_path: Pat
     code, _, err = run_cli([*argv, "--out", str(theirs)])
     assert code == 1 and "holds files c2n did not write (results.csv)" in err
     assert (theirs / "results.csv").read_bytes().endswith(b"very important\r\n")
+
+
+def test_another_manifests_results_on_the_same_out_are_not_replaced(tmp_path: Path) -> None:
+    """Two manifests run with one --out: the second replaced the first's results.csv, comparison
+    and report, exit 0, no word. Now it is refused before any work, the first's results as they
+    were; with them removed, the second runs and reuses the analyses in the cache."""
+    from app.sim.simulated_drive import write_drive
+    from tests.simulated import cached_drive
+
+    write_drive(cached_drive("constant_radius", 41, 15.1), tmp_path / "s1.blf")
+    first = _manifest(tmp_path, "log,tyre_set\ns1.blf,A\n", "first.csv")
+    second = _manifest(tmp_path, "log,pressure_bar\ns1.blf,2.1\n", "second.csv")
+    out = tmp_path / "shared"
+    code, _, err = run_cli(["campaign", str(first), "--out", str(out), "--workers", "1"])
+    assert code == 0, err
+    code, _, err = run_cli(["campaign", str(first), "--out", str(out), "--workers", "1"])
+    assert code == 0, err  # the same manifest again: its own results, replaced
+    kept = {name: (out / name).read_bytes() for name in ("results.csv", "comparison.json", "report.html")}
+    code, _, err = run_cli(["campaign", str(second), "--out", str(out), "--workers", "1"])
+    assert code == 1 and f"holds the results of the campaign {first.resolve()}, not of {second}" in err
+    assert "Traceback" not in err
+    assert {name: (out / name).read_bytes() for name in kept} == kept
+    assert b"tyre_set" in kept["results.csv"]
+    for name in ("results.csv", "results.parquet", "comparison.json", "report.html"):
+        (out / name).unlink()
+    code, printed, err = run_cli(["campaign", str(second), "--out", str(out), "--workers", "1"])
+    assert code == 0, err
+    assert "1 known from an earlier run" in printed
+    assert b"pressure_bar" in (out / "results.csv").read_bytes()

@@ -83,6 +83,35 @@ def _digest(path: Path) -> str | None:
         return None
 
 
+_MANIFEST = "manifest"  # the record's key for the manifest the results are of
+
+
+def results_of(folder: Path) -> Path | None:
+    """The manifest whose results are in ``folder`` now (None: none are, or a c2n that kept
+    no record of it wrote them)."""
+    from app.campaign.work import CACHE, WRITTEN
+
+    try:
+        record = json.loads((folder / CACHE / WRITTEN).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    named = record.get(_MANIFEST) if isinstance(record, dict) else None
+    if not isinstance(named, str) or not any(ours(folder / name) for name in FILES):
+        return None
+    return Path(named)
+
+
+def check_results_of(folder: Path, manifest: Path) -> None:
+    """Refused: ``folder`` holds another manifest's results, which this run would replace (the
+    analyses in its cache are kept and shared either way, keyed by the logs' content)."""
+    other = results_of(folder)
+    if other is not None and other != manifest.resolve():
+        raise OutputError(
+            f"{folder}: holds the results of the campaign {other}, not of {manifest} — choose "
+            f"another --out, or remove {', '.join(FILES)} there to replace them (its cache is reused)"
+        )
+
+
 def _written(folder: Path) -> dict[str, list[str]] | None:
     """The campaign's record of the results it put in ``folder`` (None: it kept none)."""
     from app.campaign.work import CACHE, WRITTEN
@@ -100,14 +129,15 @@ def _written(folder: Path) -> dict[str, list[str]] | None:
     }
 
 
-def record_written(folder: Path, staging: Path) -> None:
+def record_written(folder: Path, staging: Path, manifest: Path) -> None:
     """Before the results in ``staging`` take their places in ``folder``: their digests in the
     cache's record, beside those of the ones in place now — a kill between the two leaves
-    either set known as the campaign's."""
+    either set known as the campaign's — and the manifest they are the results of."""
     from app.campaign.work import CACHE, WRITTEN
 
     before = _written(folder) or {}
-    record = {name: [_digest(staging / name), *before.get(name, [])[:1]] for name in FILES}
+    record: dict[str, Any] = {name: [_digest(staging / name), *before.get(name, [])[:1]] for name in FILES}
+    record[_MANIFEST] = str(manifest.resolve())
     (folder / CACHE).mkdir(exist_ok=True)
     write_json(folder / CACHE / WRITTEN, record, "the campaign's record of its results")
 

@@ -214,6 +214,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     check([Output("--out", out, outputs.ours, folder=True)], inputs)
     config = args.config.resolve() if args.config else None
     with work.claimed(out):  # alone on --out until its results are in place
+        outputs.check_results_of(out, args.manifest)  # before the work, not after hours of it
         rows, frames, elapsed = _analysed(args, manifest, config, out, console)
         rows, repeats = counted_once(manifest, rows)
         columns, table = outputs.table_rows(manifest, rows)
@@ -224,7 +225,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             outputs.write_tables(staging, *compared, dialect, numeric=manifest.numeric_tags())
             outputs.write_comparison(staging, comparison)
             outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
-            outputs.record_written(out, staging)
+            outputs.record_written(out, staging, args.manifest)
     cached = sum(1 for row in rows if row.cached)
     console.print(
         f"{outputs.sessions(len(rows))} in {elapsed:.1f} s ({cached} known from an earlier run, "

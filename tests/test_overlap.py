@@ -6,6 +6,7 @@ import random
 from pathlib import Path
 
 import can
+import pytest
 
 from app.config import load_config
 from app.pipeline import Pipeline
@@ -118,3 +119,25 @@ def test_a_campaign_counts_one_stretch_of_driving_once(tmp_path: Path) -> None:
     )
     comparison = json.loads((out / "comparison.json").read_text())
     assert comparison["groups"]["all"]["n_sessions"] == 2  # the two drives that count
+
+
+def test_of_two_copies_the_whole_drive_counts_not_a_fragment_listed_first(tmp_path: Path) -> None:
+    """A fragment cut from a drive, listed before the drive itself: the fragment counted and the
+    whole drive was the repeat (the group read 14.486 where the whole drive reads 14.729). Now
+    the copy with the most frames counts wherever the manifest lists it."""
+    import csv
+
+    messages = cached_drive("constant_radius", 1, 14.9).messages
+    _write(tmp_path / "fragment.log", messages[len(messages) // 5 : len(messages) // 2])
+    _write(tmp_path / "car.blf", messages)
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("log,tyre_set\nfragment.log,A\ncar.blf,A\n")
+    out = tmp_path / "campaign"
+    code, _, err = run_cli(["campaign", str(manifest), "--workers", "1", "--out", str(out)])
+    assert code == 0, err
+    rows = {row["log"]: row for row in csv.DictReader((out / "results.csv").open(encoding="utf-8-sig"))}
+    assert rows["car.blf"]["error"] == ""
+    assert rows["fragment.log"]["error"].endswith("car.blf (line 3): counted once")
+    assert "fragment.log: the same driving as " in err
+    group = json.loads((out / "comparison.json").read_text())["groups"]["all"]
+    assert group["n_sessions"] == 1 and group["c2n"] == pytest.approx(float(rows["car.blf"]["c2n"]))

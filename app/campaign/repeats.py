@@ -17,14 +17,18 @@ from app.sources.overlap import SensorPrints, alike_earlier, of_runs
 
 
 def counted_once(manifest: Manifest, rows: Sequence[SessionRow]) -> tuple[list[SessionRow], list[str]]:
-    """The rows with each repeat made an error row, and one line per repeat."""
-    out: list[SessionRow] = []
-    said: list[str] = []
+    """The rows with each repeat made an error row, and one line per repeat. Of the copies of
+    one stretch the one with the most frames counts (a fragment cut from a drive, or a logger
+    stopped early, is the repeat wherever the manifest lists it); of equal ones, the first."""
+    out: list[SessionRow] = list(rows)
+    said: list[tuple[int, str]] = []
     seen: list[tuple[DriveIdentity, Path]] = []
-    recorded: list[SensorPrints] = []  # the runs of the rows that count, in order
+    recorded: list[SensorPrints] = []  # the runs of the rows that count, most frames first
     recorded_logs: list[Path] = []
     holder: dict[int, int] = {}
-    for entry, row in zip(manifest.entries, rows, strict=True):
+    longest_first = sorted(range(len(rows)), key=lambda i: (-rows[i].frames if not rows[i].error else 0, i))
+    for i in longest_first:
+        entry, row = manifest.entries[i], rows[i]
         identity = DriveIdentity.parse(row.drive)
         first, same = None, "the same drive as"
         if identity is not None and not row.error:
@@ -37,12 +41,11 @@ def counted_once(manifest: Manifest, rows: Sequence[SessionRow]) -> tuple[list[S
             if earlier is not None:
                 first, same = recorded_logs[earlier], "the same driving as"
         if first is None:
-            out.append(row)
             continue
         line = f"{entry.log}: {same} {first} (line {_line(manifest, first)}): counted once"
-        out.append(replace(row, error=line))
-        said.append(line)
-    return out, said
+        out[i] = replace(row, error=line)
+        said.append((i, line))
+    return out, [line for _, line in sorted(said)]
 
 
 def _line(manifest: Manifest, log: Path) -> int:

@@ -28,7 +28,7 @@ PAUSE_S = 600.0  # ten minutes parked, the sensor off
 @pytest.fixture(scope="module")
 def day() -> list[can.Message]:
     """14.89 for 150 s, the sensor off for ten minutes, 15.91 for 150 s: one bus, one run."""
-    before, after = _drive(BEFORE, 5).messages, _drive(AFTER, 5).messages
+    before, after = _drive(BEFORE, 5).messages, _drive(AFTER, 6).messages
     return [*before, *shifted(after, before[-1].timestamp + PAUSE_S - after[0].timestamp)]
 
 

@@ -26,7 +26,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """day.log: a logger left recording through a tyre change (14.89, ten minutes' pause, 15.91),
     read 15.43 [15.20, 15.67] as one drive, outside both; plain.log: one drive of 15.1."""
     folder = tmp_path_factory.mktemp("logs")
-    before, after = _drive(14.89, 5).messages, _drive(15.91, 5).messages
+    before, after = _drive(14.89, 5).messages, _drive(15.91, 6).messages
     shift = before[-1].timestamp + 600.0 - after[0].timestamp
     _one_file(folder / "day.log", (before, 0.0), (after, shift))
     _one_file(folder / "plain.log", (_drive(15.1, 1).messages, 0.0))

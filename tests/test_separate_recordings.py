@@ -108,7 +108,7 @@ def test_two_tyre_sets_in_one_file_across_a_pause_have_no_one_c2n(tmp_path: Path
     """A logger left recording through a tyre change: 14.89 before a pause of ten minutes, 15.91
     after it, in one file. It read 15.442 [15.214, 15.671] — outside both — as one drive; the
     parts between the sensor's pauses are now analysed alone, as separate files are."""
-    before, after = _drive(14.89, 5).messages, _drive(15.91, 5).messages
+    before, after = _drive(14.89, 5).messages, _drive(15.91, 6).messages
     shift = before[-1].timestamp + 600.0 - after[0].timestamp
     log = _one_file(tmp_path / f"day{suffix}", (before, 0.0), (after, shift))
     code, result, err = _analysed(tmp_path, [log])

@@ -48,7 +48,7 @@ def _frames(path: Path) -> list[tuple[object, ...]]:
 def day(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A logger left recording through a tyre change (14.89, ten minutes' pause, 15.91), as a
     candump .log and a .blf, each in a folder of its own; plain.log: one drive, no pause."""
-    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 5).messages
+    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 6).messages
     shift = before[-1].timestamp + 600.0 - after[0].timestamp
     logs = {}
     for suffix in (".log", ".blf"):
@@ -139,7 +139,7 @@ def test_each_part_analysed_alone_gives_its_own_tyre_sets_c2n(
 @pytest.fixture(scope="module")
 def short() -> list[can.Message]:
     """Half a minute of each drive, ten minutes apart: enough frames for every format's writer."""
-    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 5).messages
+    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 6).messages
     head = [m for m in before if m.timestamp - before[0].timestamp < 30.0]
     shift = head[-1].timestamp + 600.0 - after[0].timestamp
     tail = [m for m in after if m.timestamp - after[0].timestamp < 30.0]
@@ -462,7 +462,7 @@ def test_a_clock_set_back_between_two_tyre_sets_is_cut_there_as_a_pause_is(tmp_p
     change, a time sync, `cat b.log a.log`): `analyze` read one C2n, 14.922 [14.644, 15.211] for
     14.0 and 16.0, with only `timestamps went backwards once`, and `split` found nothing to cut.
     (python-can's writers hold a time before the first frame's at it: the logs are concatenated.)"""
-    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 5).messages
+    before, after = _drive(TRUTH[0], 5).messages, _drive(TRUTH[1], 6).messages
     shift = before[0].timestamp - 600.0 - after[0].timestamp  # the second 600 s before the first began
     first = _one_file(tmp_path / "a.log", (before, 0.0))
     second = _one_file(tmp_path / "b.log", (after, shift))
@@ -479,3 +479,19 @@ def test_a_clock_set_back_between_two_tyre_sets_is_cut_there_as_a_pause_is(tmp_p
         code, out, err = run_cli(["analyze", str(file)])
         assert code == 0, err
         assert float(out.split("C2n = ")[1].split()[0]) == pytest.approx(truth, rel=0.01)
+
+
+def test_one_drive_twice_in_one_file_is_refused_not_counted_twice(tmp_path: Path) -> None:
+    """`cat a.log a.log`: the file's two parts, one drive twice, agree, so they ran as one and
+    every sample counted twice, the interval √2 too narrow. Now `analyze` refuses them as it
+    refuses two files of one drive, and `split` still cuts them apart."""
+    one = _one_file(tmp_path / "a.log", (_drive(TRUTH[0], 5).messages, 0.0))
+    log = tmp_path / "twice.log"
+    log.write_bytes(one.read_bytes() * 2)
+    code, out, err = run_cli(["analyze", str(log), "--json", str(tmp_path / "twice.json")])
+    assert code == 1 and "C2n =" not in out, out
+    assert "twice.log 0–" in err and "hold the same driving" in err
+    assert "one drive recorded twice in one file" in err
+    assert "Traceback" not in err
+    code, out, err = run_cli(["analyze", str(one)])
+    assert code == 0 and float(out.split("C2n = ")[1].split()[0]) == pytest.approx(TRUTH[0], rel=0.01), err

@@ -24,9 +24,10 @@ import numpy as np
 from app.config import Config
 from app.results.agreement import DriveResult, disagreement
 from app.results.headline import Headline
-from app.results.log_clock import clock_notes
+from app.results.log_clock import clock_notes, sensor_messages
 from app.sources.blocks import FrameBlock, rows
 from app.sources.logs import LogReport, LogSource
+from app.sources.overlap import SensorPrints, overlapping
 from app.sources.spacing import FrameSpacing, rewound_at
 from app.sources.triage import Triage
 
@@ -134,28 +135,44 @@ class Parting:
 def parts_disagree(report: LogReport, config: Config, part: Callable[[Config], Part]) -> str | None:
     """One line naming each part's result and the pair that differs most, where the parts of
     ``report``'s file between its pauses (``report.spacing.pauses``) disagree, each alone (each
-    run through its own ``part(config)``); None where they agree, where the file did not pause
-    (it is not read again), and where its clock is not in seconds (every frame is a pause then,
-    and ``log_clock`` says why)."""
+    run through its own ``part(config)``), or where two parts hold one stretch of driving (two
+    logs joined, one of them twice: ``app.sources.overlap``), which would count twice; None where
+    they agree, where the file did not pause (it is not read again), and where its clock is not
+    in seconds (every frame is a pause then, and ``log_clock`` says why)."""
     spacing = report.spacing
     if not (spacing.pauses or spacing.rewinds) or clock_notes([report], config):
         return None
     parting = Parting(spacing)
     parts = [part(config) for _ in range(parting.count)]
+    prints = [SensorPrints(frozenset(sensor_messages(config))) for _ in parts]
     for item in LogSource([report.path], triage=parts[0].decoder).items(blocks=True):
         if isinstance(item, FrameBlock):
             index = parting(item.frame_id, item.t)
             edges = [0, *(np.flatnonzero(np.diff(index)) + 1), len(index)]
             for begin, end in itertools.pairwise(edges):
-                parts[int(index[begin])].process_block(rows(item, begin, end))
+                some = rows(item, begin, end)
+                parts[int(index[begin])].process_block(some)
+                prints[int(index[begin])].add(some)
         elif item is not None:
-            parts[int(parting([item.arbitration_id], [item.timestamp])[0])].process(item)
+            i = int(parting([item.arbitration_id], [item.timestamp])[0])
+            parts[i].process(item)
+            prints[i].add(item)
     t0 = report.span_s[0] if report.span_s is not None else 0.0
+    names = [
+        f"{report.path.name} {begin - t0:.0f}–{end - t0:.0f} s" for begin, end in parting.spans(report.span_s)
+    ]
+    twice = overlapping(list(zip(names, prints, strict=True)))
+    if twice is not None:
+        first, second, share = twice
+        return (
+            f"{first} and {second} hold the same driving (the optical sensor's frames alike, run for "
+            f"run, over {100 * share:.0f} % of the shorter): one drive recorded twice in one file — "
+            "two logs joined, one of them twice? — which would count twice"
+        )
     alone = []
-    for pipeline, (begin, end) in zip(parts, parting.spans(report.span_s), strict=True):
+    for pipeline, name in zip(parts, names, strict=True):
         pipeline.finish()
         headline = pipeline.snapshot().headline
         if headline is not None:
-            name = f"{report.path.name} {begin - t0:.0f}–{end - t0:.0f} s"
             alone.append(DriveResult(name, headline.c2n, headline.ci95))
     return disagreement(alone)

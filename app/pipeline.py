@@ -25,6 +25,7 @@ from app.decode.decoder import Decoder
 from app.detect.crossings import CrossingDetector
 from app.detect.quasi_steady import QuasiSteadyGate
 from app.detect.signs import SignVotes
+from app.detect.speeds import SpeedVotes
 from app.detect.steady_state import DIRECTIONS, STEADY, WHEELBASE_M, SteadyStateGate
 from app.estimate.compiled import CompiledMotionFilter, estimate_of
 from app.records import Crossing, CrossingRejected, Direction, Estimate, Event, Record, SteadyState
@@ -53,6 +54,7 @@ _FIRST_STAGE_FIELDS = (  # the Snapshot's fields that the decoder and ``filter_b
     "latest",
     "sensor_problem",
     "cornering",
+    "speeds",
     "frames",
     "status",
     "filter",
@@ -78,6 +80,7 @@ class SessionState:
     quasi: RegressionFit | None = None  # every quasi-steady sample, while no sweep crossed zero
     quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's alone, at the end
     signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
+    speeds: SpeedVotes = field(default_factory=SpeedVotes)  # do the vehicle speed and vx agree in size?
 
 
 @dataclass(frozen=True)
@@ -116,7 +119,8 @@ class Pipeline:
         self._drives: list[SampleRegression] = []  # drives pooled: each one's quasi-steady samples alone
         self.heading = Heading()
         self.profile = SideslipProfile()
-        self.state = SessionState()
+        self.state = SessionState(speeds=SpeedVotes(config.detector.speed_min_mps))
+        self._speed_votes = {"vx", "speed"} <= config.roles.keys()  # two measures of u to compare
         self._last_fit = -float("inf")
         self._fitted_on: tuple[int, int, bool] | None = None  # what the last refit saw (``_refit``)
         # Called by ``take_block`` with each block, the rows the filter took, their estimates (rows
@@ -144,6 +148,7 @@ class Pipeline:
             quasi_drives=state.quasi_drives,
             cornering=self.quasi_gate.cornering,
             signs=state.signs.copy(),
+            speeds=state.speeds.copy(),
             pending=tuple(Pending(direction, t, u) for direction, t, u in self.detector.pending),
             frames=self.decoder.counts.copy(),
             status=MappingProxyType(dict(self.decoder.status.values)),
@@ -187,6 +192,8 @@ class Pipeline:
             state.t_first = record.t
         state.t_last = record.t
         state.latest.update(record.signals)
+        if self._speed_votes and record.t >= state.speeds.next_t and "vx" in record.signals:
+            state.speeds.add(record.t, state.latest.get("speed", math.nan), record.signals["vx"])
         problem = self._optical_problem(record.rejected, record.signals) if record.rejected else None
         if problem:
             state.sensor_problem = problem
@@ -252,6 +259,11 @@ class Pipeline:
         ay = (
             _held(block.values.get("ay"), state.latest.get("ay"), n) if self._ay_votes else np.full(n, np.nan)
         )
+        if self._speed_votes and "vx" in block.values:
+            speed = _held(block.values.get("speed"), state.latest.get("speed"), n)
+            vx_rows = np.flatnonzero(~np.isnan(block.values["vx"]))
+            if len(vx_rows):
+                state.speeds.add_block(t[vx_rows], speed[vx_rows], block.values["vx"][vx_rows])
         for role, column in block.values.items():
             given = np.flatnonzero(~np.isnan(column))
             if len(given):

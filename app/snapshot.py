@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from app.decode.counts import FrameCounts
 from app.detect.quasi_steady import NO_CORNERING, Cornering
 from app.detect.signs import SignVotes, odd_sign
+from app.detect.speeds import SpeedVotes, speed_unit_problem
 from app.estimate.motion_model import FilterCounts
 from app.paper import crossing_speed
 from app.records import Crossing, CrossingRejected, Direction, Record
@@ -77,6 +78,7 @@ class Snapshot:
     quasi_drives: tuple[RegressionFit | None, ...] = ()  # drives pooled: each one's samples alone
     cornering: Cornering = NO_CORNERING  # seconds of cornering, by what the quasi-steady gate made of them
     signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
+    speeds: SpeedVotes = field(default_factory=SpeedVotes)  # do the vehicle speed and vx agree in size?
     settle_s: float = 1.0  # the steady-state gate's settling time ([detector] settle_s)
     vx_scale: float = 1.0  # the config's vx scale, whose sign a drive read backwards turns
     # c2n live: the parts between the optical sensor's pauses, each alone (``app.pipeline.PartedPipeline``),
@@ -117,8 +119,9 @@ class Snapshot:
 
     @property
     def refusal(self) -> str:
-        """Why there is no C2n: a wrong sign, or the manoeuvre the drive lacked (``refusal.refusal``)."""
-        return refusal(
+        """Why there is no C2n: a speed in the wrong unit (said before the filter's losing the car,
+        which it causes), a wrong sign, or the manoeuvre the drive lacked (``refusal.refusal``)."""
+        return self.unit_problem or refusal(
             self.sign_problem,
             self.parts_disagree or self.drives_disagree,
             self.crossings_problem,
@@ -147,8 +150,15 @@ class Snapshot:
 
     @property
     def sign_problem(self) -> str | None:
-        """Why the regression's C2n is not a result (``refusal.sign_problem``)."""
-        return sign_problem(self.fit, self._witness, self.signs)
+        """Why no C2n of the drive is a result: a speed in the wrong unit (``unit_problem``), or
+        a role the wrong way round (``refusal.sign_problem``)."""
+        return self.unit_problem or sign_problem(self.fit, self._witness, self.signs)
+
+    @property
+    def unit_problem(self) -> str | None:
+        """The vehicle speed and the optical vx apart beyond any tyre or speedometer: one of
+        them in the wrong unit (``speeds.speed_unit_problem``)."""
+        return speed_unit_problem(self.speeds)
 
     @property
     def _witness(self) -> RegressionFit | None:

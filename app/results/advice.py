@@ -58,6 +58,7 @@ class Findings:
     replay_hint: str | None = None  # refusal.replay_hint
     d_witnessed: bool = False  # refusal.d_witnessed
     backwards: bool = False  # the optical speed read backwards (refusal.reads_backwards): a role's sign
+    wrong_unit: bool = False  # the vehicle speed and vx apart (speeds.speed_unit_problem), in sign_problem
 
     @property
     def fit(self) -> RegressionFit | None:
@@ -218,7 +219,7 @@ def filter_lost(f: Findings) -> str | None:
     session q_u = 1e-3 read C2n unchanged, 1e-5 +2.3 %, 1e-6 +18 % (docs/method.md). A loss
     elsewhere (a hard stop, a reversal) touches no sample: counted in the result file, not said."""
     lost = f.filter_counts.lost
-    if not lost or not f.lost_in_samples or f.backwards:  # backwards: vx's sign, which the result names
+    if not lost or not f.lost_in_samples or f.backwards or f.wrong_unit:  # the result names those
         return None
     settings, default = f.config.filter, FilterSettings()
     times = sum(lost.values())

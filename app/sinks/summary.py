@@ -323,6 +323,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         replay_hint=snapshot.replay_hint,
         d_witnessed=snapshot.d_witnessed,
         backwards=refusal.reads_backwards(cornering.backwards_s, cornering.turning_s) is not None,
+        wrong_unit=snapshot.unit_problem is not None,
         lost_in_samples=snapshot.filter.lost_in_samples,
     )
 

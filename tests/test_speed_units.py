@@ -1,0 +1,118 @@
+"""A speed in the wrong unit: the vehicle speed and the optical vx compared (``app/detect/speeds.py``).
+
+A vx read in mph gave C2n 23.40 [21.92, 25.09] for 14.87, and the warnings blamed d and the
+filter's q_u. The two speeds measure one u; their ratio is bounded by a tyre's rolling radius
+(±3 %), a wheel's place in the turn (±4 %) and a speedometer's tolerance (UNECE R39: up to
+10 % + 4 km/h high)."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.detect.signs import MIN_VOTES, VOTE_EVERY_S
+from app.detect.speeds import SpeedVotes, band, speed_unit_problem
+from tests.simulated import REPO
+from tests.test_campaign import run_cli
+
+
+def _votes(ratio: float, n: int, speed: float = 12.0) -> SpeedVotes:
+    votes = SpeedVotes(4.0)
+    t = (np.arange(n) + 0.5) * VOTE_EVERY_S  # one in each vote's slot
+    votes.add_block(t, np.full(n, ratio * speed), np.full(n, speed))
+    return votes
+
+
+def test_the_band_is_a_tyre_a_wheel_and_a_speedometer() -> None:
+    low, high = band(10.0)
+    assert low == pytest.approx(0.97 * 0.96)
+    assert high == pytest.approx(1.03 * 1.04 * (1.10 + (4.0 / 3.6) / 10.0))
+
+
+@pytest.mark.parametrize(
+    ("ratio", "unit"),
+    [
+        (0.44704 / (1 / 3.6), "mph against km/h"),
+        ((1 / 3.6) / 0.44704, "km/h against mph"),
+        (3.6, "m/s against km/h"),
+    ],
+)
+def test_a_unit_mistake_is_named(ratio: float, unit: str) -> None:
+    problem = speed_unit_problem(_votes(ratio, MIN_VOTES))
+    assert problem is not None and problem.startswith("the vehicle speed reads ")
+    said = float(problem.split("reads ")[1].split()[0])
+    assert said == pytest.approx(ratio, rel=0.01)  # the median, to 1 %
+    assert f"{said:.2f} is {unit}" in problem
+
+
+def test_what_a_tyre_and_a_speedometer_allow_is_no_problem() -> None:
+    assert speed_unit_problem(_votes(0.94, 10 * MIN_VOTES)) is None  # a worn tyre on the inside wheel
+    assert (
+        speed_unit_problem(_votes(1.20, 10 * MIN_VOTES, speed=20.0)) is None
+    )  # a speedometer's +10 % + 4 km/h
+    at_20 = band(20.0)[1]
+    outside = speed_unit_problem(_votes(at_20 * 1.02, MIN_VOTES, speed=20.0))
+    assert outside is not None and " is " not in outside.split("allow)")[1].split("—")[0]  # no unit's ratio
+
+
+def test_too_few_votes_or_a_split_vote_is_no_problem() -> None:
+    assert speed_unit_problem(_votes(1.609, MIN_VOTES - 1)) is None
+    votes = _votes(1.609, MIN_VOTES)
+    votes.add_block(
+        np.arange(MIN_VOTES) * VOTE_EVERY_S + 1e3, np.full(MIN_VOTES, 12.0), np.full(MIN_VOTES, 12.0)
+    )
+    assert speed_unit_problem(votes) is None  # half the drive agrees: a sensor's fault, not a unit
+
+
+def test_frames_and_blocks_vote_alike() -> None:
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.005, 0.015, 5000))
+    vx = 10.0 + np.sin(t / 5.0)
+    speed = 1.609 * vx
+    blocks, frames = SpeedVotes(4.0), SpeedVotes(4.0)
+    for part in np.array_split(np.arange(len(t)), 17):
+        blocks.add_block(t[part], speed[part], vx[part])
+    for k in range(len(t)):
+        if t[k] >= frames.next_t:
+            frames.add(float(t[k]), float(speed[k]), float(vx[k]))
+    seconds = t[-1] - t[0]
+    for votes in (blocks, frames):
+        assert votes.inside == 0 and votes.outside == pytest.approx(seconds / VOTE_EVERY_S, rel=0.1)
+        assert votes.median() == pytest.approx(1.609, rel=0.01)
+
+
+def _config(tmp_path: Path, role: str, line: str) -> Path:
+    text = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', f'"{REPO}/dbc/')
+    lines = [line if row.startswith(f"{role} = ") else row for row in text.splitlines()]
+    path = tmp_path / f"{role}.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_vx_in_the_wrong_unit_gives_no_c2n_and_says_so(drive_log: Path, tmp_path: Path) -> None:
+    """The vx read as mph: 23.40 for 14.87, blamed on d and q_u. Now no C2n, and the line names
+    the units; the filter's losing the car, which the unit causes, is not blamed on q_u."""
+    config = _config(tmp_path, "vx", 'vx = {signal = "Correvit.VelX_cor", unit = "mph"}')
+    summary = tmp_path / "s.json"
+    code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config), "--json", str(summary)])
+    assert code == 0 and "C2n =" not in out, out  # no result of the drive, as for a role's sign
+    assert (
+        "C2n: no result (the vehicle speed reads 0.62 × the optical vx" in out
+        and "0.62 is km/h against mph" in out
+    )
+    assert "q_u" not in err and "Traceback" not in err
+    assert "0.62 is km/h against mph" in json.loads(summary.read_text())["no_result"]
+    config = _config(tmp_path, "speed", 'speed = {signal = "BrakeSysFeatures.Veh_V_ActlBrk", unit = "mph"}')
+    code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
+    assert (
+        code == 0
+        and "C2n: no result (the vehicle speed reads 1.61 × the optical vx" in out
+        and "1.61 is mph against km/h" in out
+    )
+
+
+def test_a_drive_in_the_right_units_is_not_questioned(drive_log: Path) -> None:
+    code, out, err = run_cli(["analyze", str(drive_log)])
+    assert code == 0 and float(out.split("C2n = ")[1].split()[0]) == pytest.approx(15.1, rel=0.02), err
+    assert "vehicle speed reads" not in out + err

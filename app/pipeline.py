@@ -160,6 +160,7 @@ class Pipeline:
             g_mps2=self.config.vehicle.gravity_mps2,
             profile=self.profile.view(),
             settle_s=self.config.detector.settle_s,
+            speed_min_mps=self.config.detector.speed_min_mps,
             vx_scale=self.config.roles["vx"].scale if "vx" in self.config.roles else 1.0,
         )
         if first_stage is None:

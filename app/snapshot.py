@@ -80,6 +80,7 @@ class Snapshot:
     signs: SignVotes = field(default_factory=SignVotes)  # do a_y and the steering turn with the yaw rate?
     speeds: SpeedVotes = field(default_factory=SpeedVotes)  # do the vehicle speed and vx agree in size?
     settle_s: float = 1.0  # the steady-state gate's settling time ([detector] settle_s)
+    speed_min_mps: float = 4.0  # the gates' least speed ([detector] speed_min_mps)
     vx_scale: float = 1.0  # the config's vx scale, whose sign a drive read backwards turns
     # c2n live: the parts between the optical sensor's pauses, each alone (``app.pipeline.PartedPipeline``),
     # and why they give no one C2n where they disagree (``results.parts.parts_disagree``)
@@ -130,6 +131,7 @@ class Snapshot:
             unbounded_fit(self.fit),
             self.filter.lost_in_samples,
             self.vx_scale,
+            self.speed_min_mps,
         )
 
     @property

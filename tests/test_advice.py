@@ -2,7 +2,9 @@
 
 import math
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from app.config import Config
@@ -23,6 +25,8 @@ from app.results.fit_groups import (
 from app.results.headline import Headline, Method
 from app.results.pairing import Paired
 from app.results.regression import RegressionFit
+from tests.simulated import REPO
+from tests.test_campaign import run_cli
 
 FIT = RegressionFit(
     c2n=14.0,
@@ -307,6 +311,31 @@ def test_a_drive_backwards_more_than_it_cornered_forwards_is_a_sign_not_a_manoeu
     reversed_to_park = Cornering(turning_s=60.0, usable_s=40.0, backwards_s=20.0)  # a test drive's own
     assert "backwards" not in refusal.refusal(None, None, None, None, reversed_to_park)
     assert refusal.reads_backwards(0.9, 0.0) is None  # under a second: a roll back at the start
+
+
+def test_a_config_s_least_speed_above_all_the_cornering_is_blamed_not_the_driving() -> None:
+    """`speed_min_mps = 100` (or 40, meant as km/h) on a drive at 8–17 m/s: `no cornering in the
+    drive: drive steady circles …`, the driver told to drive again. Now the config is named; at
+    the default least speed a drive too slow for the method is still the driving's."""
+    slow = Cornering(below_speed_s=138.7)
+    said = refusal.refusal(None, None, None, None, slow, speed_min_mps=100.0)
+    assert said.startswith("no cornering above [detector] speed_min_mps = 100 m/s in the config, 139 s of")
+    assert "lower speed_min_mps (default 4; in m/s, not km/h)" in said
+    assert refusal.refusal(None, None, None, None, slow).startswith("no cornering in the drive: drive steady")
+    partly = Cornering(turning_s=30.0, transient_s=30.0, below_speed_s=100.0)
+    some = refusal.refusal(None, None, None, None, partly, speed_min_mps=12.0)
+    assert "of 30 s cornering (100 s more under the config's speed_min_mps 12 m/s)," in some
+    assert refusal.speed_min_problem(partly, 12.0) is None
+
+
+def test_a_config_s_least_speed_above_the_drive_is_said_once_and_the_driving_not_blamed(
+    drive_log: Path, write_config: Callable[..., Path]
+) -> None:
+    text = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', '"{dbc}/')
+    config = write_config(text + "\n[detector]\nspeed_min_mps = 100\n")
+    code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
+    assert code == 0 and "C2n: no result (no cornering above [detector] speed_min_mps = 100 m/s" in out, out
+    assert "sweep the speed" not in out + err and "drive steady" not in out + err
 
 
 def test_a_filter_lost_in_the_samples_is_the_reason_before_any_sign_read_from_them() -> None:

@@ -47,6 +47,7 @@ class Cornering:
     usable_ay_mps2: tuple[float, float] | None = None  # the quasi-steady samples' |a_y|: least, most
     usable_samples: int = 0  # the quasi-steady samples
     backwards_s: float = 0.0  # cornering as above but the optical speed at or below −speed_min: vx flipped
+    below_speed_s: float = 0.0  # in a turn as above but under the speed limit ([detector] speed_min_mps)
 
 
 NO_CORNERING = Cornering()
@@ -59,16 +60,16 @@ class QuasiSteadyGate:
         self._max_curvature = tightest_curvature(wheelbase_m)
         self._since: float | None = None  # when every condition began to hold
         self._t: float | None = None  # the last sample's time
-        self._seconds = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # Cornering's seconds: five, then backwards_s
+        self._seconds = [0.0] * 7  # Cornering's seconds: five, then backwards_s and below_speed_s
         self._usable_ay = [math.inf, 0.0]  # the quasi-steady samples' least and most |a_y|
         self._usable_n = 0
 
     @property
     def cornering(self) -> Cornering:
         low, high = self._usable_ay
-        turning, ay_high, transient, usable, tight, backwards = self._seconds
+        turning, ay_high, transient, usable, tight, backwards, below = self._seconds
         spread = (low, high) if low <= high else None
-        return Cornering(turning, ay_high, transient, usable, tight, spread, self._usable_n, backwards)
+        return Cornering(turning, ay_high, transient, usable, tight, spread, self._usable_n, backwards, below)
 
     def new_log(self) -> None:
         """Another drive follows: nothing of this one carries over but the tally."""
@@ -105,6 +106,15 @@ class QuasiSteadyGate:
             tally[1 if not ay_ok else 4 if not wide else 3 if quasi else 2] += dt
         elif backwards:
             self._seconds[5] += dt
+        elif (  # a turn, too slow
+            sensor_ok
+            and r is not None
+            and ay is not None
+            and 0.0 < u < s.speed_min_mps
+            and abs(ay) >= AY_MIN_MPS2
+            and abs(r) / u >= self._min_curvature
+        ):
+            self._seconds[6] += dt
         if quasi:
             assert ay is not None  # a quasi-steady sample is turning: it has an a_y
             spread = self._usable_ay
@@ -124,6 +134,8 @@ class QuasiSteadyGate:
             cornering = sensor_ok & (np.abs(u) >= s.speed_min_mps) & (curvature >= self._min_curvature)
             cornering &= np.abs(ay) >= AY_MIN_MPS2
             turning, backwards = cornering & (u > 0), cornering & (u < 0)
+            below = sensor_ok & (u > 0) & (u < s.speed_min_mps) & (curvature >= self._min_curvature)
+            below &= np.abs(ay) >= AY_MIN_MPS2
             wide = curvature <= self._max_curvature
         ay_ok = np.abs(ay) <= s.ay_max_mps2
         slow = (
@@ -149,6 +161,7 @@ class QuasiSteadyGate:
         tally[3] += float(dt[quasi].sum())
         tally[4] += float(dt[turning & ay_ok & ~wide].sum())
         tally[5] += float(dt[backwards].sum())
+        tally[6] += float(dt[below].sum())
         if quasi.any():
             usable = np.abs(ay[quasi])
             spread = self._usable_ay

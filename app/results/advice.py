@@ -59,6 +59,9 @@ class Findings:
     d_witnessed: bool = False  # refusal.d_witnessed
     backwards: bool = False  # the optical speed read backwards (refusal.reads_backwards): a role's sign
     wrong_unit: bool = False  # the vehicle speed and vx apart (speeds.speed_unit_problem), in sign_problem
+    config_gated: bool = (
+        False  # the config's speed_min_mps above all the cornering (refusal.speed_min_problem)
+    )
 
     @property
     def fit(self) -> RegressionFit | None:
@@ -482,7 +485,7 @@ def rejected_crossings(f: Findings) -> str | None:
 def no_crossing(f: Findings) -> str | None:
     """No sweep crossed zero: the quasi-steady estimate, what it counts, and how to measure C2n
     the method's own way; or, without even that, that no sign change was found."""
-    if f.backwards:  # no driving to blame: the result names vx's sign
+    if f.backwards or f.config_gated:  # no driving to blame: the result names vx's sign, or the config
         return None
     beyond = crossing_beyond_gate(f)
     if f.headline is not None and f.headline.method is Method.QUASI_STEADY:

@@ -7,12 +7,14 @@ run found. ``snapshot.py`` asks them and keeps their outcomes; the sinks read th
 - ``unbounded_fit``: a positive C2n whose interval has no upper end.
 - ``standing_headline``: the headline, unless one of these refuses it.
 - ``refusal``: why there is no C2n at all.
+- ``speed_min_problem``: the config's least speed above all the drive's cornering.
 - ``replay_hint``: optical frames far faster than a sensor sends them.
 """
 
 import math
 from collections.abc import Sequence
 
+from app.config import DetectorSettings
 from app.detect.quasi_steady import Cornering
 from app.detect.signs import SignVotes, which_of_the_two, yaw_rate_problem
 from app.results.agreement import DriveResult, disagreement
@@ -149,6 +151,7 @@ def refusal(
     unbounded: str | None = None,
     lost_in_samples: int = 0,
     vx_scale: float = 1.0,
+    speed_min_mps: float = DetectorSettings.speed_min_mps,
 ) -> str:
     """Why there is no C2n: the filter lost the car in the samples (its estimates there lag the
     car, so a sign or a fit read from them is the filter's), a wrong sign (``sign_problem``),
@@ -172,14 +175,24 @@ def refusal(
     backwards = reads_backwards(c.backwards_s, c.turning_s, vx_scale)
     if backwards:
         return backwards
+    above = speed_min_problem(c, speed_min_mps)
+    if above:
+        return above
     if c.turning_s < 1.0:
         return (
             "no cornering in the drive: drive steady circles at 2–4 m/s² with the speed swept "
             "slowly through the sign change"
         )
     tight = f"{c.tight_s:.0f} s on radii under eight wheelbases, " if c.tight_s >= 0.5 else ""
+    raised = speed_min_mps > DetectorSettings.speed_min_mps and c.below_speed_s >= 1.0
+    under = (
+        f" ({c.below_speed_s:.0f} s more under the config's speed_min_mps {speed_min_mps:g} m/s)"
+        if raised
+        else ""
+    )
     seconds = (
-        f"of {c.turning_s:.0f} s cornering, {c.ay_high_s:.0f} s beyond the tyres' linear range of a_y, "
+        f"of {c.turning_s:.0f} s cornering{under}, {c.ay_high_s:.0f} s beyond the tyres' linear range "
+        "of a_y, "
         f"{c.transient_s:.0f} s speed or steering changing too fast, {tight}{c.usable_s:.0f} s quasi-steady"
     )
     span = c.usable_ay_mps2
@@ -194,6 +207,20 @@ def refusal(
     return (
         f"no sideslip sign change and {what}: {seconds} — drive steady circles at 2–4 m/s² with the "
         "speed swept slowly through the sign change, or corners held at 1–4 m/s² at several speeds"
+    )
+
+
+def speed_min_problem(c: Cornering, speed_min_mps: float) -> str | None:
+    """The config's least speed above all the drive's cornering (a drive at 8–17 m/s under
+    ``speed_min_mps = 100``, or 40 meant as km/h): the config to blame, not the driving. None
+    where some cornering is above it, or it is at its default or below (a drive too slow for
+    the method is the driving's)."""
+    default = DetectorSettings.speed_min_mps
+    if c.turning_s >= 1.0 or c.below_speed_s < 1.0 or speed_min_mps <= default:
+        return None
+    return (
+        f"no cornering above [detector] speed_min_mps = {speed_min_mps:g} m/s in the config, "
+        f"{c.below_speed_s:.0f} s of it under: lower speed_min_mps (default {default:g}; in m/s, not km/h)"
     )
 
 

@@ -106,6 +106,7 @@ class CorneringRow:
     usable_s: float  # quasi-steady
     tight_s: float  # on a radius under eight wheelbases: the bicycle model's small steer angles fail
     backwards_s: float  # cornering with the optical speed backwards: vx's sign flipped, the head turned
+    below_speed_s: float  # in a turn, but under [detector] speed_min_mps
 
 
 @dataclass(frozen=True)
@@ -324,6 +325,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         d_witnessed=snapshot.d_witnessed,
         backwards=refusal.reads_backwards(cornering.backwards_s, cornering.turning_s) is not None,
         wrong_unit=snapshot.unit_problem is not None,
+        config_gated=refusal.speed_min_problem(cornering, snapshot.speed_min_mps) is not None,
         lost_in_samples=snapshot.filter.lost_in_samples,
     )
 

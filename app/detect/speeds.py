@@ -39,6 +39,11 @@ _UNITS = {"m/s": 1.0, "km/h": 1.0 / 3.6, "mph": 0.44704, "knots": 1852.0 / 3600.
 _NEAR_UNIT = 0.05  # a ratio within 5 % of two units' is named as that mistake
 
 
+def _bin(ratio: float) -> int:
+    """The histogram's bin of one ratio (``add_many``'s, for one)."""
+    return min(max(int((math.log(ratio) + _SPAN) / _BIN), 0), _BINS - 1) if ratio > 0.0 else 0
+
+
 def band(speed_mps: float) -> tuple[float, float]:
     """The vehicle speed's ratio to the true speed that a tyre's radius, a wheel's place in the
     turn and a speedometer's tolerance allow at ``speed_mps``."""
@@ -60,8 +65,14 @@ class SpeedVotes:
         """One vote at t: the latest vehicle speed and optical vx (NaN: none)."""
         self.next_t = t + VOTE_EVERY_S
         u = abs(vx)
-        if speed == speed and u >= self.least_mps:  # NaN compares False
-            self.add_many(np.array([abs(speed) / u]), np.array([u]))
+        if not (speed == speed and u >= self.least_mps):  # NaN compares False
+            return
+        ratio = abs(speed) / u  # as ``add_many`` does, without arrays: this runs in the live loop
+        if _LOW <= ratio <= _HIGH * (1.0 + SPEEDO_OVER + SPEEDO_PLUS_MPS / u):
+            self.inside += 1
+        else:
+            self.outside += 1
+        self.ratios[_bin(ratio)] += 1
 
     def add_block(self, t: np.ndarray, speed: np.ndarray, vx: np.ndarray) -> None:
         """Votes over a block's rows at times t, from ``next_t`` on, one per ``VOTE_EVERY_S``."""
@@ -84,7 +95,8 @@ class SpeedVotes:
         out = int(np.count_nonzero((ratio < low) | (ratio > high)))
         self.outside += out
         self.inside += len(ratio) - out
-        index = np.clip(((np.log(np.maximum(ratio, 1e-300)) + _SPAN) / _BIN).astype(np.int64), 0, _BINS - 1)
+        with np.errstate(divide="ignore"):
+            index = np.clip((np.log(ratio) + _SPAN) / _BIN, 0, _BINS - 1).astype(np.int64)
         np.add.at(self.ratios, index, 1)
 
     def median(self) -> float | None:

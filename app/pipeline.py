@@ -162,6 +162,7 @@ class Pipeline:
             settle_s=self.config.detector.settle_s,
             speed_min_mps=self.config.detector.speed_min_mps,
             vx_scale=self.config.roles["vx"].scale if "vx" in self.config.roles else 1.0,
+            speed_scale=self.config.roles["speed"].scale if "speed" in self.config.roles else 1.0,
         )
         if first_stage is None:
             return snapshot

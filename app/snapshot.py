@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from app.decode.counts import FrameCounts
 from app.detect.quasi_steady import NO_CORNERING, Cornering
 from app.detect.signs import SignVotes, odd_sign
-from app.detect.speeds import SpeedVotes, speed_unit_problem
+from app.detect.speeds import SpeedVotes, speed_backwards, speed_unit_problem
 from app.estimate.motion_model import FilterCounts
 from app.paper import crossing_speed
 from app.records import Crossing, CrossingRejected, Direction, Record
@@ -82,6 +82,7 @@ class Snapshot:
     settle_s: float = 1.0  # the steady-state gate's settling time ([detector] settle_s)
     speed_min_mps: float = 4.0  # the gates' least speed ([detector] speed_min_mps)
     vx_scale: float = 1.0  # the config's vx scale, whose sign a drive read backwards turns
+    speed_scale: float = 1.0  # the config's vehicle speed scale, likewise
     # c2n live: the parts between the optical sensor's pauses, each alone (``app.pipeline.PartedPipeline``),
     # and why they give no one C2n where they disagree (``results.parts.parts_disagree``)
     parts: tuple[Part, ...] = ()
@@ -159,8 +160,10 @@ class Snapshot:
     @property
     def unit_problem(self) -> str | None:
         """The vehicle speed and the optical vx apart beyond any tyre or speedometer: one of
-        them in the wrong unit (``speeds.speed_unit_problem``)."""
-        return speed_unit_problem(self.speeds)
+        them in the wrong unit (``speeds.speed_unit_problem``); or the vehicle speed the wrong
+        way round, which the filter rejects, losing the car in the samples
+        (``speeds.speed_backwards``: 14.772 for 15.121 on a simulated drive)."""
+        return speed_unit_problem(self.speeds) or speed_backwards(self.speeds, self.speed_scale)
 
     @property
     def _witness(self) -> RegressionFit | None:

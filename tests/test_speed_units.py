@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from app.detect.signs import MIN_VOTES, VOTE_EVERY_S
-from app.detect.speeds import SpeedVotes, band, speed_unit_problem
+from app.detect.speeds import SpeedVotes, band, speed_backwards, speed_unit_problem
 from tests.simulated import REPO
 from tests.test_campaign import run_cli
 
@@ -116,3 +116,32 @@ def test_a_drive_in_the_right_units_is_not_questioned(drive_log: Path) -> None:
     code, out, err = run_cli(["analyze", str(drive_log)])
     assert code == 0 and float(out.split("C2n = ")[1].split()[0]) == pytest.approx(15.1, rel=0.02), err
     assert "vehicle speed reads" not in out + err
+
+
+def test_a_vehicle_speed_the_wrong_way_round_gives_no_c2n_and_is_named(
+    drive_log: Path, tmp_path: Path
+) -> None:
+    """`scale = -1` on a forward-only speed: C2n read 14.772 [14.577, 14.983] for 15.121, and the
+    warning said the filter lost the car on it — raise q_u. Now no C2n, the sign named with the
+    scale that turns it."""
+    config = _config(tmp_path, "speed", 'speed = {signal = "BrakeSysFeatures.Veh_V_ActlBrk", scale = -1.0}')
+    code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
+    assert code == 0 and "C2n =" not in out, out
+    assert (
+        "C2n: no result (the vehicle speed reads backwards while the optical vx reads forwards (100 % of"
+        in out
+    )
+    assert "set [roles] speed's scale = 1 (" in out and "q_u" not in err
+
+
+def test_reversing_or_a_flipped_vx_is_no_vote_on_the_vehicle_speed_s_sign() -> None:
+    n = MIN_VOTES
+    t = (np.arange(n) + 0.5) * VOTE_EVERY_S
+    for speed, vx in ((-8.0, -8.0), (8.0, -8.0)):  # reversing, signed; a head facing the rear
+        votes = SpeedVotes(4.0)
+        votes.add_block(t, np.full(n, speed), np.full(n, vx))
+        assert votes.backwards == 0 and speed_backwards(votes, 1.0) is None
+    votes = SpeedVotes(4.0)
+    votes.add_block(t, np.full(n, -8.0), np.full(n, 8.0))
+    said = speed_backwards(votes, 1.0)
+    assert said is not None and "set [roles] speed's scale = -1 (" in said

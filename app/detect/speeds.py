@@ -58,6 +58,7 @@ class SpeedVotes:
     min_speed_mps: float = 4.0  # votes only from here (the steady gate's least speed)
     inside: int = 0
     outside: int = 0
+    backwards: int = 0  # of the votes, those whose vehicle speed reads below zero, vx above
     ratios: np.ndarray = field(default_factory=lambda: np.zeros(_BINS, np.int64))
     next_t: float = -math.inf
 
@@ -68,6 +69,8 @@ class SpeedVotes:
         if not (speed == speed and u >= self.least_mps):  # NaN compares False
             return
         ratio = abs(speed) / u  # as ``add_many`` does, without arrays: this runs in the live loop
+        if speed < 0.0 < vx:
+            self.backwards += 1
         if _LOW <= ratio <= _HIGH * (1.0 + SPEEDO_OVER + SPEEDO_PLUS_MPS / u):
             self.inside += 1
         else:
@@ -83,6 +86,7 @@ class SpeedVotes:
         self.next_t = float(t[first[-1]]) + VOTE_EVERY_S
         u = np.abs(vx[first])
         keep = (u >= self.least_mps) & ~np.isnan(speed[first])
+        self.backwards += int(np.count_nonzero(keep & (speed[first] < 0.0) & (vx[first] > 0.0)))
         self.add_many(np.abs(speed[first][keep]) / u[keep], u[keep])
 
     @property
@@ -126,6 +130,24 @@ def speed_unit_problem(votes: SpeedVotes) -> str | None:
         f"outside {low:.2f}–{high:.2f} × at {votes.least_mps:g} m/s, what a tyre's radius, a wheel's "
         f"place in the turn and a speedometer's tolerance allow){_unit_mistake(ratio)} — "
         "check the unit of the roles speed and vx (the DBC's, or [units] in the config)"
+    )
+
+
+def speed_backwards(votes: SpeedVotes, scale: float) -> str | None:
+    """Why the run has no C2n where the vehicle speed reads below zero while the optical vx reads
+    forwards, in most of at least ``MIN_VOTES`` votes: its sign is the wrong way round (a signed
+    speed's DBC, or the role's ``scale``, the config's now). The filter rejects it, losing the car
+    on it in the samples: C2n read 14.772 [14.577, 14.983] for 15.121 on a simulated drive. A car
+    reversing reads both below zero, and a wheel speed reversing (unsigned) reads above: neither
+    votes here. None where it does not."""
+    votes_n = votes.inside + votes.outside
+    if votes_n < MIN_VOTES or votes.backwards < AGAINST_SHARE * votes_n:
+        return None
+    share, seconds = 100.0 * votes.backwards / votes_n, votes_n * VOTE_EVERY_S
+    return (
+        f"the vehicle speed reads backwards while the optical vx reads forwards ({share:.0f} % of "
+        f"{seconds:.0f} s of driving): its sign is the wrong way round — set [roles] speed's scale = "
+        f"{-scale:g} (the filter rejects it, losing the car on it, and C2n with it)"
     )
 
 

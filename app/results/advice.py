@@ -58,10 +58,10 @@ class Findings:
     replay_hint: str | None = None  # refusal.replay_hint
     d_witnessed: bool = False  # refusal.d_witnessed
     backwards: bool = False  # the optical speed read backwards (refusal.reads_backwards): a role's sign
-    wrong_unit: bool = False  # the vehicle speed and vx apart (speeds.speed_unit_problem), in sign_problem
-    config_gated: bool = (
-        False  # the config's speed_min_mps above all the cornering (refusal.speed_min_problem)
+    wrong_unit: bool = (
+        False  # the vehicle speed's unit or sign against vx (Snapshot.unit_problem), in sign_problem
     )
+    config_gated: bool = False  # the config's speed_min_mps above all the cornering (speed_min_problem)
 
     @property
     def fit(self) -> RegressionFit | None:

@@ -117,6 +117,37 @@ def test_a_tag_constant_to_a_spreadsheet_s_precision_takes_one_value(tmp_path: P
     assert "pressure_bar takes one value: no trend" in (tmp_path / "report.html").read_text()
 
 
+def test_a_word_in_a_column_of_numbers_is_said_where_it_drops_the_trend(tmp_path: Path) -> None:
+    """'n/a' among pressures made the column text: its trend went, without a word."""
+    text = "log,pressure_bar,driver\na.blf,2.3\nb.blf,n/a,x\nc.blf,2.5,y\nd.blf,2.6,z\n".replace(
+        "2.3\n", "2.3,w\n"
+    )
+    manifest = read_manifest(_manifest(tmp_path, text))
+    assert manifest.numeric_tags() == []
+    [said] = manifest.warnings
+    assert said.endswith(
+        "line 3, column 'pressure_bar': 'n/a' is not a number, where 3 of the column's 4 values are — "
+        "the column is kept as text, with no trend against it; write a number (no unit), or leave the "
+        "cell empty"
+    )
+    words = read_manifest(_manifest(tmp_path, "log,day\na.blf,mon\nb.blf,tue\nc.blf,1\n"))
+    assert words.warnings == ()  # mostly words: a text column, nothing lost
+
+
+def test_one_value_of_a_numeric_group_tag_is_one_group_however_spelt(tmp_path: Path) -> None:
+    """`--by pressure_kPa` grouped 230 and 230.0 apart: two groups of one pressure."""
+    text = "log,pressure_kPa\na.blf,230\nb.blf,230.0\nc.blf,250\nd.blf,2.5e2\n"
+    comparison = compare(read_manifest(_manifest(tmp_path, text)), _rows(C2N), "pressure_kPa")
+    assert sorted(comparison.groups) == ["230", "250"]
+    assert comparison.groups["230"].n_sessions == comparison.groups["250"].n_sessions == 2
+    text = "log,tyre\na.blf,A\nb.blf,A \nc.blf,a\nd.blf,B\n"  # text: as written (its cells stripped)
+    assert sorted(compare(read_manifest(_manifest(tmp_path, text)), _rows(C2N), "tyre").groups) == [
+        "A",
+        "B",
+        "a",
+    ]
+
+
 def test_a_numeric_tag_with_an_empty_cell_is_fitted_on_the_rows_with_a_value_and_says_so(
     tmp_path: Path,
 ) -> None:

@@ -149,7 +149,24 @@ def read_manifest(path: Path) -> Manifest:
                 continue
             entries, unread = _decimal_commas(entries, name)
             warnings += [f"{path}: {said}" for said in unread]
+    else:  # a number column with a word in it ('n/a', '2.1 bar') would lose its trend unsaid
+        warnings += [f"{path}: {said}" for name in tag_names if (said := _not_numbers(entries, name))]
     return Manifest(path, tag_names, tuple(entries), tuple(warnings), delimiter, frozenset(text_tags))
+
+
+def _not_numbers(entries: list[Entry], name: str) -> str | None:
+    """Where most of a column's values are numbers but not all: a line naming the first that is
+    not, and that the column is kept as text, with no trend against it; else None."""
+    values = [(entry.line, entry.tags[name]) for entry in entries if entry.tags[name]]
+    words = [(line, value) for line, value in values if not _number(value)]
+    if not words or 2 * len(words) >= len(values):
+        return None
+    line, value = words[0]
+    return (
+        f"line {line}, column '{name}': '{value}' is not a number, where {len(values) - len(words)} of the "
+        f"column's {len(values)} values are — the column is kept as text, with no trend against it; "
+        "write a number (no unit), or leave the cell empty"
+    )
 
 
 def _pointed(entries: list[Entry], name: str) -> str | None:

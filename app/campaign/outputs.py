@@ -347,13 +347,28 @@ def _trend(values: Sequence[tuple[float, float, float, float, float]]) -> Trend 
     return trend([v[0] for v in values], [v[1] for v in values], [v[2] for v in values])
 
 
+def _groups(manifest: Manifest, by: str | None) -> dict[int, str]:
+    """Each entry's group (by its line): its ``by`` tag as written, one value of a numeric tag
+    under its first spelling ('230' and '230.0' are one pressure); "all" without ``by``."""
+    if by is None:
+        return {entry.line: "all" for entry in manifest.entries}
+    if by not in manifest.numeric_tags():
+        return {entry.line: entry.tags[by] for entry in manifest.entries}
+    first: dict[float, str] = {}
+    return {
+        entry.line: first.setdefault(float(entry.tags[by]), entry.tags[by]) if entry.tags[by] else ""
+        for entry in manifest.entries
+    }
+
+
 def compare(manifest: Manifest, rows: Sequence[SessionRow], by: str | None) -> Comparison:
     """Groups by the ``by`` tag (one group, "all", without it); a row without a C2n is failed,
     and a group of such rows is one of ``no_c2n``, with their reasons counted."""
     failed, done = [], []
     reasons: dict[str, list[str]] = {}  # group -> why each of its failed rows has no C2n
+    group_of = _groups(manifest, by)
     for entry, row in zip(manifest.entries, rows, strict=True):
-        group = entry.tags[by] if by else "all"
+        group = group_of[entry.line]
         if row.error or row.result is None:
             failed.append((entry.log.name, row.error or "no C2n"))
             reasons.setdefault(group, []).append(reason(entry.log, row.error or "no C2n"))

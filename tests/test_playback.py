@@ -36,6 +36,25 @@ def test_long_gaps_are_shortened() -> None:
     assert clock.sleeps == pytest.approx([2.0, 1.0])
 
 
+def test_a_clock_going_back_keeps_the_pace_it_had() -> None:
+    """Two logs joined, the second's clock 300 s behind: its frames went out at once, 300 s of
+    driving in a burst, until their times caught up. Now they go on at their own pace."""
+    clock = FakeClock()
+    list(paced(messages([400.0, 401.0, 100.0, 100.5, 101.5]), rate=1.0, clock=clock, sleep=clock.sleep))
+    assert clock.sleeps == pytest.approx([1.0, 0.5, 1.0])  # the frame at 100 s right after 401's
+
+
+def test_a_frame_without_a_time_goes_at_once_and_moves_no_clock() -> None:
+    """A first frame timed NaN made every frame's due time NaN: the whole log in one burst."""
+    clock = FakeClock()
+    list(
+        paced(
+            messages([float("nan"), 10.0, 10.5, float("nan"), 11.5]), rate=1.0, clock=clock, sleep=clock.sleep
+        )
+    )
+    assert clock.sleeps == pytest.approx([0.5, 1.0])
+
+
 def test_rate_must_be_positive() -> None:
     with pytest.raises(ValueError):
         list(paced(messages([0.0]), rate=0.0))

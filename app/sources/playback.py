@@ -3,6 +3,7 @@
 The clock and the sleep are parameters, so tests pace without real waiting.
 """
 
+import math
 import time
 from collections.abc import Callable, Iterable, Iterator
 
@@ -19,7 +20,9 @@ def paced(
     """Yield each message when its recorded time comes, ``rate`` times faster than recorded.
 
     Gaps longer than ``max_wait_s`` (in playback time) are shortened to it, like python-can's
-    MessageSync ``skip``.
+    MessageSync ``skip``; where the time goes back (a logger's clock set back, two logs joined)
+    the frames go on from there at their own pace, not all at once until their time catches up.
+    A frame without a finite time goes out at once and moves no clock.
     """
     if rate <= 0:
         raise ValueError("rate must be > 0")
@@ -28,12 +31,17 @@ def paced(
     skipped = 0.0
     previous = None
     for message in messages:
+        if not math.isfinite(message.timestamp):
+            yield message
+            continue
         if start_wall is None:
             start_wall, start_log = clock(), message.timestamp
         else:
             gap = (message.timestamp - previous) / rate if previous is not None else 0.0
             if gap > max_wait_s:
                 skipped += gap - max_wait_s
+            elif gap < 0.0:  # the clock went back: on from the last frame's moment
+                skipped += gap
         previous = message.timestamp
         due = start_wall + (message.timestamp - start_log) / rate - skipped
         wait = due - clock()

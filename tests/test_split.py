@@ -495,3 +495,20 @@ def test_one_drive_twice_in_one_file_is_refused_not_counted_twice(tmp_path: Path
     assert "Traceback" not in err
     code, out, err = run_cli(["analyze", str(one)])
     assert code == 0 and float(out.split("C2n = ")[1].split()[0]) == pytest.approx(TRUTH[0], rel=0.01), err
+
+
+def test_a_log_named_near_the_file_system_s_limit_is_split_into_names_that_fit(
+    day: dict[str, Path], tmp_path: Path
+) -> None:
+    """A 239-byte log name: `split` read the whole log, then failed on its folder's name (`File
+    name too long`), or at a 225-byte name on the first part's. The names are now cut short, the
+    log named whole in parts.json."""
+    log = tmp_path / f"{'ä' * 117}x.log"  # 239 bytes: ä is two
+    log.write_bytes(day[".log"].read_bytes())
+    code, _, err = _split(log)
+    assert code == 0, err
+    [folder] = [p for p in tmp_path.iterdir() if p.is_dir()]
+    names = sorted(p.name for p in folder.iterdir())
+    assert len(names) == 3 and all(len(name.encode()) <= 255 for name in [folder.name, *names])
+    assert all("… part " in name for name in names if name != "parts.json")
+    assert json.loads((folder / "parts.json").read_text())["log"] == str(log.resolve())

@@ -24,7 +24,7 @@ from app.cli.common import ENDING, add_config, error_console, interrupted_by, pa
 from app.config import Config, load_config
 from app.errors import NoResultError, OutputError, one_line, printable
 from app.output.files import folder_atomically, new_folder, remove_stale
-from app.output.paths import Output, check, config_files
+from app.output.paths import Output, check, config_files, fitted_stem
 from app.user_text import argument, shown
 
 # loaded when the command runs, not at import: `c2n --help` needs none of them
@@ -73,14 +73,17 @@ class Cut:
     t0_s: float  # the log's first frame's time
     between: str = "pauses"  # what the parts lie between (``Parting.between``)
 
-    def names(self, stem: str, suffix: str) -> list[str]:
-        """``day part 07 of 12 (300–450 s).blf``: numbered to sort as they follow each other."""
+    def names(self, stem: str, suffix: str, folder: Path) -> list[str]:
+        """``day part 07 of 12 (300–450 s).blf``: numbered to sort as they follow each other, the
+        stem cut short where a name would not fit ``folder``'s file system."""
         count = len(self.spans_s)
         width = len(str(count))
-        return [
-            f"{stem} part {k:0{width}d} of {count} ({begin:.0f}–{end:.0f} s){suffix}"
+        tails = [
+            f" part {k:0{width}d} of {count} ({begin:.0f}–{end:.0f} s){suffix}"
             for k, (begin, end) in enumerate(self.spans_s, 1)
         ]
+        short = fitted_stem(stem, max(tails, key=lambda tail: len(tail.encode())), folder)
+        return [short + tail for tail in tails]
 
 
 def cut_of(report: "LogReport") -> Cut:
@@ -331,10 +334,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if why is not None:
         raise NoResultError(why)
     cut = cut_of(found.report)
-    names = cut.names(stem, fmt.suffix)
     claimed = args.out is None
+    names = cut.names(stem, fmt.suffix, log.parent if claimed else args.out)
     with interrupted_by(*ENDING):  # SIGTERM, a closed terminal: as Ctrl-C, nothing left behind
-        out: Path = claim_folder(log, stem) if claimed else args.out
+        out: Path = claim_folder(log, fitted_stem(stem, "-parts-999", log.parent)) if claimed else args.out
         try:
             with folder_atomically(out, ours, "c2n split", replace=not claimed) as staging:
                 parts = write_parts(log, cut, names, staging, fmt, console)

@@ -126,6 +126,17 @@ def _name_fits(out: Output) -> None:
         )
 
 
+def fitted_stem(stem: str, tail: str, folder: Path) -> str:
+    """``stem``, cut short and ended with '…' where ``stem + tail`` with c2n's temporary beside it
+    would not fit a file name of ``folder``'s file system (NAME_MAX bytes): the names c2n makes
+    of a log's (``c2n split``'s parts and their folder)."""
+    room = _name_max(folder) - _TEMPORARY_EXTRA - len(os.fsencode(tail))
+    if len(os.fsencode(stem)) <= room:
+        return stem
+    ellipsis = "…"
+    return os.fsencode(stem)[: max(room - len(os.fsencode(ellipsis)), 1)].decode(errors="ignore") + ellipsis
+
+
 def _name_max(folder: Path) -> int:
     for place in (folder, *folder.absolute().parents):
         try:

@@ -512,3 +512,23 @@ def test_a_log_named_near_the_file_system_s_limit_is_split_into_names_that_fit(
     assert len(names) == 3 and all(len(name.encode()) <= 255 for name in [folder.name, *names])
     assert all("… part " in name for name in names if name != "parts.json")
     assert json.loads((folder / "parts.json").read_text())["log"] == str(log.resolve())
+
+
+def test_a_damaged_log_s_split_says_in_parts_json_where_its_read_stopped(
+    day: dict[str, Path], tmp_path: Path
+) -> None:
+    """A log damaged four fifths in: its last part ended there, as a warning said once, but
+    parts.json listed it as if the drive had ended. It now keeps why the read stopped."""
+    lines = day[".log"].read_bytes().split(b"\n")
+    cut = len(lines) * 4 // 5
+    log = tmp_path / "damaged.log"
+    log.write_bytes(b"\n".join([*lines[:cut], b"(12x.5) can0 zz#!!", *lines[cut:]]))
+    code, _, err = _split(log)
+    assert code == 0 and "damaged.log: stopped after frame " in err, err
+    listed = json.loads((tmp_path / "damaged-parts" / "parts.json").read_text())
+    assert listed["read_stopped"].startswith("stopped after frame ") and "12x.5" in listed["read_stopped"]
+    whole = tmp_path / "whole.log"
+    whole.write_bytes(day[".log"].read_bytes())
+    code, _, err = _split(whole)
+    assert code == 0, err
+    assert json.loads((tmp_path / "whole-parts" / "parts.json").read_text())["read_stopped"] is None

@@ -185,10 +185,11 @@ def _chunks(messages: "Iterable[can.Message]") -> "Iterator[list[can.Message]]":
 
 def write_parts(
     log: Path, cut: Cut, names: list[str], folder: Path, fmt: "Format", console: Console
-) -> "list[PartFile]":
+) -> "tuple[list[PartFile], str | None]":
     """Every frame of ``log``, read as python-can reads it (every id, remote, error and CAN FD
-    frames too), written in file order into its part's file in ``folder``. Whatever stops the
-    writing takes every temporary with it; an OS error is an OutputError naming the file."""
+    frames too), written in file order into its part's file in ``folder``; and why the read
+    stopped before the log's end (a damaged file), if it did. Whatever stops the writing takes
+    every temporary with it; an OS error is an OutputError naming the file."""
     from app.output.can_logs import PartFile, open_part
     from app.results.within_file import Parting
     from app.sources.logs import LogSource
@@ -230,7 +231,7 @@ def write_parts(
             part.abandon()
     if report.stopped is not None:
         error_console().print(f"c2n: warning: {printable(f'{log}: {report.stopped}')}", markup=False)
-    return [parts[k] for k in sorted(parts)]
+    return [parts[k] for k in sorted(parts)], report.stopped
 
 
 def _out_of_order(log: Path, msg: "can.Message", name: str) -> str:
@@ -268,8 +269,11 @@ def _ours(log: Path) -> Callable[[Path], bool]:
     return ours
 
 
-def _list_parts(folder: Path, log: Path, parts: "list[PartFile]", cut: Cut, config: Config) -> None:
-    """``parts.json`` beside the parts: what was split, where and into which files."""
+def _list_parts(
+    folder: Path, log: Path, parts: "list[PartFile]", cut: Cut, config: Config, stopped: str | None
+) -> None:
+    """``parts.json`` beside the parts: what was split, where and into which files, and why the
+    read stopped before the log's end, if it did (its last part then ends there, not the drive)."""
     from app.output.files import write_json
 
     t0 = cut.t0_s
@@ -278,6 +282,7 @@ def _list_parts(folder: Path, log: Path, parts: "list[PartFile]", cut: Cut, conf
         {
             "log": os.path.realpath(log),
             "pauses_longer_than_s": config.filter.gap_reset_s,
+            "read_stopped": stopped,
             "parts": [
                 {
                     "file": part.path.name,
@@ -340,8 +345,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
         out: Path = claim_folder(log, fitted_stem(stem, "-parts-999", log.parent)) if claimed else args.out
         try:
             with folder_atomically(out, ours, "c2n split", replace=not claimed) as staging:
-                parts = write_parts(log, cut, names, staging, fmt, console)
-                _list_parts(staging, log, parts, cut, config)
+                parts, stopped = write_parts(log, cut, names, staging, fmt, console)
+                _list_parts(staging, log, parts, cut, config, stopped)
         except BaseException as error:
             if not claimed:
                 raise

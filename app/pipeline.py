@@ -121,6 +121,8 @@ class Pipeline:
         self.profile = SideslipProfile()
         self.state = SessionState(speeds=SpeedVotes(config.detector.speed_min_mps))
         self._speed_votes = {"vx", "speed"} <= config.roles.keys()  # two measures of u to compare
+        self._speed_t = -math.inf  # the latest vehicle speed's time: a vote takes it while fresh
+        self._fresh_s = config.filter.status_timeout_s  # older than this a value is unknown
         self._last_fit = -float("inf")
         self._fitted_on: tuple[int, int, bool] | None = None  # what the last refit saw (``_refit``)
         # Called by ``take_block`` with each block, the rows the filter took, their estimates (rows
@@ -194,8 +196,12 @@ class Pipeline:
             state.t_first = record.t
         state.t_last = record.t
         state.latest.update(record.signals)
-        if self._speed_votes and record.t >= state.speeds.next_t and "vx" in record.signals:
-            state.speeds.add(record.t, state.latest.get("speed", math.nan), record.signals["vx"])
+        if self._speed_votes:
+            if "speed" in record.signals:
+                self._speed_t = record.t
+            elif record.t >= state.speeds.next_t and "vx" in record.signals:
+                fresh = record.t - self._speed_t <= self._fresh_s
+                state.speeds.add(record.t, state.latest["speed"] if fresh else math.nan, record.signals["vx"])
         problem = self._optical_problem(record.rejected, record.signals) if record.rejected else None
         if problem:
             state.sensor_problem = problem
@@ -261,11 +267,8 @@ class Pipeline:
         ay = (
             _held(block.values.get("ay"), state.latest.get("ay"), n) if self._ay_votes else np.full(n, np.nan)
         )
-        if self._speed_votes and "vx" in block.values:
-            speed = _held(block.values.get("speed"), state.latest.get("speed"), n)
-            vx_rows = np.flatnonzero(~np.isnan(block.values["vx"]))
-            if len(vx_rows):
-                state.speeds.add_block(t[vx_rows], speed[vx_rows], block.values["vx"][vx_rows])
+        if self._speed_votes:
+            self._vote_speeds(block, n)
         for role, column in block.values.items():
             given = np.flatnonzero(~np.isnan(column))
             if len(given):
@@ -311,6 +314,26 @@ class Pipeline:
                 self.gate.verdict(kinds[k], DIRECTIONS[directions[k]], estimate, problem, held[k]),
             ),
         )
+
+    def _vote_speeds(self, block: RecordBlock, n: int) -> None:
+        """The speed votes over a block (``speeds.SpeedVotes``), each taking the vehicle speed
+        held at its row while it is fresh (a value of the standstill before a bus went quiet is
+        no speed of the drive); before ``state.latest`` takes the block's last values."""
+        t, column = block.t, block.values.get("speed")
+        latest = self.state.latest.get("speed")
+        speed, when = (
+            _held(column, latest, n),
+            _held(None if column is None else np.where(np.isnan(column), np.nan, t), self._speed_t, n),
+        )
+        if column is not None and (given := np.flatnonzero(~np.isnan(column))).size:
+            self._speed_t = float(t[given[-1]])
+        vx = block.values.get("vx")
+        if vx is None:
+            return
+        rows = np.flatnonzero(~np.isnan(vx))
+        if len(rows):
+            fresh = t[rows] - when[rows] <= self._fresh_s
+            self.state.speeds.add_block(t[rows], np.where(fresh, speed[rows], np.nan), vx[rows])
 
     def take_filtered(self, filtered: "Filtered") -> list[Event]:
         """The second stage of ``take_block``: each of a block's filtered rows in turn to what

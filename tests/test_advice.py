@@ -302,6 +302,23 @@ def test_a_lost_filter_names_the_process_noise_of_each_sensor_it_lost(config: Co
     assert "raise [filter] innovation_gate (4; default 30), or check" in said  # not q_r: the gate first
 
 
+def test_a_vehicle_speed_reading_high_is_named_not_the_filter_s_q_u(config: Config) -> None:
+    """A speedometer's reading (+10 % + 4 km/h, inside what the unit check allows) lost the car
+    178 times and the warning said raise q_u; C2n moved 0.04 %. Now its ratio and scale."""
+    from app.estimate.motion_model import FilterCounts
+
+    lost = Findings(
+        config=config, filter_counts=FilterCounts(lost_speed=178), lost_in_samples=178, speed_reads=1.14
+    )
+    said = advice.filter_lost(lost) or ""
+    assert (
+        "while the vehicle speed reads 1.14 × the optical vx (a speedometer's reading, or a scale off)"
+        in said
+    )
+    assert f"set [roles] speed's scale = {1 / 1.14:.3g}, or leave the role out" in said and "q_u" not in said
+    assert "q_u" in (advice.filter_lost(replace(lost, speed_reads=None)) or "")
+
+
 def test_a_drive_backwards_more_than_it_cornered_forwards_is_a_sign_not_a_manoeuvre() -> None:
     said = refusal.refusal(None, None, None, None, Cornering(backwards_s=100.4))
     assert said.startswith("the optical speed reads backwards (100 s cornering backwards, 0 s forwards)")

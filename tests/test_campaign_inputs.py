@@ -361,3 +361,37 @@ def test_another_manifests_results_on_the_same_out_are_not_replaced(tmp_path: Pa
     assert code == 0, err
     assert "1 known from an earlier run" in printed
     assert b"pressure_bar" in (out / "results.csv").read_bytes()
+
+
+def test_a_link_to_a_manifest_or_an_older_c2n_s_results_are_not_replaced(tmp_path: Path) -> None:
+    """A link to a manifest from another folder reads its logs beside the link: its run failed
+    every session and replaced the manifest's results, as a link is the same file. An older c2n's
+    results, without the record of their manifest, were replaced by any manifest's. Now a link
+    is another manifest, and older results are known by the logs their results.csv lists."""
+    from app.campaign.work import CACHE, WRITTEN
+    from app.sim.simulated_drive import write_drive
+    from tests.simulated import cached_drive
+
+    (tmp_path / "camp").mkdir()
+    write_drive(cached_drive("constant_radius", 41, 15.1), tmp_path / "camp" / "s1.blf")
+    first = _manifest(tmp_path / "camp", "log,tyre_set\ns1.blf,A\n", "first.csv")
+    out = tmp_path / "camp" / "out"
+    code, _, err = run_cli(["campaign", str(first), "--out", str(out), "--workers", "1"])
+    assert code == 0, err
+    kept = (out / "results.csv").read_bytes()
+    link = tmp_path / "link.csv"
+    link.symlink_to(first)
+    code, _, err = run_cli(["campaign", str(link), "--out", str(out), "--workers", "1"])
+    assert code == 1 and f"holds the results of the campaign {first}, not of {link}" in err, err
+    assert (out / "results.csv").read_bytes() == kept
+    record = out / CACHE / WRITTEN  # as an older c2n kept it: no manifest named
+    record.write_text(
+        json.dumps({k: v for k, v in json.loads(record.read_text()).items() if k != "manifest"})
+    )
+    other = _manifest(tmp_path / "camp", "log,tyre_set\ns1.blf,A\ns2.blf,B\n", "other.csv")
+    write_drive(cached_drive("constant_radius", 42, 15.1), tmp_path / "camp" / "s2.blf")
+    code, _, err = run_cli(["campaign", str(other), "--out", str(out), "--workers", "1"])
+    assert code == 1 and "holds the results of a campaign of other logs than" in err, err
+    assert (out / "results.csv").read_bytes() == kept
+    code, _, err = run_cli(["campaign", str(first), "--out", str(out), "--workers", "1"])
+    assert code == 0, err  # its own logs: its own results, replaced

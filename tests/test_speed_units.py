@@ -11,8 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from app.config import load_config
 from app.detect.signs import MIN_VOTES, VOTE_EVERY_S
 from app.detect.speeds import SpeedVotes, band, speed_backwards, speed_unit_problem
+from app.pipeline import Pipeline
+from app.run_loop import run
 from tests.simulated import REPO
 from tests.test_campaign import run_cli
 
@@ -145,3 +148,34 @@ def test_reversing_or_a_flipped_vx_is_no_vote_on_the_vehicle_speed_s_sign() -> N
     votes.add_block(t, np.full(n, -8.0), np.full(n, 8.0))
     said = speed_backwards(votes, 1.0)
     assert said is not None and "set [roles] speed's scale = -1 (" in said
+
+
+def test_a_vehicle_speed_that_went_quiet_is_no_vote(tmp_path: Path) -> None:
+    """The vehicle bus sends its speed only while the car stands, 0 for 2 s (a gateway then
+    asleep): that 0 was held for the whole drive and read as a unit mistake (`reads 0.05 ×`), the
+    drive's C2n lost. A vote now takes the speed only while it is fresh ([filter]
+    status_timeout_s)."""
+    import can
+
+    from tests.simulated import cached_drive
+
+    messages = cached_drive("constant_radius", 41, 15.1).messages
+    t0, speed_id = messages[0].timestamp, 0x415  # BrakeSysFeatures, the role speed's frame
+    standing = [
+        can.Message(
+            timestamp=t0 - 2.0 + k * 0.02, arbitration_id=speed_id, data=bytes(8), is_extended_id=False
+        )
+        for k in range(100)
+    ]
+    kept = standing + [m for m in messages if m.arbitration_id != speed_id]
+    log = tmp_path / "quiet.blf"
+    with can.Logger(log) as writer:
+        for m in kept:
+            writer.on_message_received(m)
+    code, out, err = run_cli(["analyze", str(log)])
+    assert code == 0 and float(out.split("C2n = ")[1].split()[0]) == pytest.approx(15.1, rel=0.02), err
+    assert "vehicle speed reads" not in out + err
+    pipeline = Pipeline(load_config())  # frame by frame, as live reads a bus
+    run(iter(kept), pipeline, [])
+    snapshot = pipeline.snapshot()
+    assert snapshot.unit_problem is None and snapshot.headline is not None

@@ -490,11 +490,17 @@ def test_one_drive_twice_in_one_file_is_refused_not_counted_twice(tmp_path: Path
     log.write_bytes(one.read_bytes() * 2)
     code, out, err = run_cli(["analyze", str(log), "--json", str(tmp_path / "twice.json")])
     assert code == 1 and "C2n =" not in out, out
-    assert "twice.log 0–" in err and "hold the same driving" in err
-    assert "one drive recorded twice in one file" in err
+    assert "twice.log's part 1 (0–150 s) and part 2 (0–150 s) hold the same driving" in err
+    assert "one drive recorded twice in one file" in err and "keep one copy of the drive" in err
+    assert "--pool" not in err
     assert "Traceback" not in err
     code, out, err = run_cli(["analyze", str(one)])
     assert code == 0 and float(out.split("C2n = ")[1].split()[0]) == pytest.approx(TRUTH[0], rel=0.01), err
+    messages = _drive(TRUTH[0], 5).messages  # a resent piece first, then the drive twice: all weighed
+    piece = _one_file(tmp_path / "piece.log", (messages[len(messages) // 10 : len(messages) // 5], 0.0))
+    log.write_bytes(piece.read_bytes() + one.read_bytes() * 2)
+    code, out, err = run_cli(["analyze", str(log)])
+    assert code == 1 and "one drive recorded twice in one file" in err, out
 
 
 def test_a_log_named_near_the_file_system_s_limit_is_split_into_names_that_fit(

@@ -121,7 +121,7 @@ def analyse(job: Job) -> SessionRow:
 def _analysed(raws: list[Path], config: Config, given: Path) -> SessionRow:
     from app.pipeline import Pipeline  # the filter's compiled code: only where a drive is analysed
     from app.results.log_clock import clock_notes, sensor_messages
-    from app.results.within_file import parts_disagree
+    from app.results.within_file import fix_for, parts_disagree
     from app.run_loop import run as run_pipeline
     from app.sinks import summary
     from app.sources.logs import LogReport, LogSource, drive_identity
@@ -147,7 +147,7 @@ def _analysed(raws: list[Path], config: Config, given: Path) -> SessionRow:
     for report in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
         why = parts_disagree(report, config, Pipeline)
         if why is not None:  # no summary, as analyze writes none: its C2n lies between the parts'
-            fix = WITHIN_FIX.format(log=argument(report.path))
+            fix = fix_for(why, WITHIN_FIX, argument(report.path))
             said = printable(f"{raw}: no C2n — {why} — {fix}")
             return SessionRow(error=said, drive=identity, runs=runs, frames=snapshot.frames.total)
     notes = source.notes

@@ -101,15 +101,42 @@ def results_of(folder: Path) -> Path | None:
     return Path(named)
 
 
-def check_results_of(folder: Path, manifest: Path) -> None:
+def check_results_of(folder: Path, manifest: Manifest) -> None:
     """Refused: ``folder`` holds another manifest's results, which this run would replace (the
-    analyses in its cache are kept and shared either way, keyed by the logs' content)."""
+    analyses in its cache are kept and shared either way, keyed by the logs' content). A
+    manifest is known by where it is, as its logs are (a link to it is another manifest, whose
+    logs lie beside the link); the results of a c2n that kept no record of their manifest, by
+    the logs their results.csv lists."""
+    fix = f"choose another --out, or remove {', '.join(FILES)} there to replace them (its cache is reused)"
     other = results_of(folder)
-    if other is not None and other != manifest.resolve():
+    if other is not None and other != _where(manifest.path):
         raise OutputError(
-            f"{folder}: holds the results of the campaign {other}, not of {manifest} — choose "
-            f"another --out, or remove {', '.join(FILES)} there to replace them (its cache is reused)"
+            f"{folder}: holds the results of the campaign {other}, not of {manifest.path} — {fix}"
         )
+    listed = _listed_logs(folder) if other is None else None
+    if listed is not None and listed != {log_name(manifest, entry) for entry in manifest.entries}:
+        raise OutputError(
+            f"{folder}: holds the results of a campaign of other logs than {manifest.path}'s (results.csv "
+            f"lists {len(listed)}, not as the manifest does) — {fix}"
+        )
+
+
+def _where(manifest: Path) -> Path:
+    """The manifest as its place, not its content's: absolute, its own name kept (a link)."""
+    return Path(os.path.abspath(manifest))
+
+
+def _listed_logs(folder: Path) -> set[str] | None:
+    """The logs results.csv lists, where it is the campaign's own (``ours``); else None."""
+    results = folder / "results.csv"
+    if not ours(results):
+        return None
+    try:
+        text = results.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError):
+        return None
+    rows = list(csv.reader(io.StringIO(text), delimiter=text[3:4] if text.startswith("log") else ","))
+    return {row[0] for row in rows[1:] if row}
 
 
 def _written(folder: Path) -> dict[str, list[str]] | None:
@@ -137,7 +164,7 @@ def record_written(folder: Path, staging: Path, manifest: Path) -> None:
 
     before = _written(folder) or {}
     record: dict[str, Any] = {name: [_digest(staging / name), *before.get(name, [])[:1]] for name in FILES}
-    record[_MANIFEST] = str(manifest.resolve())
+    record[_MANIFEST] = str(_where(manifest))
     (folder / CACHE).mkdir(exist_ok=True)
     write_json(folder / CACHE / WRITTEN, record, "the campaign's record of its results")
 

@@ -133,7 +133,9 @@ def _one_drive(reports: "list[LogReport]", config: "Config", console: Console) -
     for report in reports:  # a file that paused: its parts alone (``app.results.within_file``)
         why = parts_disagree(report, config, console)
         if why is not None:
-            raise NoResultError(f"{why} — {_FIX['within'].format(log=argument(report.path))}")
+            from app.results.within_file import fix_for
+
+            raise NoResultError(f"{why} — {fix_for(why, _FIX['within'], argument(report.path))}")
     for before, after in itertools.pairwise(r for r in reports if r.span_s is not None):
         assert before.span_s is not None and after.span_s is not None
         gap = after.span_s[0] - before.span_s[1]

@@ -214,7 +214,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     check([Output("--out", out, outputs.ours, folder=True)], inputs)
     config = args.config.resolve() if args.config else None
     with work.claimed(out):  # alone on --out until its results are in place
-        outputs.check_results_of(out, args.manifest)  # before the work, not after hours of it
+        outputs.check_results_of(out, manifest)  # before the work, not after hours of it
         rows, frames, elapsed = _analysed(args, manifest, config, out, console)
         rows, repeats = counted_once(manifest, rows)
         columns, table = outputs.table_rows(manifest, rows)

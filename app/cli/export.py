@@ -235,7 +235,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     for read in source.reports:  # a file that paused: its parts alone, as c2n analyze reads them
         why = parts_disagree(read, config, console)
         if why is not None:  # the summary, events and plots would show one C2n between them
-            fix = _WITHIN_FIX.format(log=argument(read.path))
+            from app.results.within_file import fix_for
+
+            fix = fix_for(why, _WITHIN_FIX, argument(read.path))
             raise NoResultError(f"{why} — {fix} (nothing written to {out})")
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0

@@ -63,7 +63,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         for report in measured.reports:  # a log that paused: its parts alone, as c2n analyze reads them
             why = parts_disagree(report, config, console)
             if why is not None:  # two tyre sets diagnosed as one drive's gap
-                raise NoResultError(f"{why} — {_WITHIN_FIX.format(log=argument(report.path))}")
+                from app.results.within_file import fix_for
+
+                raise NoResultError(f"{why} — {fix_for(why, _WITHIN_FIX, argument(report.path))}")
         with console.status("fitting the candidate effects…"):
             from app.gap.diagnose import diagnose  # imported while the background works
 

@@ -35,7 +35,7 @@ _HIGH = (1.0 + TYRE_RADIUS) * (1.0 + WHEEL_IN_TURN)
 _BIN = 0.01  # the ratio's histogram: bins of 1 % in its logarithm, from 1/20 to 20
 _SPAN = 3.0
 _BINS = int(2 * _SPAN / _BIN)
-_UNITS = {"m/s": 1.0, "km/h": 1.0 / 3.6, "mph": 0.44704, "knots": 1852.0 / 3600.0}
+_UNITS = {"m/s": 1.0, "km/h": 1.0 / 3.6, "mph": 0.44704}  # the speed units c2n reads (app/units.py)
 _NEAR_UNIT = 0.05  # a ratio within 5 % of two units' is named as that mistake
 
 
@@ -64,7 +64,7 @@ class SpeedVotes:
 
     def add(self, t: float, speed: float, vx: float) -> None:
         """One vote at t: the latest vehicle speed and optical vx (NaN: none)."""
-        self.next_t = t + VOTE_EVERY_S
+        self.next_t = (math.floor(t / VOTE_EVERY_S) + 1.0) * VOTE_EVERY_S  # the next slot, as add_block's
         u = abs(vx)
         if not (speed == speed and u >= self.least_mps):  # NaN compares False
             return
@@ -83,7 +83,7 @@ class SpeedVotes:
         first = np.flatnonzero(np.r_[True, np.diff(slots) > 0] & (t >= self.next_t))
         if not len(first):
             return
-        self.next_t = float(t[first[-1]]) + VOTE_EVERY_S
+        self.next_t = (float(slots[first[-1]]) + 1.0) * VOTE_EVERY_S
         u = np.abs(vx[first])
         keep = (u >= self.least_mps) & ~np.isnan(speed[first])
         self.backwards += int(np.count_nonzero(keep & (speed[first] < 0.0) & (vx[first] > 0.0)))
@@ -113,6 +113,16 @@ class SpeedVotes:
 
     def copy(self) -> "SpeedVotes":
         return replace(self, ratios=self.ratios.copy())
+
+
+def reads_off(votes: SpeedVotes) -> float | None:
+    """The vehicle speed's median ratio to the optical vx where at least ``MIN_VOTES`` votes
+    put it beyond a tyre's radius and a wheel's place in the turn (a speedometer's reading, or
+    a scale off), for the filter's advice; None where it is within them."""
+    ratio = votes.median()
+    if votes.inside + votes.outside < MIN_VOTES or ratio is None or _LOW <= ratio <= _HIGH:
+        return None
+    return ratio
 
 
 def speed_unit_problem(votes: SpeedVotes) -> str | None:

@@ -61,6 +61,7 @@ class Findings:
     wrong_unit: bool = (
         False  # the vehicle speed's unit or sign against vx (Snapshot.unit_problem), in sign_problem
     )
+    speed_reads: float | None = None  # the vehicle speed's ratio to vx, where off (speeds.reads_off)
     config_gated: bool = False  # the config's speed_min_mps above all the cornering (speed_min_problem)
 
     @property
@@ -228,6 +229,14 @@ def filter_lost(f: Findings) -> str | None:
     times = sum(lost.values())
     where = ", ".join(f"{_SENSOR[kind]} {n:,}" for kind, n in lost.items())
     gate = settings.innovation_gate
+    if "speed" in lost and f.speed_reads is not None:  # the speed's own scale, not the filter's
+        scale = f.config.roles["speed"].scale / f.speed_reads
+        fix = f"set [roles] speed's scale = {scale:.3g}, or leave the role out"
+        return (
+            f"the filter lost the car {times:,} time{'s' if times != 1 else ''} ({where}) while the vehicle "
+            f"speed reads {f.speed_reads:.2f} × the optical vx (a speedometer's reading, or a scale off) "
+            f"— {fix}"
+        )
     if gate < default.innovation_gate:  # a narrow gate rejects the sensor's own noise: it first
         knobs = _setting("innovation_gate", gate, default.innovation_gate)
     else:

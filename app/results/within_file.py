@@ -27,7 +27,7 @@ from app.results.headline import Headline
 from app.results.log_clock import clock_notes, sensor_messages
 from app.sources.blocks import FrameBlock, rows
 from app.sources.logs import LogReport, LogSource
-from app.sources.overlap import SensorPrints, overlapping
+from app.sources.overlap import MOST, SensorPrints, spanned
 from app.sources.spacing import FrameSpacing, rewound_at
 from app.sources.triage import Triage
 
@@ -37,13 +37,40 @@ from app.sources.triage import Triage
 REPEAT_SHARE = 0.25
 
 
-def _weighs(twice: tuple[str, str, float], names: list[str], spans: list[tuple[float, float]]) -> bool:
-    """Does the driving two parts both hold (``overlap.overlapping``'s) weigh beyond
-    ``REPEAT_SHARE`` of the rest of the file's?"""
-    first, second, share = twice
+REPEATED = "one drive recorded twice in one file"  # the repeat's reason: its fix is one copy, not a pool
+
+
+def fix_for(why: str, fix: str, log: str) -> str:
+    """What to do about the parts of ``log`` that ``why`` refused: ``fix`` (each part alone), or
+    for a repeat, one copy."""
+    if REPEATED in why:
+        return f"split it where its clock goes back (c2n split {log}) and keep one copy of the drive"
+    return fix.format(log=log)
+
+
+def repeated(prints: "list[SensorPrints]", spans: list[tuple[float, float]], name: str) -> str | None:
+    """Why the file counts driving twice: its parts that mostly hold an earlier part's driving
+    (``overlap.spanned`` over ``MOST``), each its largest such repeat, their seconds summed,
+    beyond ``REPEAT_SHARE`` of the rest; the line names the pair that repeats most. None where
+    the repeats weigh less, or there are none."""
     seconds = [end - begin for begin, end in spans]
-    repeated = share * min(seconds[names.index(first)], seconds[names.index(second)])
-    return repeated > REPEAT_SHARE * (sum(seconds) - repeated)
+    total, most = 0.0, (0.0, 0, 0, 0.0)
+    for k, part in enumerate(prints):  # each part's largest repeat of an earlier one
+        alike = [(spanned(prints[j], part), j) for j in range(k)]
+        repeats = [(share * min(seconds[j], seconds[k]), j, k, share) for share, j in alike if share > MOST]
+        if repeats:
+            again = max(repeats)
+            total += again[0]
+            most = max(most, again)
+    if not total > REPEAT_SHARE * (sum(seconds) - total):
+        return None
+    _, j, k, share = most
+    called = [f"part {i + 1} ({begin:.0f}–{end:.0f} s)" for i, (begin, end) in enumerate(spans)]
+    return (
+        f"{name}'s {called[j]} and {called[k]} hold the same driving (the optical sensor's frames alike, "
+        f"run for run, over {100 * share:.0f} % of the shorter), {total:.0f} s of it repeated: {REPEATED} "
+        "— two logs joined, one of them twice? — which would count twice"
+    )
 
 
 class PartResult(Protocol):
@@ -174,14 +201,9 @@ def parts_disagree(report: LogReport, config: Config, part: Callable[[Config], P
     t0 = report.span_s[0] if report.span_s is not None else 0.0
     spans = parting.spans(report.span_s)
     names = [f"{report.path.name} {begin - t0:.0f}–{end - t0:.0f} s" for begin, end in spans]
-    twice = overlapping(list(zip(names, prints, strict=True)))
-    if twice is not None and _weighs(twice, names, spans):
-        first, second, share = twice
-        return (
-            f"{first} and {second} hold the same driving (the optical sensor's frames alike, run for "
-            f"run, over {100 * share:.0f} % of the shorter): one drive recorded twice in one file — "
-            "two logs joined, one of them twice? — which would count twice"
-        )
+    twice = repeated(prints, [(begin - t0, end - t0) for begin, end in spans], report.path.name)
+    if twice is not None:
+        return twice
     alone = []
     for pipeline, name in zip(parts, names, strict=True):
         pipeline.finish()

@@ -14,6 +14,7 @@ from typing import Any, Literal
 from app import __version__
 from app.config import Config
 from app.detect.signs import SignVotes
+from app.detect.speeds import reads_off
 from app.output.files import json_ready, write_json
 from app.records import Crossing, CrossingRejected, Direction, Sweep
 from app.results import advice, refusal
@@ -325,6 +326,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         d_witnessed=snapshot.d_witnessed,
         backwards=refusal.reads_backwards(cornering.backwards_s, cornering.turning_s) is not None,
         wrong_unit=snapshot.unit_problem is not None,
+        speed_reads=reads_off(snapshot.speeds),
         config_gated=refusal.speed_min_problem(cornering, snapshot.speed_min_mps) is not None,
         lost_in_samples=snapshot.filter.lost_in_samples,
     )

@@ -319,21 +319,16 @@ class Pipeline:
         """The speed votes over a block (``speeds.SpeedVotes``), each taking the vehicle speed
         held at its row while it is fresh (a value of the standstill before a bus went quiet is
         no speed of the drive); before ``state.latest`` takes the block's last values."""
-        t, column = block.t, block.values.get("speed")
-        latest = self.state.latest.get("speed")
-        speed, when = (
-            _held(column, latest, n),
-            _held(None if column is None else np.where(np.isnan(column), np.nan, t), self._speed_t, n),
-        )
+        t, column, vx = block.t, block.values.get("speed"), block.values.get("vx")
+        before_t = self._speed_t
         if column is not None and (given := np.flatnonzero(~np.isnan(column))).size:
             self._speed_t = float(t[given[-1]])
-        vx = block.values.get("vx")
-        if vx is None:
+        if vx is None or not len(rows := np.flatnonzero(~np.isnan(vx))):  # the vehicle bus alone
             return
-        rows = np.flatnonzero(~np.isnan(vx))
-        if len(rows):
-            fresh = t[rows] - when[rows] <= self._fresh_s
-            self.state.speeds.add_block(t[rows], np.where(fresh, speed[rows], np.nan), vx[rows])
+        speed = _held(column, self.state.latest.get("speed"), n)
+        when = _held(None if column is None else np.where(np.isnan(column), np.nan, t), before_t, n)
+        fresh = t[rows] - when[rows] <= self._fresh_s
+        self.state.speeds.add_block(t[rows], np.where(fresh, speed[rows], np.nan), vx[rows])
 
     def take_filtered(self, filtered: "Filtered") -> list[Event]:
         """The second stage of ``take_block``: each of a block's filtered rows in turn to what

@@ -30,7 +30,7 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from app.config import Config
-from app.detect.quasi_steady import AY_MIN_MPS2
+from app.detect.quasi_steady import AY_MIN_MPS2, Cornering
 from app.errors import NoResultError
 from app.gap.candidates import (
     CANDIDATES,
@@ -73,7 +73,7 @@ from app.gap.result import (
     Located,
     Secondary,
 )
-from app.results.refusal import reads_backwards
+from app.results.refusal import reads_backwards, speed_min_problem
 from app.sim.effects import EffectName
 from app.sim.vehicle_model import BicycleParams
 from app.units import Z95
@@ -155,7 +155,11 @@ def _lacking(m: Measured, config: Config) -> str | None:
     turning = np.abs(u * np.nan_to_num(m.r)) >= AY_MIN_MPS2
     forwards = np.count_nonzero(turning & (u >= speed_min)) * m.dt
     scale = config.roles["vx"].scale if "vx" in config.roles else 1.0
-    return reads_backwards(np.count_nonzero(turning & (u <= -speed_min)) * m.dt, forwards, scale)
+    backwards = reads_backwards(np.count_nonzero(turning & (u <= -speed_min)) * m.dt, forwards, scale)
+    if backwards:
+        return backwards
+    below = np.count_nonzero(turning & (u > 0) & (u < speed_min)) * m.dt
+    return speed_min_problem(Cornering(turning_s=forwards, below_speed_s=below), speed_min)
 
 
 def _noise(x: np.ndarray) -> float:

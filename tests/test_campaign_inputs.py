@@ -395,3 +395,27 @@ def test_a_link_to_a_manifest_or_an_older_c2n_s_results_are_not_replaced(tmp_pat
     assert (out / "results.csv").read_bytes() == kept
     code, _, err = run_cli(["campaign", str(first), "--out", str(out), "--workers", "1"])
     assert code == 0, err  # its own logs: its own results, replaced
+
+
+def test_a_drive_moved_since_its_analysis_is_named_where_it_is_now(tmp_path: Path) -> None:
+    """A log renamed (or moved) and its manifest line with it: its row came from the cache (the
+    same content), and results.csv's inputs named the old file, gone. Now the row names the log
+    where it is."""
+    import csv
+
+    from app.sim.simulated_drive import write_drive
+    from tests.simulated import cached_drive
+
+    write_drive(cached_drive("constant_radius", 41, 15.1), tmp_path / "s1.blf")
+    path = _manifest(tmp_path, "log,tyre_set\ns1.blf,A\n")
+    argv = ["campaign", str(path), "--workers", "1"]
+    assert run_cli(argv)[0] == 0
+    (tmp_path / "s1.blf").rename(tmp_path / "day 2.blf")
+    _manifest(tmp_path, "log,tyre_set\nday 2.blf,A\n")
+    code, _, err = run_cli(argv)
+    assert code == 0, err
+    text = (tmp_path / "manifest-campaign" / "results.csv").read_text(encoding="utf-8-sig")
+    (row,) = csv.DictReader(text.splitlines())
+    assert row["cached"] == "True" and row["log"] == "day 2.blf"
+    assert json.loads(row["inputs"]) == [str(tmp_path / "day 2.blf")], row["inputs"]
+    assert "s1.blf" not in text

@@ -110,3 +110,14 @@ def test_a_row_s_columns_are_the_summary_s_keys_joined_then_its_own() -> None:
     assert columns["frames"] == 133443 and columns["key"] == "aa-bb" and columns["cached"] is None
     assert ROW.warnings_about(Path("/x/d[1].log")) == ["d[1].log: a recording given twice"]
     assert ROW.warnings_about(Path("/x/e.log")) == []
+
+
+def test_a_row_seen_at_a_moved_log_names_it_there_in_its_warnings_and_error() -> None:
+    summary = {"inputs": ["/old/a.blf"], "config": "/old/car.toml", "warnings": ["/old/a.blf: cut short", 3]}
+    row = SessionRow(summary=summary, error="/old/a.blf: no C2n — too short", key="aa-bb")
+    moved = row.seen_at(["/new/b.blf"], "/new/car.toml")
+    assert moved.summary["inputs"] == ["/new/b.blf"] and moved.summary["config"] == "/new/car.toml"
+    assert moved.summary["warnings"] == ["/new/b.blf: cut short", 3]
+    assert moved.error == "/new/b.blf: no C2n — too short" and moved.key == "aa-bb"
+    assert row.seen_at(["/old/a.blf"], "/old/car.toml") is row
+    assert row.seen_at(["/new/b.blf", "/new/c.blf"], "/new/car.toml") is row  # not the same drive's parts

@@ -9,7 +9,8 @@ analyze summary rides along as it is written (``summary``) and becomes columns o
 
 import json
 import math
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,31 @@ class SessionRow:
         if not isinstance(said, list):
             return []
         return [w for w in said if isinstance(w, str) and (str(log) in w or f"{log.name}:" in w)]
+
+    def seen_at(self, inputs: Sequence[str], config: str) -> "SessionRow":
+        """The row of a drive whose log or config was moved or renamed since it was analysed (the
+        key is their content): the paths its summary and its error name, as they are now."""
+        then = self.summary.get("inputs")
+        if not isinstance(then, list) or len(then) != len(inputs):
+            return self
+        moves = [
+            (old, new) for old, new in zip(then, inputs, strict=True) if isinstance(old, str) and old != new
+        ]
+        old_config = self.summary.get("config")
+        if isinstance(old_config, str) and old_config != config:
+            moves.append((old_config, config))
+        if not moves:
+            return self
+
+        def now(text: str) -> str:
+            for old, new in moves:
+                text = text.replace(old, new)
+            return text
+
+        summary = {**self.summary, "inputs": list(inputs), "config": config}
+        if isinstance(summary.get("warnings"), list):
+            summary["warnings"] = [now(w) if isinstance(w, str) else w for w in summary["warnings"]]
+        return replace(self, summary=summary, error=None if self.error is None else now(self.error))
 
     def to_json(self) -> dict[str, Any]:
         """The cache file's content (``cached`` is not kept: it is the run's, not the drive's)."""

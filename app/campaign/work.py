@@ -212,7 +212,7 @@ def run_campaign(
     for i, entry in enumerate(manifest.entries):
         key = memo.key(Job(entry.log, config))
         if key is not None and key in stored:
-            rows[i] = row = replace(stored[key], cached=True)
+            rows[i] = row = replace(_seen_at(stored[key], Job(entry.log, config)), cached=True)
             on_row(i, row)
         else:
             pending.append(i)
@@ -227,20 +227,19 @@ def run_campaign(
             _unmake(made)
             raise
         memo.save()
-        futures = {
-            executor.submit(run_task, Task(Job(manifest.entries[i].log, config), known)): i for i in pending
-        }
+        jobs = {i: Job(manifest.entries[i].log, config) for i in pending}
+        futures = {executor.submit(run_task, Task(jobs[i], known)): i for i in pending}
         try:
             done = cf.as_completed(futures)
             for future in done:
-                _take(future.result(), futures[future], rows, stored, cache, on_row)
+                _take(future.result(), futures[future], jobs[futures[future]], rows, stored, cache, on_row)
         except KeyboardInterrupt:  # what is done is kept; what runs is finished; the rest not started
             for future in futures:
                 future.cancel()
             cf.wait(futures)
             for future, i in futures.items():  # (one cut short while being taken, too)
                 if rows[i] is None and not future.cancelled() and future.exception() is None:
-                    _take(future.result(), i, rows, stored, cache, on_row)
+                    _take(future.result(), i, jobs[i], rows, stored, cache, on_row)
             kept = sum(1 for row in rows if row is not None)
             raise Interrupted(
                 f"{kept} of {len(rows)} sessions are done and kept in {cache}; "
@@ -254,6 +253,16 @@ def run_campaign(
                 "on (--workers 1 shows which log it was)"
             ) from None
     return _all(rows)
+
+
+def _seen_at(row: SessionRow, job: Job) -> SessionRow:
+    """A kept row with the paths of its log and config as this run gives them (the same content
+    moved or renamed since: its results named the old place)."""
+    try:
+        raws, config_path, _ = where(job)
+    except (C2nError, OSError):  # not readable here (a cluster's worker read it): as kept
+        return row
+    return row.seen_at([str(raw) for raw in raws], str(config_path))
 
 
 def _all(rows: list[SessionRow | None]) -> list[SessionRow]:
@@ -285,6 +294,7 @@ def _unmake(made: list[Path]) -> None:
 def _take(
     done: SessionRow | str,
     i: int,
+    job: Job,
     rows: list[SessionRow | None],
     stored: dict[str, SessionRow],
     cache: Path,
@@ -292,7 +302,7 @@ def _take(
 ) -> None:
     """A worker's row: kept in the cache (or, when only its key came back, the row kept there)."""
     if isinstance(done, str):
-        row = replace(stored[done], cached=True)
+        row = replace(_seen_at(stored[done], job), cached=True)
     elif done.key is not None:
         write_json(cache / f"{done.key}.json", done.to_json(), "the campaign's cache")
         row = replace(done, cached=False)

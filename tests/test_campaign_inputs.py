@@ -419,3 +419,27 @@ def test_a_drive_moved_since_its_analysis_is_named_where_it_is_now(tmp_path: Pat
     assert row["cached"] == "True" and row["log"] == "day 2.blf"
     assert json.loads(row["inputs"]) == [str(tmp_path / "day 2.blf")], row["inputs"]
     assert "s1.blf" not in text
+
+
+def test_numeric_tags_are_numbers_in_the_parquet(tmp_path: Path) -> None:
+    """results.parquet held every tag as text: `pressure_kPa` came back as strings, a trend or a
+    plot in pandas first had to convert them. A numeric tag is now a column of numbers (whole
+    where every value is), an empty cell null; a text tag stays text."""
+    import pyarrow.parquet as pq
+
+    from app.campaign.outputs import write_tables
+
+    rows = [
+        {"log": "a.blf", "pressure_kPa": "230", "load_kg": "80.5", "tyre_set": "A", "c2n": 15.0},
+        {"log": "b.blf", "pressure_kPa": "", "load_kg": "1e2", "tyre_set": "7", "c2n": None},
+    ]
+    columns = ["log", "pressure_kPa", "load_kg", "tyre_set", "c2n"]
+    write_tables(tmp_path, columns, rows, numeric=["pressure_kPa", "load_kg"])
+    table = pq.read_table(tmp_path / "results.parquet")
+    assert str(table.schema.field("pressure_kPa").type) == "int64"
+    assert str(table.schema.field("load_kg").type) == "double"
+    assert str(table.schema.field("tyre_set").type) == "string"
+    assert table.column("pressure_kPa").to_pylist() == [230, None]
+    assert table.column("load_kg").to_pylist() == [80.5, 100.0]
+    text = (tmp_path / "results.csv").read_text(encoding="utf-8-sig")
+    assert "a.blf,230,80.5,A,15" in text and "b.blf,,1e2,7," in text  # the CSV as the manifest wrote them

@@ -222,13 +222,28 @@ def write_tables(
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    table = pa.Table.from_pylist([{k: _text(row.get(k)) for k in columns} for row in rows])
+    numbers = {k: _numbers([row.get(k) for row in rows]) for k in numeric if k in columns}
+    table = pa.Table.from_pylist(
+        [
+            {k: numbers[k][i] if k in numbers else _text(row.get(k)) for k in columns}
+            for i, row in enumerate(rows)
+        ]
+    )
 
     def parquet(tmp: Path) -> None:
         with tmp.open("wb") as file:  # a file, not its name: pyarrow cannot encode undecodable bytes
             pq.write_table(table, file)
 
     write_atomically(folder / "results.parquet", parquet, "results.parquet")
+
+
+def _numbers(values: Sequence[Any]) -> list[int | float | None]:
+    """A numeric tag's values as numbers for results.parquet (a reader's column of numbers, not of
+    text): whole numbers where every value is one, an empty cell None."""
+    read = [float(v) if isinstance(v, str) and v else None for v in values]
+    if all(x is None or (x.is_integer() and abs(x) < 2**53) for x in read):
+        return [None if x is None else int(x) for x in read]
+    return list(read)
 
 
 def _text(value: Any) -> Any:

@@ -17,11 +17,12 @@ from app.cli import main
 from app.config import load_config
 from app.gap.candidates import CANDIDATES
 from app.gap.check import CaseAnswer, score
-from app.gap.diagnose import diagnose, problem, roll_lever_m
+from app.gap.diagnose import diagnose
 from app.gap.forked import Later
 from app.gap.measured import Measured, Method, measure
 from app.gap.method_effects import BY_RIG
 from app.gap.nominal_model import Mods, prepare, run_model, run_model_reference, simulate
+from app.gap.problem import problem, roll_lever_m
 from app.gap.result import BeforeAfter, C2nEffect, Effect, GapC2n, GapNoise, GapResult
 from app.sim.simulated_drive import DriveOptions, simulate_drive, write_drive
 from app.sim.vehicle_model import BicycleParams

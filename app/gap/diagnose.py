@@ -19,26 +19,22 @@ shrinks once that effect is added — checked on manoeuvres the fit did not see.
    calibrated model is within the sideslip tolerance of the drive, else ``unexplained``.
 """
 
-import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from functools import cached_property
 
 import numpy as np
-from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from app.config import Config
-from app.detect.quasi_steady import AY_MIN_MPS2, Cornering
 from app.errors import NoResultError
+from app.gap.calibration import NuisanceFit, calibrate, ci95_of
 from app.gap.candidates import (
     CANDIDATES,
     HIDDEN_BY_CALIBRATION,
     HIDDEN_BY_RIVAL,
     NUISANCE_TWINS,
     RIVAL_NUISANCE,
-    Candidate,
     Param,
     mods_of,
     nuisances,
@@ -58,9 +54,32 @@ from app.gap.effects import (
     unit_gaps,
 )
 from app.gap.forked import map_forked
+from app.gap.heldout import (
+    Added,
+    Heldout,
+    Scored,
+    add_to,
+    baselines_for,
+    fit_every_sample,
+    pooled_gap,
+    score_variant,
+    variants_of,
+)
 from app.gap.measured import Measured
 from app.gap.method_effects import DIRECT, HELDOUT_FIT, method_effects, with_method_effects
-from app.gap.nominal_model import Mods, Prepared, Simulated, prepare, run_model, simulate
+from app.gap.nominal_model import Mods, Simulated
+from app.gap.problem import (
+    LINEAR_AY_MPS2,
+    MIN_USABLE_S,
+    SPEED_WEIGHT,
+    YAW_WEIGHT,
+    Fit,
+    Problem,
+    fit,
+    folds,
+    manoeuvres,
+    problem,
+)
 from app.gap.result import (
     BeforeAfter,
     C2nEffect,
@@ -73,638 +92,7 @@ from app.gap.result import (
     Located,
     Secondary,
 )
-from app.results.refusal import reads_backwards, speed_min_problem
 from app.sim.effects import EffectName
-from app.sim.vehicle_model import BicycleParams
-from app.units import Z95
-
-GAP_BLOCK_S = 1.0  # the sideslip gap is measured on 1-s means
-ROBUST_SCALE = 3.0  # residuals beyond this many channel scales count less (soft L1)
-YAW_WEIGHT = 1.0  # the yaw rate carries the driver's corrections the model cannot follow
-SPEED_WEIGHT = 0.5  # the vehicle speed signal: it tells the speed scale and the bus's lag
-DEFAULT_ROLL_AXIS_HEIGHT_M = 0.10  # at the sensor, where the config does not say: a saloon's roll centres
-LINEAR_AY_MPS2 = 4.5  # the bicycle model's tyres are linear: beyond this it is not compared
-MAX_EVALUATIONS = 200  # model runs per fit (the Jacobian's are extra)
-FIT_TOLERANCE = 1e-6  # a fit stops when its cost or its parameters (in their typical sizes) move
-# by less than this share: a millionth of a typical size, far inside any interval it reports
-_STRAIGHT_RADPS, _TURNING_RADPS = 0.015, 0.03
-_MIN_MANOEUVRE_S = 2.0
-
-
-def manoeuvres(m: Measured) -> np.ndarray:
-    """A manoeuvre id per grid step: runs of turning left, right, or driving straight."""
-    state = np.zeros(len(m.t), dtype=np.int8)
-    current = 0
-    r = np.nan_to_num(m.r)
-    for k, value in enumerate(r.tolist()):
-        if abs(value) > _TURNING_RADPS:
-            current = 1 if value > 0 else -1
-        elif abs(value) < _STRAIGHT_RADPS:
-            current = 0
-        state[k] = current
-    ids = np.cumsum(np.r_[0, np.diff(state) != 0])
-    # short runs (a wobble) join the run before them
-    lengths = np.bincount(ids) * m.dt
-    for run in np.flatnonzero(lengths < _MIN_MANOEUVRE_S):
-        if run > 0:
-            ids[ids == run] = ids[np.flatnonzero(ids == run)[0] - 1] if np.flatnonzero(ids == run)[0] else run
-    return np.asarray(ids)
-
-
-def folds(m: Measured, ids: np.ndarray) -> np.ndarray:
-    """Fold 0 or 1 per grid step: manoeuvres of each kind (left, right, straight) alternate, the
-    right turns one step out of phase with the left ones, so that where a session turns left and
-    right on each radius in turn, each fold holds both directions on every radius (what tells an
-    effect per curvature from one per turn direction)."""
-    fold = np.zeros(len(ids), dtype=np.int8)
-    seen: dict[int, int] = {}
-    r = np.nan_to_num(m.r)
-    for run in np.unique(ids):
-        rows = ids == run
-        kind = int(np.sign(np.median(r[rows]))) if np.abs(np.median(r[rows])) > _STRAIGHT_RADPS else 0
-        fold[rows] = (seen.get(kind, 0) + (kind < 0)) % 2
-        seen[kind] = seen.get(kind, 0) + 1
-    return fold
-
-
-def _usable(m: Measured) -> np.ndarray:
-    """Grid steps the linear model is compared on: every signal there, moving, and the tyres in
-    their linear range (|a_y| up to LINEAR_AY_MPS2, as the method itself assumes)."""
-    usable = np.isfinite(m.beta) & np.isfinite(m.r) & np.isfinite(m.delta)
-    linear = np.abs(np.nan_to_num(m.u_optical * m.r)) <= LINEAR_AY_MPS2
-    return np.asarray(usable & linear & (np.nan_to_num(m.u_optical) > 5.0))
-
-
-def _lacking(m: Measured, config: Config) -> str | None:
-    """What the drive lacks that the model needs, named (it said "too short to diagnose: 0 s"):
-    the steering that drives the model, the yaw rate it is compared on, a forward speed."""
-    for values, what, role, why in (
-        (m.delta, "steering angle", "steer", "driven by it"),
-        (m.r, "yaw rate", "yaw_rate", "compared on it"),
-    ):
-        if np.isfinite(values).any():
-            continue
-        spec = config.roles.get(role)
-        if spec is None:
-            return f"no {what} in the drive: the model is {why} — give its signal as [roles] {role}"
-        return (
-            f"no {what} in the drive: the log has no frames of [roles] {role}'s {spec.message}.{spec.signal} "
-            f"— the model is {why}: record it, or check the message's id and channel"
-        )
-    u, speed_min = np.nan_to_num(m.u_optical), config.detector.speed_min_mps
-    turning = np.abs(u * np.nan_to_num(m.r)) >= AY_MIN_MPS2
-    forwards = np.count_nonzero(turning & (u >= speed_min)) * m.dt
-    scale = config.roles["vx"].scale if "vx" in config.roles else 1.0
-    backwards = reads_backwards(np.count_nonzero(turning & (u <= -speed_min)) * m.dt, forwards, scale)
-    if backwards:
-        return backwards
-    below = np.count_nonzero(turning & (u > 0) & (u < speed_min)) * m.dt
-    return speed_min_problem(Cornering(turning_s=forwards, below_speed_s=below), speed_min)
-
-
-def _noise(x: np.ndarray) -> float:
-    """Robust standard deviation of the white part of a residual (from first differences)."""
-    d = np.diff(x[np.isfinite(x)])
-    if len(d) < 10:
-        return 1.0
-    return float(max(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0), 1e-9))
-
-
-@dataclass(frozen=True)
-class Problem:
-    params: BicycleParams
-    measured: Measured
-    d_m: float
-    cg_height_m: float | None  # for the longitudinal load transfer
-    roll_lever_m: float  # the sensor's height above the roll axis
-    rows: np.ndarray  # usable grid steps
-    sigma_beta: float  # white noise per grid step, rad
-    sigma_r: float  # rad/s
-    sigma_u: float  # the vehicle speed signal's, m/s
-    has_speed: bool  # the drive has a vehicle speed signal besides the optical speed
-    scale_beta: float = 1.0  # the channels' spread on the calibrated model: their residuals' units
-    scale_r: float = 1.0
-    scale_u: float = 1.0
-
-    def residual(self, sim: Simulated, rows: np.ndarray) -> np.ndarray:
-        m = self.measured
-        channels = [
-            (m.beta - sim.beta)[rows] / self.scale_beta,
-            YAW_WEIGHT * (sim.r_measured - sim.r)[rows] / self.scale_r,
-        ]
-        if self.has_speed:
-            channels.append(SPEED_WEIGHT * (m.u_vehicle - sim.speed_reading)[rows] / self.scale_u)
-        return np.concatenate(channels)
-
-    def rms_beta_deg(self, sim: Simulated, rows: np.ndarray) -> float:
-        """The sideslip gap: the systematic part of the residual, which a model could explain.
-
-        The residual is averaged over 1-s blocks and each block's mean counts by its samples (a
-        block cut short by a fold boundary holds few samples and mostly noise); the white sensor
-        noise left in a mean of n samples, σ²/n, is taken out of its square. The result is the
-        RMS over samples of the residual's slow part, with the noise removed rather than averaged
-        down.
-        """
-        return math.degrees(self._gap(self.measured.beta - sim.beta, rows, self.sigma_beta))
-
-    def rms_yaw_degps(self, sim: Simulated, rows: np.ndarray) -> float:
-        """The yaw-rate gap, measured as the sideslip gap is."""
-        return math.degrees(self._gap(sim.r_measured - sim.r, rows, self.sigma_r))
-
-    def rms_speed_mps(self, sim: Simulated, rows: np.ndarray) -> float:
-        """The vehicle speed signal's gap (0 without one), measured as the sideslip gap is."""
-        if not self.has_speed:
-            return 0.0
-        return self._gap(self.measured.u_vehicle - sim.speed_reading, rows, self.sigma_u)
-
-    def _gap(self, residual: np.ndarray, rows: np.ndarray, sigma: float) -> float:
-        if not rows.any():
-            return 0.0
-        block = (self.measured.t[rows] // GAP_BLOCK_S).astype(np.int64)
-        sums, counts = np.bincount(block, residual[rows]), np.bincount(block)
-        filled = counts > 0
-        square = float(np.sum(sums[filled] ** 2 / counts[filled])) - filled.sum() * sigma**2
-        return math.sqrt(max(square, 0.0) / rows.sum())
-
-    def blocks(self, rows: np.ndarray) -> int:
-        """How many GAP_BLOCK_S blocks ``rows`` touch."""
-        return max(len(np.unique((self.measured.t[rows] // GAP_BLOCK_S).astype(np.int64))), 1)
-
-    def gap_noise_deg(self, rows: np.ndarray) -> float:
-        """The standard deviation of the sideslip gap's square estimate, as a gap: what white
-        noise alone can make of a gap measured over ``rows`` (σ of a block mean, over the root of
-        the number of blocks)."""
-        blocks = self.blocks(rows)
-        per_block = max(rows.sum() / blocks, 1.0)
-        block_sigma = self.sigma_beta / math.sqrt(per_block)
-        return math.degrees(block_sigma * (2.0 / blocks) ** 0.25)
-
-    @cached_property
-    def prepared(self) -> Prepared:
-        return prepare(self.params, self.measured, self.cg_height_m, self.roll_lever_m)
-
-    def simulate(self, mods: Mods | None = None) -> Simulated:
-        return run_model(self.prepared, self.d_m, mods or Mods())
-
-
-@dataclass(frozen=True)
-class Fit:
-    params: tuple[Param, ...]
-    values: tuple[float, ...]
-    cost: float  # the robust cost at the end
-    jac: np.ndarray | None = None  # the residuals' Jacobian there (scaled parameters), and the
-    fun: np.ndarray | None = None  # residuals: what a fit's intervals come from
-
-    def fields(self) -> dict[str, float]:
-        out: dict[str, float] = {}
-        for param, value in zip(self.params, self.values, strict=True):
-            out.update(param.to_mods(value))
-        return out
-
-    def at_bound(self) -> tuple[str, ...]:
-        return tuple(p.name for p, v in zip(self.params, self.values, strict=True) if p.at_bound(v))
-
-
-def fit(
-    pb: Problem,
-    params: Sequence[Param],
-    rows: np.ndarray,
-    start: Sequence[float] | None = None,
-) -> Fit:
-    """Least squares of both channels over ``rows`` (soft L1), every parameter inside its bounds.
-    ``start``: where to begin (else each parameter's best start)."""
-    params = tuple(params)
-    free = np.array([p.free for p in params])
-    held = np.array([p.nominal for p in params])  # a fixed parameter stays at its nominal value
-    scales = np.array([p.scale for p in params])
-    low = np.array([p.low for p in params]) / scales
-    high = np.array([p.high for p in params]) / scales
-
-    def full(x: np.ndarray) -> np.ndarray:
-        out: np.ndarray = held / scales
-        out[free] = x
-        return out
-
-    def mods(x: np.ndarray) -> Mods:
-        fields: dict[str, float] = {}
-        for param, value in zip(params, (full(x) * scales).tolist(), strict=True):
-            fields.update(param.to_mods(value))
-        return Mods(**fields)
-
-    # A prior weighs as much as the data's independent samples make it: residuals on the 20-ms
-    # grid hang together over about a block, so the data count as many samples as blocks.
-    weight = math.sqrt(max(rows.sum() / pb.blocks(rows), 1.0))
-    index = np.cumsum(free) - 1  # a free parameter's place in x
-    priors = [
-        (int(index[k]), p.nominal / p.scale, p.prior / p.scale / weight)
-        for k, p in enumerate(params)
-        if p.prior and p.free
-    ]
-
-    def residual(x: np.ndarray) -> np.ndarray:
-        fitted = pb.residual(pb.simulate(mods(x)), rows)
-        if not priors:
-            return fitted
-        return np.concatenate([fitted, [(x[k] - centre) / spread for k, centre, spread in priors]])
-
-    def cost(x: np.ndarray) -> float:
-        z = residual(x) / ROBUST_SCALE
-        return float(np.sum(np.sqrt(1.0 + z * z)))
-
-    low, high, scales_free = low[free], high[free], scales[free]
-    if start is not None:
-        x0 = np.asarray(start, dtype=float)[free] / scales_free
-    else:
-        starts = [np.array(x)[free] / scales_free for x in itertools.product(*(p.starts for p in params))]
-        x0 = min(starts, key=cost) if len(starts) > 1 else starts[0]
-    x0 = np.clip(x0, low + 1e-9 * (high - low), high - 1e-9 * (high - low))
-    if not np.all(np.isfinite(residual(x0))):
-        raise _diverged()
-    result = least_squares(
-        residual,
-        x0,
-        bounds=(low, high),
-        loss="soft_l1",
-        f_scale=ROBUST_SCALE,
-        max_nfev=MAX_EVALUATIONS,
-        ftol=FIT_TOLERANCE,
-        xtol=FIT_TOLERANCE,
-    )
-    values = tuple(float(v) for v in full(result.x) * scales)
-    return Fit(params, values, float(result.cost), result.jac, result.fun)
-
-
-@dataclass(frozen=True)
-class _Job:
-    """A fit to make: its parameters, its rows, and where it may start (the best of ``starts``)."""
-
-    params: tuple[Param, ...]
-    rows: np.ndarray
-    starts: tuple[tuple[float, ...], ...]
-
-
-def _fit_all(pb: Problem, jobs: Sequence[_Job], workers: int) -> list[Fit]:
-    """Each job's fit, in ``workers`` processes (the same fits ``fit`` makes one by one: only
-    their numbers cross the process edge)."""
-
-    def numbers(index: int) -> tuple[tuple[float, ...], float, np.ndarray | None, np.ndarray | None]:
-        job = jobs[index]
-        done = fit(pb, job.params, job.rows, start=_best_start(pb, job.params, job.rows, list(job.starts)))
-        return done.values, done.cost, done.jac, done.fun
-
-    done = map_forked(numbers, len(jobs), workers)
-    return [Fit(job.params, *out) for job, out in zip(jobs, done, strict=True)]
-
-
-MIN_USABLE_S = 60.0  # of driving the model is compared on: less cannot be split into folds
-
-
-def problem(m: Measured, config: Config) -> Problem:
-    """The drive, the nominal car, and the white noise of each channel on the nominal model."""
-    params = BicycleParams.from_config(config)
-    rows = _usable(m)
-    lacking = _lacking(m, config)
-    if lacking is not None:
-        raise NoResultError(lacking)
-    if rows.sum() * m.dt < MIN_USABLE_S:
-        raise NoResultError(
-            f"too short to diagnose: {rows.sum() * m.dt:.0f} s of usable driving (moving above 5 m/s, "
-            f"|a_y| ≤ {LINEAR_AY_MPS2:g} m/s², every signal there), needs {MIN_USABLE_S:.0f} s — "
-            "drive the standard session"
-        )
-    cg_height, lever = config.vehicle.cg_height_m, roll_lever_m(config)
-    base = simulate(params, m, config.d_m, cg_height_m=cg_height, roll_lever_m=lever)
-    sigma_beta = _noise(m.beta - base.beta)
-    sigma_r = _noise(base.r_measured - base.r)
-    has_speed = m.speed_source == "vehicle speed"
-    sigma_u = _noise(m.u_vehicle - base.speed_reading) if has_speed else 1.0
-    pb = Problem(params, m, config.d_m, cg_height, lever, rows, sigma_beta, sigma_r, sigma_u, has_speed)
-    return _scaled(pb, base)
-
-
-def _diverged() -> NoResultError:
-    """The bicycle model of the config's car diverges on this drive (e.g. a wheelbase so short
-    that its yaw mode is faster than the 20-ms grid): there is nothing to fit."""
-    return NoResultError(
-        "the config's car cannot follow this drive: its model's response is not finite "
-        "(check [vehicle] wheelbase_m, the axle loads and [tyres] in the config)"
-    )
-
-
-def _scaled(pb: Problem, sim: Simulated) -> Problem:
-    """The problem with each channel's unit set: the sideslip and the vehicle speed by their white
-    noise (what the effects move, and what the user asks about), the yaw rate by its whole spread
-    on ``sim`` (its systematic part included: the driver's corrections, the transients a bicycle
-    model cannot follow), so a yaw-rate misfit no nuisance or effect can remove does not outweigh
-    the sideslip and bend the calibration to it."""
-    rows = pb.rows
-    residual = (sim.r_measured - sim.r)[rows]
-    with np.errstate(over="ignore", invalid="ignore"):
-        spread = float(np.sqrt(np.mean(residual**2))) if rows.any() else 1.0
-    if not math.isfinite(spread):
-        raise _diverged()
-    return replace(
-        pb,
-        scale_beta=max(pb.sigma_beta, 1e-6),
-        scale_r=max(spread, pb.sigma_r, 1e-6),
-        scale_u=max(pb.sigma_u, 1e-4),
-    )
-
-
-def roll_lever_m(config: Config) -> float:
-    """The sensor's height above the roll axis; 0 (no roll term) without a sensor height."""
-    vehicle = config.vehicle
-    if not vehicle.sensor_height_m:
-        return 0.0
-    axis = vehicle.roll_axis_height_m
-    return vehicle.sensor_height_m - (DEFAULT_ROLL_AXIS_HEIGHT_M if axis is None else axis)
-
-
-@dataclass(frozen=True)
-class NuisanceFit:
-    """The drive's nuisances (a gyro's bias and scale, the steering's offset …) calibrated on it."""
-
-    params: tuple[Param, ...]  # as calibrated: an optional nuisance the drive does not show, held
-    fit: Fit
-    ci95: tuple[tuple[float, float], ...]
-    declared: tuple[Param, ...]  # as the candidates module declares them
-
-    @property
-    def values(self) -> tuple[float, ...]:
-        return self.fit.values
-
-    def mods(self, *effect: dict[str, float]) -> Mods:
-        return mods_of(self.fit.fields(), *effect)
-
-    def params_for(self, effect: EffectName, rival_free: bool = False) -> tuple[Param, ...]:
-        """The nuisances fitted beside ``effect``; its rival (a nuisance that imitates it) held at
-        its nominal value, or with ``rival_free`` fitted beside it even where the calibration
-        alone did not show it (the effect may have hidden it)."""
-        rival = RIVAL_NUISANCE.get(effect)
-        if rival_free:
-            return tuple(d if d.name == rival else p for p, d in zip(self.params, self.declared, strict=True))
-        return tuple(p.fixed() if p.name == rival else p for p in self.params)
-
-    def start_for(self, effect: EffectName) -> tuple[float, ...]:
-        return tuple(
-            v if p.free else p.nominal for p, v in zip(self.params_for(effect), self.values, strict=True)
-        )
-
-
-def calibrate(pb: Problem, params: tuple[Param, ...]) -> tuple[Problem, NuisanceFit]:
-    """The nuisances fitted on every usable sample, twice: the channels' scales are set from the
-    first fit's residuals, then the fit is repeated with them."""
-    declared = params
-    first = fit(pb, params, pb.rows)
-    pb = _scaled(pb, pb.simulate(mods_of(first.fields())))
-    final = fit(pb, params, pb.rows, start=first.values)
-    ci95 = _intervals(pb, final)
-    unseen = [
-        k
-        for k, (p, (low, high)) in enumerate(zip(params, ci95, strict=True))
-        if p.optional and low <= p.nominal <= high
-    ]
-    if unseen:  # held at nominal; their intervals (which cover it) are what the drive says of them
-        params = tuple(p.fixed() if k in unseen else p for k, p in enumerate(params))
-        final = fit(pb, params, pb.rows, start=final.values)
-        held = dict(zip(unseen, (ci95[k] for k in unseen), strict=True))
-        ci95 = tuple(held.get(k, ci) for k, ci in enumerate(_intervals(pb, final)))
-    return pb, NuisanceFit(params, final, ci95, declared)
-
-
-def _intervals(pb: Problem, result: Fit) -> tuple[tuple[float, float], ...]:
-    """95 % intervals from the fit's Jacobian (a fit over every usable sample), each channel's
-    residual variance its own, inflated for residuals that hang together over about a block
-    (GAP_BLOCK_S): the effective sample size is the blocks'. Per channel, so that a misfit in a
-    channel a parameter does not act on (a vehicle speed signal off by its scale) does not widen
-    that parameter's interval: cov = A⁻¹·(Σ s_c²·J_cᵀJ_c)·A⁻¹, A = JᵀJ."""
-    jac, res = result.jac, result.fun
-    if jac is None or res is None:
-        raise ValueError("a fit without its Jacobian has no intervals")
-    n = int(pb.rows.sum())
-    k = jac.shape[1]
-    inflate = max(n / pb.blocks(pb.rows), 1.0)
-    channels = 3 if pb.has_speed else 2
-    middle = np.zeros((k, k))
-    for c in range(channels):
-        block, r = jac[c * n : (c + 1) * n], res[c * n : (c + 1) * n]
-        middle += float(np.sum(r**2)) / max(n - k, 1) * inflate * (block.T @ block)
-    priors = jac[channels * n :]  # already in units of their spread
-    middle += priors.T @ priors
-    outer = np.linalg.pinv(jac.T @ jac)
-    cov = outer @ middle @ outer
-    free = np.array([p.free for p in result.params])
-    scales = np.array([p.scale for p in result.params])
-    half = np.zeros(len(free))  # a parameter held at its value has no interval of its own
-    half[free] = Z95 * np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scales[free]
-    return tuple((v - w, v + w) for v, w in zip(result.values, half.tolist(), strict=True))
-
-
-@dataclass(frozen=True)
-class Scored:
-    """A candidate's held-out scores and its fit on every sample (with the nuisances)."""
-
-    candidate: Candidate
-    fit: Fit  # nuisances + effect, every usable sample
-    folds: tuple[Fit, ...]  # nuisances + effect, per training fold
-    gap_before: float  # held-out sideslip gap of the calibrated model (its rival held), deg
-    gap_after: float
-    yaw_before: float  # deg/s
-    yaw_after: float
-    speed_before: float  # the vehicle speed signal's, m/s
-    speed_after: float
-    rival_gap: float | None = None  # the held-out sideslip gap with the rival nuisance calibrated
-
-    @property
-    def effect_values(self) -> tuple[float, ...]:
-        return self.fit.values[-len(self.candidate.params) :]
-
-    @property
-    def at_bound(self) -> tuple[str, ...]:
-        """Parameters whose fit ended on a physical bound: the effect's, or a nuisance's (bent to
-        make room for the effect)."""
-        return self.fit.at_bound()
-
-    @property
-    def shrink(self) -> float:
-        return 1.0 - self.gap_after / self.gap_before if self.gap_before > 0 else 0.0
-
-    def without_effect(self) -> Mods:
-        """The fit's nuisances alone: the model beside the effect, with the effect taken out."""
-        n = len(self.fit.params) - len(self.candidate.params)
-        return mods_of(Fit(self.fit.params[:n], self.fit.values[:n], 0.0).fields())
-
-    @property
-    def speed_shrink(self) -> float:
-        return 1.0 - self.speed_after / self.speed_before if self.speed_before > 0 else 0.0
-
-
-@dataclass(frozen=True)
-class Heldout:
-    """The folds, and the calibrated model's held-out gaps: what every candidate is scored on."""
-
-    fold: np.ndarray
-    held: tuple[np.ndarray, ...]
-    baseline: tuple[Fit, ...]
-    gap: float
-    yaw: float
-    speed: float
-    noise: float
-    yaw_spread: float  # the yaw-rate channel's unit, deg/s
-
-
-def heldout(pb: Problem, fold: np.ndarray, baseline: tuple[Fit, ...]) -> Heldout:
-    """The calibrated model's held-out gaps, from its fits on each training fold (``baseline``,
-    made by ``_baselines``)."""
-    held = tuple(pb.rows & (fold == k) for k in (0, 1))
-    sims = [pb.simulate(mods_of(f.fields())) for f in baseline]
-    parts = list(zip(sims, held, strict=True))
-    noise = math.sqrt(sum(pb.gap_noise_deg(rows) ** 2 for rows in held) / 2)
-    return Heldout(
-        fold,
-        held,
-        baseline,
-        _pooled(pb.rms_beta_deg, parts),
-        _pooled(pb.rms_yaw_degps, parts),
-        _pooled(pb.rms_speed_mps, parts),
-        noise,
-        math.degrees(pb.scale_r),
-    )
-
-
-def _baseline_jobs(pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effect: EffectName) -> list[_Job]:
-    """The calibrated model's fits on each training fold (with the nuisances ``effect`` is
-    fitted beside)."""
-    params, start = calibration.params_for(effect), calibration.start_for(effect)
-    return [_Job(params, pb.rows & (fold != k), (start,)) for k in (0, 1)]
-
-
-def _baselines(
-    pb: Problem, calibration: NuisanceFit, fold: np.ndarray, effects: Sequence[EffectName], workers: int
-) -> list[Heldout]:
-    """``heldout`` for each of ``effects``, their fits made together in ``workers`` processes."""
-    jobs = [job for effect in effects for job in _baseline_jobs(pb, calibration, fold, effect)]
-    fits = _fit_all(pb, jobs, workers)
-    return [heldout(pb, fold, tuple(fits[2 * k : 2 * k + 2])) for k in range(len(effects))]
-
-
-@dataclass(frozen=True)
-class _Variant:
-    """One way a candidate is scored: the nuisances fitted beside it, where they start, and the
-    held-out gaps it is judged against (``held``: its rival nuisance held, those of the
-    calibrated model without it)."""
-
-    candidate: Candidate
-    nuisance_params: tuple[Param, ...]
-    calibrated: tuple[float, ...]
-    ho: Heldout
-    held: bool = False
-
-    @property
-    def params(self) -> tuple[Param, ...]:
-        return (*self.nuisance_params, *self.candidate.params)
-
-
-def _variants(
-    calibration: NuisanceFit, ho: Heldout, candidate: Candidate, rival: Heldout | None
-) -> list[_Variant]:
-    """The candidate with the nuisances; one a nuisance imitates also with that nuisance held."""
-    if rival is None:
-        return [_Variant(candidate, calibration.params, calibration.values, ho)]
-    effect = candidate.effect
-    return [
-        _Variant(candidate, calibration.params_for(effect, rival_free=True), calibration.values, ho),
-        _Variant(candidate, calibration.params_for(effect), calibration.start_for(effect), rival, held=True),
-    ]
-
-
-def _everything(pb: Problem, variant: _Variant) -> Fit:
-    """The candidate fitted with the nuisances on every sample. The nuisances start both from the
-    calibration and from the config's values (a large effect the calibration could not see may
-    have bent it): the better fit wins."""
-    params = variant.params
-    effect_starts = list(itertools.product(*(p.starts for p in variant.candidate.params)))
-
-    def from_(base: tuple[float, ...]) -> Fit:
-        return fit(
-            pb, params, pb.rows, start=_best_start(pb, params, pb.rows, [(*base, *e) for e in effect_starts])
-        )
-
-    everything = from_(variant.calibrated)
-    if everything.at_bound():  # a large effect may have bent the calibration: start again from the config
-        nominal = tuple(p.nominal for p in variant.nuisance_params)
-        everything = min((everything, from_(nominal)), key=lambda f: f.cost)
-    return everything
-
-
-def _scored(pb: Problem, variant: _Variant, everything: Fit, folds: tuple[Fit, ...]) -> Scored:
-    """A variant's held-out gaps: each fold's samples from its fit on the other."""
-    ho = variant.ho
-    sims = [pb.simulate(mods_of(f.fields())) for f in folds]
-    parts = list(zip(sims, ho.held, strict=True))
-    return Scored(
-        variant.candidate,
-        everything,
-        folds,
-        ho.gap,
-        _pooled(pb.rms_beta_deg, parts),
-        ho.yaw,
-        _pooled(pb.rms_yaw_degps, parts),
-        ho.speed,
-        _pooled(pb.rms_speed_mps, parts),
-    )
-
-
-def _best_start(
-    pb: Problem, params: tuple[Param, ...], rows: np.ndarray, starts: list[tuple[float, ...]]
-) -> tuple[float, ...]:
-    if len(starts) == 1:
-        return starts[0]
-
-    def cost(values: tuple[float, ...]) -> float:
-        fields: dict[str, float] = {}
-        for param, value in zip(params, values, strict=True):
-            fields.update(param.to_mods(value))
-        z = pb.residual(pb.simulate(Mods(**fields)), rows) / ROBUST_SCALE
-        return float(np.sum(np.sqrt(1.0 + z * z)))
-
-    return min(starts, key=cost)
-
-
-def _pooled(
-    measure: Callable[[Simulated, np.ndarray], float], parts: list[tuple[Simulated, np.ndarray]]
-) -> float:
-    total = sum(measure(sim, rows) ** 2 * rows.sum() for sim, rows in parts)
-    n = sum(int(rows.sum()) for _, rows in parts)
-    return math.sqrt(total / n) if n else 0.0
-
-
-@dataclass(frozen=True)
-class Added:
-    """A candidate added to a leading effect: the joint fits per training fold (what the held-out
-    test compares) and on every sample (nuisances, the leading effect, this one)."""
-
-    candidate: Candidate
-    folds: tuple[Fit, ...]
-    fit: Fit
-
-    @property
-    def own_values(self) -> tuple[float, ...]:
-        return self.fit.values[-len(self.candidate.params) :]
-
-
-def add_to(pb: Problem, ho: Heldout, best: Scored, other: Candidate, workers: int = 1) -> Added:
-    """``other`` fitted beside the leading effect (and the nuisances) on each training fold and
-    on every sample (the three fits in ``workers`` processes)."""
-    params = (*best.fit.params, *other.params)
-    starts = list(itertools.product(*(p.starts for p in other.params)))
-    jobs = [
-        _Job(params, pb.rows & (ho.fold != k), tuple((*best.folds[k].values, *s) for s in starts))
-        for k in (0, 1)
-    ]
-    jobs.append(_Job(params, pb.rows, tuple((*best.fit.values, *s) for s in starts)))
-    *folds, everything = _fit_all(pb, jobs, workers)
-    return Added(other, tuple(folds), everything)
 
 
 def _params(params: Sequence[Param], values: Sequence[float]) -> dict[str, float]:
@@ -806,12 +194,12 @@ def _scores(
 
     The fits on every sample, then the folds', are made in ``workers`` processes, two rounds of
     independent fits; only numbers cross the process edge (the candidates hold functions)."""
-    variants = [v for c in CANDIDATES for v in _variants(calibration, ho, c, rivals.get(c.effect))]
+    variants = [v for c in CANDIDATES for v in variants_of(calibration, ho, c, rivals.get(c.effect))]
 
     def whole(index: int) -> tuple[tuple[float, ...], float, tuple[tuple[float, float], ...]]:
         variant = variants[index]
-        done = _everything(pb, variant)
-        return done.values, done.cost, _intervals(pb, done)[-len(variant.candidate.params) :]
+        done = fit_every_sample(pb, variant)
+        return done.values, done.cost, ci95_of(pb, done)[-len(variant.candidate.params) :]
 
     firsts = map_forked(whole, len(variants), workers)
     everything = [Fit(v.params, values, cost) for v, (values, cost, _) in zip(variants, firsts, strict=True)]
@@ -825,7 +213,7 @@ def _scores(
     best: dict[str, tuple[Scored, tuple[tuple[float, float], ...]]] = {}
     for k, variant in enumerate(variants):
         folds = tuple(Fit(variant.params, *seconds[2 * k + j]) for j in (0, 1))
-        scored = _scored(pb, variant, everything[k], folds)
+        scored = score_variant(pb, variant, everything[k], folds)
         if variant.held:
             scored = replace(scored, rival_gap=ho.gap)
         effect = variant.candidate.effect
@@ -1013,13 +401,13 @@ def _beside(
             added.fit,
             added.folds,
             s.gap_after,
-            _pooled(pb.rms_beta_deg, parts),
+            pooled_gap(pb.rms_beta_deg, parts),
             s.yaw_after,
-            _pooled(pb.rms_yaw_degps, parts),
+            pooled_gap(pb.rms_yaw_degps, parts),
             s.speed_after,
-            _pooled(pb.rms_speed_mps, parts),
+            pooled_gap(pb.rms_speed_mps, parts),
         )
-        ci95 = _intervals(pb, added.fit)[-len(j.scored.candidate.params) :]
+        ci95 = ci95_of(pb, added.fit)[-len(j.scored.candidate.params) :]
         again = _judge(pb, config, calibration, ids, bases, scored, ci95, before=lead.after)
         judged[k] = again
         if again.matters:
@@ -1084,7 +472,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     fold = folds(m, ids)
     names = {p.name for p in calibration.params}
     imitated = {rival: effect for effect, rival in RIVAL_NUISANCE.items() if rival in names}
-    ho, *rival_ho = _baselines(pb, calibration, fold, ["none", *imitated.values()], workers)
+    ho, *rival_ho = baselines_for(pb, calibration, fold, ["none", *imitated.values()], workers)
     held = dict(zip(imitated, rival_ho, strict=True))
     rivals = {effect: held[rival] for effect, rival in RIVAL_NUISANCE.items() if rival in held}
     bases = {"none": _heldout_residuals(pb, fold, ho.baseline), "fold": {"fold": fold}}
@@ -1227,7 +615,7 @@ def _refuse_without_crossings(pb: Problem, calibration: NuisanceFit) -> None:
 def _shrink_with(pb: Problem, ho: Heldout, added: Added) -> float:
     """The held-out sideslip gap's shrink with the findings fitted together."""
     sims = [pb.simulate(mods_of(f.fields())) for f in added.folds]
-    gap = _pooled(pb.rms_beta_deg, list(zip(sims, ho.held, strict=True)))
+    gap = pooled_gap(pb.rms_beta_deg, list(zip(sims, ho.held, strict=True)))
     return 1.0 - gap / ho.gap if ho.gap > 0 else 0.0
 
 
@@ -1235,7 +623,7 @@ def _calibrated(pb: Problem, calibration: NuisanceFit, beside: Fit) -> dict[str,
     """Each nuisance as fitted beside the effects named, with its 95 % interval there; one the
     drive did not show keeps the calibration's interval (which covers its nominal value), one held
     beside the effect it imitates has none."""
-    intervals = _intervals(pb, beside) if beside is not calibration.fit else calibration.ci95
+    intervals = ci95_of(pb, beside) if beside is not calibration.fit else calibration.ci95
     out = {}
     for k, p in enumerate(calibration.params):
         value, held = beside.values[k], None

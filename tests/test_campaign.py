@@ -16,10 +16,11 @@ import pyarrow.parquet as pq
 import pytest
 from rich.console import Console
 
-from app.campaign.compare import Z95, Estimate, Fits, difference, pool, softening, trend
+from app.campaign.comparison import compare, with_compared
 from app.campaign.manifest import Entry, Manifest
-from app.campaign.outputs import compare, table_rows, with_compared
+from app.campaign.meta_analysis import Z95, Estimate, Fits, difference, pool, softening, trend
 from app.campaign.row import SessionResult, SessionRow
+from app.campaign.tables import table_rows
 from app.cli import main
 from app.results.headline import Method
 from app.sim.tyre_programme import write_campaign

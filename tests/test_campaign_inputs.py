@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from app.campaign.compare import Estimate, trend
+from app.campaign.comparison import compare, write_comparison
 from app.campaign.manifest import read_manifest
-from app.campaign.outputs import compare, write_comparison, write_report
+from app.campaign.meta_analysis import Estimate, trend
+from app.campaign.report import write_report
 from app.campaign.row import SessionResult, SessionRow
 from app.cli.campaign import print_comparison
 from app.errors import C2nError
@@ -427,7 +428,7 @@ def test_numeric_tags_are_numbers_in_the_parquet(tmp_path: Path) -> None:
     where every value is), an empty cell null; a text tag stays text."""
     import pyarrow.parquet as pq
 
-    from app.campaign.outputs import write_tables
+    from app.campaign.tables import write_tables
 
     rows = [
         {"log": "a.blf", "pressure_kPa": "230", "load_kg": "80.5", "tyre_set": "A", "c2n": 15.0},

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.campaign.compare import Estimate, Fits
+from app.campaign.meta_analysis import Estimate, Fits
 from app.campaign.row import SessionResult, SessionRow
 from app.campaign.work import _stored
 from app.config import Priors

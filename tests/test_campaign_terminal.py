@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from app.campaign.compare import Estimate, no_trend
+from app.campaign.comparison import compare, write_comparison
 from app.campaign.manifest import read_manifest
-from app.campaign.outputs import compare, write_comparison, write_report
+from app.campaign.meta_analysis import Estimate, no_trend
+from app.campaign.report import write_report
 from app.campaign.row import SessionResult, SessionRow
 from app.cli.campaign import print_comparison, quiet_dask
 from tests.test_campaign import run_cli

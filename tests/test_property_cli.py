@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rich.console import Console
 
-from app.campaign.compare import Z95, Estimate
+from app.campaign.meta_analysis import Z95, Estimate
 from app.campaign.row import SessionResult, SessionRow
 from app.cli import main
 from tests.simulated import REPO, cached_drive
@@ -284,8 +284,8 @@ def a_manifest(draw: st.DrawFn, root: Path) -> tuple[Path, list[SessionRow], str
 def test_any_tags_in_a_manifest_are_compared_printed_literally_and_written_as_valid_json(
     tmp_path_factory: pytest.TempPathFactory, data: st.DataObject
 ) -> None:
+    from app.campaign.comparison import compare
     from app.campaign.manifest import read_manifest
-    from app.campaign.outputs import compare
     from app.cli.campaign import print_comparison
     from app.errors import printable
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from app.campaign.analysis import Job
-from app.campaign.outputs import write_tables
+from app.campaign.tables import write_tables
 from app.campaign.work import HashMemo
 from app.errors import OutputError
 from app.output import files

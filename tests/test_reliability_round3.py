@@ -23,9 +23,9 @@ from rich.console import Console
 from scipy.special import stdtrit
 
 from app.campaign.analysis import content_hash
-from app.campaign.compare import trend
+from app.campaign.comparison import finite
 from app.campaign.manifest import read_manifest
-from app.campaign.outputs import finite
+from app.campaign.meta_analysis import trend
 from app.campaign.repeats import counted_once
 from app.campaign.row import SessionRow
 from app.campaign.work import probe_scheduler

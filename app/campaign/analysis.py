@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from app import __version__
-from app.campaign.compare import Estimate, Fits
+from app.campaign.meta_analysis import Estimate, Fits
 from app.campaign.row import SessionResult, SessionRow, finite_numbers
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import C2nError, printable

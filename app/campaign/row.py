@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from app.campaign.compare import Estimate, Fits, Model
+from app.campaign.meta_analysis import Estimate, Fits, Model
 from app.output.files import json_ready
 
 ROW_FORMAT = 3  # the cache file's layout: a row of another layout is analysed again

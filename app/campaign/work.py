@@ -31,7 +31,7 @@ from app.sim.workers import ends_with_parent
 
 CACHE = "cache"
 HASHES = "hashes.json"  # not a row: its stem is no key
-WRITTEN = "written.json"  # the digests of the results each run put in place (``outputs.ours``)
+WRITTEN = "written.json"  # the digests of the results each run put in place (``ownership.ours``)
 # a row's key: the logs' and the config's hashes (a session's parts' hashes joined by "+" before
 # 2026-11-29, whose campaigns were refused the second time: their cache held "files c2n did not write")
 _ROW_NAME = re.compile(r"(?:[0-9a-f]{32}\+)*[0-9a-f]{32}-[0-9a-f]{32}\.json")

@@ -24,8 +24,8 @@ from app.output.paths import Output, check
 from app.user_text import shown
 
 if TYPE_CHECKING:
+    from app.campaign.comparison import Comparison
     from app.campaign.manifest import Manifest
-    from app.campaign.outputs import Comparison
     from app.campaign.row import SessionRow
 
 
@@ -101,7 +101,7 @@ def print_comparison(console: Console, comparison: "Comparison", by: str | None)
     """The groups (a group none of whose sessions gave a C2n too, with why), their differences
     and the sessions compared on their group's model, one line each; every tag and log name
     printed as the user wrote it (``shown``)."""
-    from app.campaign.outputs import sessions
+    from app.campaign.comparison import sessions
 
     for name in sorted({*comparison.groups, *comparison.no_c2n}):
         group = f"{shown(by)} {shown(name)}" if by else "all sessions"
@@ -176,9 +176,11 @@ def _analysed(
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from app.campaign import outputs, work
+    from app.campaign import ownership, tables, work
+    from app.campaign.comparison import compare, sessions, with_compared, write_comparison
     from app.campaign.manifest import read_manifest
     from app.campaign.repeats import counted_once
+    from app.campaign.report import write_report
 
     need("pyarrow", "c2n campaign (results.parquet)", "export")
     need("matplotlib", "c2n campaign (report.html's plots)", "export")
@@ -192,7 +194,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if args.by is not None and args.by not in manifest.tag_names:
         tags = ", ".join(manifest.tag_names) or "none"
         raise UsageError(f"--by {args.by}: not a column of {args.manifest} (tags: {tags})")
-    clashing = outputs.clashing_tags(manifest)
+    clashing = tables.clashing_tags(manifest)
     if clashing:
         raise UsageError(
             f"{args.manifest}: the tag column '{clashing[0]}' has the name of a column c2n writes in "
@@ -211,24 +213,24 @@ def run(args: argparse.Namespace, console: Console) -> int:
     out = args.out or args.manifest.with_name(f"{args.manifest.stem}-campaign")
     inputs = [args.manifest, *(entry.log for entry in manifest.entries)]
     inputs += [args.config] if args.config else []
-    check([Output("--out", out, outputs.ours, folder=True)], inputs)
+    check([Output("--out", out, ownership.ours, folder=True)], inputs)
     config = args.config.resolve() if args.config else None
     with work.claimed(out):  # alone on --out until its results are in place
-        outputs.check_results_of(out, manifest)  # before the work, not after hours of it
+        ownership.check_results_of(out, manifest)  # before the work, not after hours of it
         rows, frames, elapsed = _analysed(args, manifest, config, out, console)
         rows, repeats = counted_once(manifest, rows)
-        columns, table = outputs.table_rows(manifest, rows)
-        comparison = outputs.compare(manifest, rows, args.by)
-        with files_together(out, outputs.FILES) as staging:  # an interrupt: the old set or the new
+        columns, table = tables.table_rows(manifest, rows)
+        comparison = compare(manifest, rows, args.by)
+        with files_together(out, ownership.FILES) as staging:  # an interrupt: the old set or the new
             dialect = args.csv_dialect or dialect_of(manifest.delimiter)
-            compared = outputs.with_compared(columns, table, comparison)
-            outputs.write_tables(staging, *compared, dialect, numeric=manifest.numeric_tags())
-            outputs.write_comparison(staging, comparison)
-            outputs.write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
-            outputs.record_written(out, staging, args.manifest)
+            compared = with_compared(columns, table, comparison)
+            tables.write_tables(staging, *compared, dialect, numeric=manifest.numeric_tags())
+            write_comparison(staging, comparison)
+            write_report(staging, comparison, f"c2n campaign — {args.manifest.name}")
+            ownership.record_written(out, staging, args.manifest)
     cached = sum(1 for row in rows if row.cached)
     console.print(
-        f"{outputs.sessions(len(rows))} in {elapsed:.1f} s ({cached} known from an earlier run, "
+        f"{sessions(len(rows))} in {elapsed:.1f} s ({cached} known from an earlier run, "
         f"{frames:,} frames analysed); results in {shown(out)}"
     )
     print_comparison(console, comparison, args.by)
@@ -239,5 +241,5 @@ def run(args: argparse.Namespace, console: Console) -> int:
         errors.print(f"c2n: warning: {printable(error if log in error else f'{log}: {error}')}", markup=False)
     failed = len(comparison.failed) - len(repeats)  # a repeat is said above, not a failure
     if failed:
-        errors.print(f"c2n: {failed} of {outputs.sessions(len(rows))} failed (see report.html)", markup=False)
+        errors.print(f"c2n: {failed} of {sessions(len(rows))} failed (see report.html)", markup=False)
     return 0

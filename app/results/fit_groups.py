@@ -65,7 +65,7 @@ class ModelChoice:
     softening_t: float  # t statistic of the a_y³ term (|t| > threshold keeps it)
     linear: ModelFit
     softening: ModelFit | None  # a campaign decides softening over a tyre set's sessions together
-    # (app/campaign/compare.py) and then needs the model its own fit did not choose
+    # (app/campaign/meta_analysis.py) and then needs the model its own fit did not choose
     resolved: bool = True  # False: the data cannot tell linear tyres from softening ones
     hidden_pct: float = 0.0  # the softening, % of C2n, that could hide in the data (2 se)
 

@@ -488,7 +488,7 @@ def test_export_replaces_only_an_older_export_of_the_same_log(drive_log: Path, t
     for folder in (notes, results):
         before = {entry.name: entry.read_bytes() for entry in folder.iterdir()}
         code, _, err = run_cli(["export", str(drive_log), "--out", str(folder), *fast])
-        assert code == 1 and f"c2n: error: --out {folder}: holds c2n's files but no export (" in err, err
+        assert code == 1 and f"c2n: error: {folder}: holds c2n's files but no export (" in err, err
         assert {entry.name: entry.read_bytes() for entry in folder.iterdir()} == before
     other = tmp_path / "other.blf"
     shutil.copy(drive_log, other)
@@ -496,12 +496,22 @@ def test_export_replaces_only_an_older_export_of_the_same_log(drive_log: Path, t
     assert run_cli(["export", str(drive_log), "--out", str(exported), *fast])[0] == 0
     before = {entry.name: entry.read_bytes() for entry in exported.iterdir()}
     code, _, err = run_cli(["export", str(other), "--out", str(exported), *fast])
-    assert code == 1, err
-    assert f"--out {exported}: holds the export of {drive_log}, not of {other} — choose another folder" in err
+    assert (
+        code == 1 and f"{exported}: holds the export of {drive_log}, not of {other} — choose another" in err
+    )
     assert {entry.name: entry.read_bytes() for entry in exported.iterdir()} == before
     assert run_cli(["export", str(drive_log), "--out", str(exported), *fast])[0] == 0  # its own: replaced
     for _ in range(2):  # the default folder beside the log is the log's own
         assert run_cli(["export", str(other), *fast])[0] == 0
+    # another log of the same stem (a logger's BLF and its candump copy): its default folder is the
+    # first's export, which was replaced, exit 0, no word
+    same_stem = tmp_path / "other.log"
+    default = tmp_path / "other-export"
+    before = {entry.name: entry.read_bytes() for entry in default.iterdir()}
+    same_stem.write_bytes(b"")  # the name is enough: the folder is refused before the log is read
+    code, _, err = run_cli(["export", str(same_stem), *fast])
+    assert code == 1 and f"{default}: holds the export of {other}, not of {same_stem}" in err, err
+    assert {entry.name: entry.read_bytes() for entry in default.iterdir()} == before
 
 
 def test_a_format_asked_twice_is_written_and_listed_once(drive_log: Path, tmp_path: Path) -> None:

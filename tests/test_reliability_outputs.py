@@ -106,6 +106,48 @@ def test_a_file_c2n_did_not_write_is_replaced_only_with_force(day: Path) -> None
     assert run_cli(["analyze", drive, "--json", str(day / "empty.json")])[0] == 0
 
 
+def test_another_drive_s_summary_is_replaced_only_with_force(
+    day: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`analyze b.blf --json EXPORT/summary.json`, or into a `c2n live` session's folder: the
+    export's (or the session's own) summary was replaced by another drive's, beside channels and
+    events of the first — a folder that looks whole and is not. Now a summary naming other inputs
+    is replaced only with --force; the same drive's, from here or from its own folder, as before."""
+    drive = day / "d.blf"
+    other = tmp_path / "other.blf"
+    shutil.copy(drive, other)
+    summary = day / "summary.json"
+    assert run_cli(["analyze", str(drive), "--json", str(summary)])[0] == 0
+    assert run_cli(["analyze", str(other), "--json", str(summary)])[0] == 0  # a file alone: as named
+    assert run_cli(["analyze", str(drive), "--json", str(summary)])[0] == 0
+    (day / "events.csv").write_text("t,event,\n")  # now one file of a folder's whole
+    before = summary.read_bytes()
+    code, _, err = run_cli(["analyze", str(other), "--json", str(summary)])
+    assert code == 1, err
+    assert f"summary.json: holds the summary of {drive}, not of {other}, beside that run's events.csv" in err
+    assert summary.read_bytes() == before
+    session = tmp_path / "session"
+    session.mkdir()
+    live = {
+        "c2n": 14.8,
+        "c2n_ci95": [14.6, 15.0],
+        "c2n_method": "regression",
+        "inputs": ["Virtual bus channel ch1"],
+    }
+    (session / "summary.json").write_text(json.dumps(live))
+    (session / "frames.log").write_text("(0.000000) can0 123#0102\n")
+    code, _, err = run_cli(["analyze", str(drive), "--json", str(session / "summary.json")])
+    assert code == 1 and "holds the summary of Virtual bus channel ch1, not of" in err and "frames.log" in err
+    assert json.loads((session / "summary.json").read_text()) == live
+    assert run_cli(["analyze", str(drive), "--json", str(summary)])[0] == 0  # its own: replaced
+    monkeypatch.chdir(day)
+    assert run_cli(["analyze", "d.blf", "--json", "summary.json"])[0] == 0  # relative: its folder's
+    monkeypatch.chdir(tmp_path)  # and read from elsewhere, the summary naming it relative
+    assert run_cli(["analyze", str(drive), "--json", str(summary)])[0] == 0
+    assert run_cli(["analyze", str(other), "--json", str(summary), "--force"])[0] == 0
+    assert json.loads(summary.read_text())["inputs"] == [str(other)]
+
+
 def test_simulate_never_replaces_a_log_or_a_truth_without_force(tmp_path: Path) -> None:
     real = tmp_path / "real.log"
     real.write_text("(0.000000) can0 123#0102\n")

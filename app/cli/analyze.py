@@ -21,7 +21,7 @@ from app.cli.common import (
 from app.cli.terminal import say
 from app.config import load_config
 from app.errors import NoResultError, printable
-from app.output.paths import SUMMARY_JSON, Output, check, config_files
+from app.output.paths import SUMMARY_JSON, Output, check, config_files, result_of
 from app.results.headline import Method
 from app.user_text import argument, shown
 
@@ -184,6 +184,18 @@ def _side_by_side(reports: "list[LogReport]") -> "list[LogReport]":
     return notes
 
 
+# what a summary.json sits beside in a folder it is one file of: an export's, a live session's
+_A_RUN_S_FILES = (
+    "events.csv",
+    "channels.csv",
+    "channels.parquet",
+    "channels.mf4",
+    "frames.log",
+    "frames.asc",
+    "frames.blf",
+)
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     from app.pipeline import Pipeline
@@ -195,7 +207,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sources.logs import LogReport, LogSource, check_readable, distinct, starting_at
 
     config = load_config(args.config)
-    out = Output("--json", args.json, SUMMARY_JSON, stdout=True) if args.json else None
+    whose = result_of(args.logs, "summary", _A_RUN_S_FILES)  # a session's own, an export's
+    out = Output("--json", args.json, SUMMARY_JSON, stdout=True, whose=whose) if args.json else None
     check([out], [*args.logs, *config_files(config)], args.force)
     pipeline = Pipeline(config)
     drives: list[list[Path]] = [args.logs]

@@ -15,7 +15,15 @@ from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import NoResultError, OutputError, need, printable
 from app.output.csv_dialects import CSV_DIALECT_HELP, CSV_DIALECTS
 from app.output.files import folder_atomically
-from app.output.paths import HTML_REPORT, SUMMARY_JSON, Output, check, config_files
+from app.output.paths import (
+    HTML_REPORT,
+    SUMMARY_JSON,
+    Output,
+    check,
+    config_files,
+    recorded_inputs,
+    same_inputs,
+)
 from app.user_text import argument, shown
 
 if TYPE_CHECKING:
@@ -159,28 +167,22 @@ def _ours_by_content(path: Path) -> bool:
 
 
 def _not_an_older_export(out: Path, logs: list[Path]) -> str | None:
-    """Why ``--out``'s folder, which holds only files named and begun as an export's, is no older
-    export of ``logs`` to replace: it lacks the summary and events every export writes (a `gap`
-    report, an `analyze` summary, alone), or its summary names other logs (another drive's
-    export). Those were replaced, and lost, when names and contents were enough."""
-    import json
-
+    """Why the output folder (``--out``, or the default beside the log), which holds only files
+    named and begun as an export's, is no older export of ``logs`` to replace: it lacks the
+    summary and events every export writes (a `gap` report, an `analyze` summary, alone), or its
+    summary names other logs (another drive's export; day.blf's beside day.log). Those were
+    replaced, and lost, when names and contents were enough."""
     if not out.is_dir() or not any(out.iterdir()):
         return None
     lacking = [name for name in ("summary.json", "events.csv") if not (out / name).is_file()]
     if lacking:
         held = ", ".join(sorted(entry.name for entry in out.iterdir())[:3])
-        return f"--out {out}: holds c2n's files but no export ({held}) — choose a new or empty folder"
-    try:
-        made_from = [
-            str(log) for log in json.loads((out / "summary.json").read_text(encoding="utf-8"))["inputs"]
-        ]
-    except (OSError, ValueError, TypeError, KeyError):
-        made_from = []
-    if [os.path.realpath(log) for log in made_from] != [os.path.realpath(log) for log in logs]:
+        return f"{out}: holds c2n's files but no export ({held}) — choose a new or empty folder (--out)"
+    made_from = recorded_inputs(out / "summary.json") or []
+    if not same_inputs(made_from, logs, out.parent):
         return (
-            f"--out {out}: holds the export of {', '.join(made_from) or 'another log'}, not of "
-            f"{', '.join(map(str, logs))} — choose another folder, or remove that one to export there"
+            f"{out}: holds the export of {', '.join(made_from) or 'another log'}, not of "
+            f"{', '.join(map(str, logs))} — choose another folder (--out), or remove that one to export there"
         )
     return None
 
@@ -204,10 +206,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     logs, config, out = _inputs(args)
     check([Output("--out", out, _ours_by_content, folder=True)], [*logs, *config_files(config)])
-    if args.out is not None:  # the default place, beside the log or in the session, is its own export's
-        refused = _not_an_older_export(out, logs)
-        if refused is not None:
-            raise OutputError(refused)
+    refused = _not_an_older_export(out, logs)  # the default place too: day.blf's and day.log's are one
+    if refused is not None:
+        raise OutputError(refused)
     unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began
     pipeline = Pipeline(config)
     source = LogSource(

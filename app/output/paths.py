@@ -38,6 +38,9 @@ class Output:
     folder: bool = False
     stdout: bool = False  # ``-`` means standard output
     parent: bool = False  # a folder c2n makes new entries in (``live --record``), never replaces
+    # why a file of c2n's there is still not this run's to replace without --force (another
+    # drive's summary: ``result_of``); None where it is
+    whose: Callable[[Path], str | None] | None = None
 
 
 def check(outputs: Sequence[Output | None], inputs: Iterable[Path], force: bool | None = None) -> None:
@@ -88,6 +91,57 @@ def json_with(*keys: str) -> Callable[[Path], bool]:
         return isinstance(data, dict) and all(key in data for key in keys)
 
     return ours
+
+
+def recorded_inputs(path: Path) -> list[str] | None:
+    """The inputs a result file of c2n's names (a summary's ``inputs``: logs, or a live run's
+    bus); None where it names none (an older c2n's, or not such a file)."""
+    try:
+        if path.stat().st_size > _LARGEST_RESULT:
+            return None
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    inputs = data.get("inputs") if isinstance(data, dict) else None
+    if not isinstance(inputs, list) or not all(isinstance(i, str) for i in inputs):
+        return None
+    return inputs
+
+
+def same_inputs(recorded: Sequence[str], given: Sequence[str | Path], beside: Path) -> bool:
+    """Whether a result's ``recorded`` inputs are the ``given`` ones, in any order: the same
+    text (a live run's bus), or the same file where the system resolves it — a path recorded
+    relative is tried from here and from ``beside``, the result's folder (where the run may have
+    stood)."""
+
+    def places(text: str) -> set[str]:
+        return {os.path.realpath(text), os.path.realpath(beside / text)}
+
+    now = [(str(g), os.path.realpath(g)) for g in given]
+    return len(recorded) == len(now) and all(
+        any(text == r or real in places(r) for r in recorded) for text, real in now
+    )
+
+
+def result_of(given: Sequence[str | Path], what: str, beside: Sequence[str]) -> Callable[[Path], str | None]:
+    """``Output.whose`` for a result file of ``given``'s: another drive's result that is one file
+    of a folder's whole (an export's summary, a session's own: ``beside`` names the folder's other
+    files) is named, not replaced without --force — the folder would look whole and not be. A
+    result file alone is the user's to name again, as before."""
+
+    def whose(path: Path) -> str | None:
+        recorded = recorded_inputs(path)
+        if recorded is None or same_inputs(recorded, given, path.parent):
+            return None
+        others = [name for name in beside if (path.parent / name).exists()]
+        if not others:
+            return None
+        return (
+            f"holds the {what} of {', '.join(recorded) or 'no log'}, not of {', '.join(map(str, given))}, "
+            f"beside that run's {', '.join(others[:2])}"
+        )
+
+    return whose
 
 
 def HTML_REPORT(path: Path) -> bool:
@@ -173,8 +227,13 @@ def _ours(out: Output, force: bool | None) -> None:
     if not os.path.exists(path):  # a symlink to nothing: written where it points
         return
     _a_plain_file(out, force)
-    if force or (path.is_file() and path.stat().st_size == 0) or out.ours(path):
+    if force or (path.is_file() and path.stat().st_size == 0):
         return  # an empty file holds nothing to lose
+    if out.ours(path):
+        other = out.whose(path) if out.whose is not None else None
+        if other is None:
+            return
+        raise OutputError(f"{out.option} {path}: {other} — choose another name, or add --force to replace it")
     how = " or add --force to replace it" if force is not None and not path.is_dir() else ""
     raise OutputError(
         f"{out.option} {path}: exists and is not a file c2n wrote of this kind — choose another name{how}"

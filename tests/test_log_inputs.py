@@ -2,6 +2,7 @@
 recording of another car's ids, a log timed in milliseconds, a session still being recorded. Each
 through the command line: the exit code, the one line, what is on disk."""
 
+import contextlib
 import json
 import os
 import subprocess
@@ -247,3 +248,17 @@ def test_an_export_of_a_session_without_its_summary_warns_it_covers_the_frames_s
     assert code == 0 and "no summary.json" not in err
     code, _, err = run_cli(["campaign", str(manifest), "--workers", "1"])  # its cached row: said it still
     assert code == 0 and "no summary.json" not in err, err
+
+
+def test_a_database_of_another_layout_is_named_so_not_damaged(tmp_path: Path) -> None:
+    """A SQLite file whose frames are in a table of another name was `not a readable log,
+    damaged from the start (no such table: messages)`: it is not damaged."""
+    import sqlite3
+
+    path = tmp_path / "bus.db"
+    with contextlib.closing(sqlite3.connect(path)) as db:
+        db.execute("CREATE TABLE frames (ts REAL, arbitration_id INTEGER, data BLOB)")
+        db.commit()
+    code, _, err = run_cli(["analyze", str(path)])
+    assert code == 1 and f"{path}: not a python-can SQLite log (no such table: messages" in err, err
+    assert "rename its table to messages" in err and "damaged" not in err

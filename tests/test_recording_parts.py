@@ -265,3 +265,34 @@ def test_a_session_renamed_is_read_whole_and_one_without_its_part_is_refused(
     assert code == 1 and "Traceback" not in err
     assert f"its session went on in {recorder.folders[1].name}, which is not beside it" in err
     assert not (tmp_path / "day1" / "export").exists()
+
+
+def test_one_part_of_a_session_in_parts_is_said_to_be_one_part(tmp_path: Path, config: Config) -> None:
+    """`c2n analyze A/frames.log` — the command docs give for a session's log — read the first of
+    four parts as the drive (3,613 of 13,623 samples, another C2n), and `export A-part2` the second,
+    without a word of the others. Each now says which part it is and how to read them all; every
+    part given, or the session folder, says nothing."""
+    from app.sinks.recorder import parts_left_out
+
+    recorder, _ = _recorded_in_parts(tmp_path / "s", config)
+    first, second = recorder.folders[:2]
+    n = len(recorder.folders)
+    logs = [folder / "frames.log" for folder in recorder.folders]
+    ((path, said),) = parts_left_out([logs[0]])
+    assert path == logs[0] and said.startswith(
+        f"part 1 of {n} of the session {first}, which went on in parts"
+    )
+    assert f"give the session folder {first} to c2n export" in said and str(logs[-1]) in said
+    ((_, said),) = parts_left_out([second])
+    assert said.startswith(f"part 2 of {n} of the session {first}")
+    assert parts_left_out(logs) == [] and parts_left_out([first]) == []
+    plain = tmp_path / "plain.log"
+    plain.write_bytes((first / "frames.log").read_bytes())
+    assert parts_left_out([plain]) == []
+    copy = str(first / "config" / config.path.name)
+    _, _, err = run_cli(["analyze", str(logs[0]), "--config", copy])
+    assert f"c2n: warning: {logs[0]}: part 1 of {n} of the session {first}" in err, err
+    _, _, err = run_cli(["export", str(second), "--no-plots", "--format", "csv"])
+    assert f"c2n: warning: {second}: part 2 of {n} of the session {first}" in err, err
+    _, _, err = run_cli(["analyze", *map(str, logs), "--config", copy])
+    assert "which went on in parts" not in err

@@ -23,7 +23,7 @@ from app.campaign.row import SessionResult, SessionRow, finite_numbers
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import C2nError, printable
 from app.results.headline import Method
-from app.sinks.recorder import read_session, unfinished
+from app.sinks.recorder import parts_left_out, read_session, unfinished
 from app.user_text import argument
 
 if TYPE_CHECKING:  # the analysis's own modules load where a drive is analysed
@@ -150,7 +150,9 @@ def _analysed(raws: list[Path], config: Config, given: Path) -> SessionRow:
             fix = fix_for(why, WITHIN_FIX, argument(report.path))
             said = printable(f"{raw}: no C2n — {why} — {fix}")
             return SessionRow(error=said, drive=identity, runs=runs, frames=snapshot.frames.total)
-    notes = source.notes
+    notes = [
+        LogReport(part, stopped=said, done=True) for part, said in parts_left_out([given])
+    ] + source.notes
     cut_short = unfinished(given)  # a session killed, or still recording: the frames so far
     if cut_short is not None:
         said = f"{cut_short} — this row covers the frames on disk so far"

@@ -204,6 +204,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sinks import summary
     from app.sinks.event_printer import EventPrinter, print_result
     from app.sinks.progress import ReadProgress
+    from app.sinks.recorder import parts_left_out
     from app.sources.logs import LogReport, LogSource, check_readable, distinct, starting_at
 
     config = load_config(args.config)
@@ -254,7 +255,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             notes += _one_drive(source.reports, config, console)
     snapshot = pipeline.snapshot()
     clock = clock_notes(read, config)
-    result = summary.build(snapshot, config, [str(p) for p in args.logs], [*clock, *notes])
+    parts = [LogReport(path, stopped=why, done=True) for path, why in parts_left_out(args.logs)]
+    result = summary.build(snapshot, config, [str(p) for p in args.logs], [*clock, *parts, *notes])
     missing = summary.missing_required(snapshot, config)
     refused = no_role_decoded(snapshot, config, args.logs) or (
         f"{', '.join(str(p) for p in args.logs)}: {missing}" if missing else None

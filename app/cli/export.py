@@ -90,14 +90,19 @@ def _inputs(args: argparse.Namespace) -> tuple[list[Path], Config, Path]:
 def _unfinished(path: Path) -> "list[LogReport]":
     """A note for a session folder without the summary c2n live writes when it ends
     (``recorder.unfinished``): the export is of the frames on disk so far — said in the warnings
-    (and the exported summary), not taken for the whole drive."""
-    from app.sinks.recorder import unfinished
+    (and the exported summary), not taken for the whole drive; and one for a part of a session
+    recorded in parts given alone (``recorder.parts_left_out``)."""
+    from app.sinks.recorder import parts_left_out, unfinished
     from app.sources.logs import LogReport
 
+    parts = [LogReport(part, stopped=said, done=True) for part, said in parts_left_out([path])]
     why = unfinished(path)
     if why is None:
-        return []
-    return [LogReport(path, stopped=f"{why} — this export covers the frames on disk so far", done=True)]
+        return parts
+    return [
+        LogReport(path, stopped=f"{why} — this export covers the frames on disk so far", done=True),
+        *parts,
+    ]
 
 
 def _nothing_to_export(snapshot: "Snapshot", config: Config, logs: list[Path], out: Path) -> str | None:

@@ -163,7 +163,7 @@ def bad_length(f: Findings) -> str | None:
     if not counts.bad_length:
         return None
     cut = sum(n for (_, kind), n in counts.bad_by_id.items() if kind == "cut")
-    how = f" ({cut} with a data field cut short in a text log's line)" if cut else ""
+    how = f" ({cut} with a data field cut short: a log's line or row damaged)" if cut else ""
     return f"{_frames(counts.bad_length)} not decoded: their length is not their DBC message's{how}"
 
 

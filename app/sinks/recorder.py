@@ -12,6 +12,7 @@ import copy
 import errno
 import json
 import os
+import re
 import shutil
 import tomllib
 from collections.abc import Callable, Sequence
@@ -505,3 +506,64 @@ def read_session(folder: Path) -> tuple[list[Path], Path]:
         if log is not None:  # none: the run was killed as the part was made, before its first frame
             logs.append(log)
     return logs, configs[0]
+
+
+_PART_FOLDER = re.compile(r"(?P<first>.+)-part(?P<n>[0-9]+)")
+
+
+def session_of_part(path: Path) -> tuple[Path, list[Path]] | None:
+    """The session ``path`` (a session folder, or its raw log) is one part of, where the session
+    went on in parts (a disk's largest file reached): its first folder and every part's log, in
+    order. None for a log, a session of one part, or a session's first folder (read whole)."""
+    folder = path if path.is_dir() else path.parent
+    if path.is_dir() and (path / PARTS_FILE).is_file():
+        return None  # the first folder: the session is read whole (``read_session``)
+    if not path.is_dir() and _raw_log(folder) != path:
+        return None
+    first = folder
+    if not (folder / PARTS_FILE).is_file():
+        match = _PART_FOLDER.fullmatch(folder.name)
+        first = folder.parent / match["first"] if match else folder
+        try:
+            if not match or not (first / PARTS_FILE).is_file() or folder.name not in _parts_named(first):
+                return None
+        except C2nError:
+            return None
+    try:
+        logs, _ = read_session(first)
+    except C2nError:
+        return None
+    return (first, logs) if len(logs) > 1 else None
+
+
+def parts_left_out(given: Sequence[Path]) -> list[tuple[Path, str]]:
+    """For each of ``given`` that is one part of a session recorded in parts, the others not
+    among ``given``: what it says (``path``, why) — its result is of that part alone."""
+    read = {os.path.realpath(p) for p in given}
+    said = []
+    for path in given:
+        found = session_of_part(path)
+        if found is None:
+            continue
+        first, logs = found
+        if all(os.path.realpath(log) in read for log in logs):
+            continue
+        own = path if path.is_file() else _raw_log(path)
+        k = next(
+            (
+                i
+                for i, log in enumerate(logs, 1)
+                if own is not None and os.path.realpath(log) == os.path.realpath(own)
+            ),
+            0,
+        )
+        which = f"part {k} of {len(logs)}" if k else f"one of {len(logs)} parts"
+        said.append(
+            (
+                path,
+                f"{which} of the session {first}, which went on in parts ({PARTS_FILE}): the result is of "
+                f"this part alone — give the session folder {first} to c2n export or a campaign, or every "
+                f"part's log to c2n analyze ({' '.join(str(log) for log in logs)})",
+            )
+        )
+    return said

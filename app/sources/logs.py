@@ -398,6 +398,11 @@ def check_readable(path: Path) -> None:
     except Exception as error:
         reason = one_line(error)
         _drop_quietly(error)
+        if _format(path) == ".db" and "no such table" in reason:  # another program's database
+            raise LogFileError(
+                f"{path}: not a python-can SQLite log ({reason}: python-can keeps its frames in the table "
+                "messages) — rename its table to messages, or export the frames as BLF, ASC or candump"
+            ) from error
         raise LogFileError(f"{path}: not a readable log, damaged from the start ({reason})") from error
     finally:
         stop = getattr(reader, "stop", None)

@@ -356,6 +356,11 @@ def test_a_config_s_least_speed_above_the_drive_is_said_once_and_the_driving_not
     code, out, err = run_cli(["gap", str(drive_log), "--config", str(config)])
     assert code == 1 and "no cornering above [detector] speed_min_mps = 100 m/s in the config" in err, err
     assert "no steady cornering near" not in err and "drive constant-radius" not in err
+    # above u0 but under the fastest cornering: analyze names the seconds under it; gap named the driving
+    config = write_config(text + "\n[detector]\nspeed_min_mps = 16.5\n")
+    code, out, err = run_cli(["gap", str(drive_log), "--config", str(config)])
+    assert code == 1 and "lies under [detector] speed_min_mps = 16.5 m/s in the config" in err, err
+    assert "drive constant-radius" not in err
 
 
 def test_a_filter_lost_in_the_samples_is_the_reason_before_any_sign_read_from_them() -> None:

@@ -434,13 +434,19 @@ def test_numeric_tags_are_numbers_in_the_parquet(tmp_path: Path) -> None:
         {"log": "a.blf", "pressure_kPa": "230", "load_kg": "80.5", "tyre_set": "A", "c2n": 15.0},
         {"log": "b.blf", "pressure_kPa": "", "load_kg": "1e2", "tyre_set": "7", "c2n": None},
     ]
-    columns = ["log", "pressure_kPa", "load_kg", "tyre_set", "c2n"]
-    write_tables(tmp_path, columns, rows, numeric=["pressure_kPa", "load_kg"])
+    for row, big, lead in zip(rows, ("9007199254740993", "-5"), ("007", "12"), strict=True):
+        row |= {"big": big, "lead": lead}  # 2⁵³ + 1 read through a float is 2⁵³; an id's zeros
+    columns = ["log", "pressure_kPa", "load_kg", "tyre_set", "c2n", "big", "lead"]
+    write_tables(tmp_path, columns, rows, numeric=["pressure_kPa", "load_kg", "big", "lead"])
     table = pq.read_table(tmp_path / "results.parquet")
+    assert table.column("big").to_pylist() == [9007199254740993, -5]
+    assert table.column("lead").to_pylist() == ["007", "12"]
     assert str(table.schema.field("pressure_kPa").type) == "int64"
     assert str(table.schema.field("load_kg").type) == "double"
     assert str(table.schema.field("tyre_set").type) == "string"
     assert table.column("pressure_kPa").to_pylist() == [230, None]
     assert table.column("load_kg").to_pylist() == [80.5, 100.0]
     text = (tmp_path / "results.csv").read_text(encoding="utf-8-sig")
-    assert "a.blf,230,80.5,A,15" in text and "b.blf,,1e2,7," in text  # the CSV as the manifest wrote them
+    assert (
+        "a.blf,230,80.5,A,15,9007199254740993,007" in text and "b.blf,,1e2,7,,-5,12" in text
+    )  # the CSV as the manifest wrote them

@@ -294,5 +294,28 @@ def test_one_part_of_a_session_in_parts_is_said_to_be_one_part(tmp_path: Path, c
     assert f"c2n: warning: {logs[0]}: part 1 of {n} of the session {first}" in err, err
     _, _, err = run_cli(["export", str(second), "--no-plots", "--format", "csv"])
     assert f"c2n: warning: {second}: part 2 of {n} of the session {first}" in err, err
+    here = Path.cwd()
+    try:  # standing in the part's folder, or through a link to its log (no warning, helper-31)
+        os.chdir(second)
+        ((_, said),) = parts_left_out([Path("frames.log")])
+        assert said.startswith(f"part 2 of {n} of the session {first}")
+    finally:
+        os.chdir(here)
+    (tmp_path / "p2.log").symlink_to(logs[1])
+    ((_, said),) = parts_left_out([tmp_path / "p2.log"])
+    assert said.startswith(f"part 2 of {n}")
     _, _, err = run_cli(["analyze", *map(str, logs), "--config", copy])
     assert "which went on in parts" not in err
+
+
+def test_a_parts_json_naming_a_folder_too_long_for_a_disk_is_one_line(tmp_path: Path, config: Config) -> None:
+    """A damaged parts.json listing a 300-character name: `analyze A/frames.log` and `export A`
+    ended in a traceback (File name too long)."""
+    from app.sinks.recorder import parts_left_out
+
+    recorder, _ = _recorded_in_parts(tmp_path / "s", config)
+    first = recorder.folders[0]
+    (first / "parts.json").write_text(json.dumps({"parts": ["x" * 300]}))
+    assert parts_left_out([first / "frames.log"]) == []
+    code, _, err = run_cli(["export", str(first), "--no-plots", "--format", "csv"])
+    assert code == 1 and "parts.json: not a list of part folders" in err and "Traceback" not in err, err

@@ -678,3 +678,32 @@ def test_a_pack_written_again_into_its_own_folder_is_told_the_folder_is_not_empt
     assert code == 1 and err.strip() == (
         f"c2n: error: --out {pack}: is not empty (case_001, sealed) — choose a new or empty folder"
     )
+
+
+def test_a_result_s_inputs_are_the_same_files_not_the_same_names(tmp_path: Path) -> None:
+    """helper-31: a summary recording `day.blf` (as typed) was taken for any log of that name —
+    `analyze day.blf` from another folder replaced an export's summary with another drive's; an
+    export through a link, re-pointed, was replaced by the new target's; `d1 d1` matched `d3 d1`.
+    And the same file was refused from another folder, through a hard link. Now the inputs are
+    the same files (a relative record read from the result's folder and its parent, never from
+    here), each once; a default export folder's log of the same name is the log moved with it."""
+    from app.output.paths import same_inputs
+
+    (tmp_path / "B").mkdir()
+    day, other = tmp_path / "day.blf", tmp_path / "B" / "day.blf"
+    day.write_bytes(b"1")
+    other.write_bytes(b"2")
+    export = tmp_path / "day-export"
+    export.mkdir()
+    assert same_inputs(["day.blf"], [day], export)  # analyze's record, typed beside the log
+    assert not same_inputs(["day.blf"], [other], export)  # a log of that name elsewhere
+    os.link(day, tmp_path / "hard.blf")
+    assert same_inputs([str(day)], [tmp_path / "hard.blf"], export)
+    (tmp_path / "link.blf").symlink_to(day)
+    assert same_inputs([str(day)], [tmp_path / "link.blf"], export)
+    assert not same_inputs([str(tmp_path / "link.blf")], [other], export)
+    assert same_inputs([str(other), str(day)], [day, other], export)  # any order
+    assert not same_inputs([str(other), str(day)], [day, day], export)  # each once
+    moved = "/gone/day.blf"  # the log and its export moved together
+    assert not same_inputs([moved], [day], export) and same_inputs([moved], [day], export, by_name=True)
+    assert not same_inputs(["Virtual bus channel ch1"], [day], export)

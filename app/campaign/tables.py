@@ -4,6 +4,7 @@ manifest names it, its tags, every key of the analyze summary flattened, the boo
 import csv
 import io
 import os
+import re
 from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any
@@ -73,7 +74,8 @@ def write_tables(
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    numbers = {k: _numbers([row.get(k) for row in rows]) for k in numeric if k in columns}
+    read = {k: _numbers([row.get(k) for row in rows]) for k in numeric if k in columns}
+    numbers = {k: column for k, column in read.items() if column is not None}
     table = pa.Table.from_pylist(
         [
             {k: numbers[k][i] if k in numbers else _text(row.get(k)) for k in columns}
@@ -88,13 +90,23 @@ def write_tables(
     write_atomically(folder / "results.parquet", parquet, "results.parquet")
 
 
-def _numbers(values: Sequence[Any]) -> list[int | float | None]:
+def _numbers(values: Sequence[Any]) -> list[int | float | None] | None:
     """A numeric tag's values as numbers for results.parquet (a reader's column of numbers, not of
-    text): whole numbers where every value is one, an empty cell None."""
-    read = [float(v) if isinstance(v, str) and v else None for v in values]
-    if all(x is None or (x.is_integer() and abs(x) < 2**53) for x in read):
-        return [None if x is None else int(x) for x in read]
-    return list(read)
+    text): whole numbers, read exactly, where every value is one that fits 64 bits, else floats;
+    an empty cell None. None (the column stays text) where a value begins with a zero that a
+    number would drop (`007`: an id, not a count)."""
+    texts = [v.strip() if isinstance(v, str) and v.strip() else None for v in values]
+    if any(t is not None and _LEADING_ZERO.match(t) for t in texts):
+        return None
+    if all(t is None or _WHOLE.fullmatch(t) for t in texts):
+        whole: list[int | float | None] = [None if t is None else int(t) for t in texts]
+        if all(x is None or -(2**63) <= x < 2**63 for x in whole):  # int64
+            return whole
+    return [None if t is None else float(t) for t in texts]
+
+
+_LEADING_ZERO = re.compile(r"[+-]?0[0-9]")
+_WHOLE = re.compile(r"[+-]?[0-9]+")
 
 
 def _text(value: Any) -> Any:

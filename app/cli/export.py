@@ -171,7 +171,7 @@ def _ours_by_content(path: Path) -> bool:
     return head.startswith(starts)
 
 
-def _not_an_older_export(out: Path, logs: list[Path]) -> str | None:
+def _not_an_older_export(out: Path, logs: list[Path], default: bool) -> str | None:
     """Why the output folder (``--out``, or the default beside the log), which holds only files
     named and begun as an export's, is no older export of ``logs`` to replace: it lacks the
     summary and events every export writes (a `gap` report, an `analyze` summary, alone), or its
@@ -184,10 +184,11 @@ def _not_an_older_export(out: Path, logs: list[Path]) -> str | None:
         held = ", ".join(sorted(entry.name for entry in out.iterdir())[:3])
         return f"{out}: holds c2n's files but no export ({held}) — choose a new or empty folder (--out)"
     made_from = recorded_inputs(out / "summary.json") or []
-    if not same_inputs(made_from, logs, out.parent):
+    if not same_inputs(made_from, logs, out, by_name=default):
         return (
             f"{out}: holds the export of {', '.join(made_from) or 'another log'}, not of "
-            f"{', '.join(map(str, logs))} — choose another folder (--out), or remove that one to export there"
+            f"{', '.join(os.path.abspath(log) for log in logs)} — choose another folder (--out), or remove "
+            "that one to export there"
         )
     return None
 
@@ -211,7 +212,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     logs, config, out = _inputs(args)
     check([Output("--out", out, _ours_by_content, folder=True)], [*logs, *config_files(config)])
-    refused = _not_an_older_export(out, logs)  # the default place too: day.blf's and day.log's are one
+    refused = _not_an_older_export(
+        out, logs, default=args.out is None
+    )  # the default place too: day.blf's and day.log's are one
     if refused is not None:
         raise OutputError(refused)
     unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began
@@ -248,7 +251,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     snapshot = pipeline.snapshot()
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)
-    inputs = [os.path.abspath(p) for p in logs]  # which logs: an export found again by its --out
+    inputs = [os.path.realpath(p) for p in logs]  # which logs (a link's file): an export found again
     result = summary.build(snapshot, config, inputs, [*unfinished, *source.reports])
     nothing = _nothing_to_export(snapshot, config, logs, out)
     if nothing is not None:  # the warnings name each role's ids; a result line would blame the drive

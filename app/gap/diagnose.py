@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from app.config import Config
+from app.config import Config, DetectorSettings
 from app.errors import NoResultError
 from app.gap.calibration import NuisanceFit, calibrate, ci95_of
 from app.gap.candidates import (
@@ -466,7 +466,7 @@ def _effect(j: _Judged, config: Config) -> Effect:
 def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     pb = problem(m, config)
     pb, calibration = calibrate(pb, nuisances(config))
-    _refuse_without_crossings(pb, calibration)
+    _refuse_without_crossings(pb, calibration, config.detector.speed_min_mps)
     calibrated = pb.simulate(calibration.mods())
     ids = manoeuvres(m)
     fold = folds(m, ids)
@@ -593,7 +593,7 @@ def _diagnose(m: Measured, config: Config, workers: int) -> Diagnosis:
     return Diagnosis(result, residuals)
 
 
-def _refuse_without_crossings(pb: Problem, calibration: NuisanceFit) -> None:
+def _refuse_without_crossings(pb: Problem, calibration: NuisanceFit, speed_min_mps: float) -> None:
     """The report says what each effect does to C2n read from zero crossings: a drive without
     steady turning near the crossing's speed, either way, cannot say it — refused, naming the
     manoeuvre."""
@@ -604,6 +604,14 @@ def _refuse_without_crossings(pb: Problem, calibration: NuisanceFit) -> None:
     seconds = [float((near & (np.sign(r) == side)).sum() * m.dt) for side in (1.0, -1.0)]
     if max(seconds) < MIN_CROSSING_S:
         u0 = math.sqrt(pb.params.g * pb.d_m * c2n)
+        if (
+            speed_min_mps > DetectorSettings.speed_min_mps and u0 < speed_min_mps
+        ):  # the config's, not the drive's
+            raise NoResultError(
+                f"no steady cornering near the sideslip's sign change: u0 ≈ {u0:.1f} m/s lies under "
+                f"[detector] speed_min_mps = {speed_min_mps:g} m/s in the config — lower speed_min_mps "
+                f"(default {DetectorSettings.speed_min_mps:g}; in m/s, not km/h)"
+            )
         raise NoResultError(
             f"no steady cornering near the sideslip's sign change ({seconds[0]:.0f} s left, "
             f"{seconds[1]:.0f} s right within ±50 % of u0² = g·d·C2n, u0 ≈ {u0:.1f} m/s, "

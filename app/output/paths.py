@@ -108,19 +108,37 @@ def recorded_inputs(path: Path) -> list[str] | None:
     return inputs
 
 
-def same_inputs(recorded: Sequence[str], given: Sequence[str | Path], beside: Path) -> bool:
-    """Whether a result's ``recorded`` inputs are the ``given`` ones, in any order: the same
-    text (a live run's bus), or the same file where the system resolves it — a path recorded
-    relative is tried from here and from ``beside``, the result's folder (where the run may have
-    stood)."""
+def same_inputs(
+    recorded: Sequence[str], given: Sequence[str | Path], beside: Path, by_name: bool = False
+) -> bool:
+    """Whether a result's ``recorded`` inputs are the ``given`` logs, each once, in any order: the
+    same file (a hard link too). A path recorded relative (analyze's, as typed; an older export's)
+    is the run's from where it stood, unknown: it is taken from the result's folder ``beside``
+    and from that folder's parent (an export's or a session's place beside the log) — never from
+    here, where a log of the same name may be another drive. ``by_name``: a folder beside the log
+    that is its default export, where a log of the same name is this one moved or renamed with
+    its export (its record then names the old place)."""
+    left = list(recorded)
+    for g in given:
+        match = next(
+            (r for r in left if _same_file(r, Path(g), beside) or (by_name and Path(r).name == Path(g).name)),
+            None,
+        )
+        if match is None:
+            return False
+        left.remove(match)
+    return not left
 
-    def places(text: str) -> set[str]:
-        return {os.path.realpath(text), os.path.realpath(beside / text)}
 
-    now = [(str(g), os.path.realpath(g)) for g in given]
-    return len(recorded) == len(now) and all(
-        any(text == r or real in places(r) for r in recorded) for text, real in now
-    )
+def _same_file(recorded: str, given: Path, beside: Path) -> bool:
+    path = Path(recorded)
+    for place in [path] if path.is_absolute() else [beside / path, beside.parent / path]:
+        try:
+            if os.path.samefile(place, given):
+                return True
+        except (OSError, ValueError):  # not there (moved, a live bus's name), or not a path at all
+            continue
+    return False
 
 
 def result_of(given: Sequence[str | Path], what: str, beside: Sequence[str]) -> Callable[[Path], str | None]:
@@ -136,8 +154,9 @@ def result_of(given: Sequence[str | Path], what: str, beside: Sequence[str]) -> 
         others = [name for name in beside if (path.parent / name).exists()]
         if not others:
             return None
+        now = ", ".join(os.path.abspath(g) for g in given)
         return (
-            f"holds the {what} of {', '.join(recorded) or 'no log'}, not of {', '.join(map(str, given))}, "
+            f"holds the {what} of {', '.join(recorded) or 'no log'}, not of {now}, "
             f"beside that run's {', '.join(others[:2])}"
         )
 

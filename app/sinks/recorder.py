@@ -458,10 +458,18 @@ def _parts_named(folder: Path) -> list[str]:
 
 
 def _folder_name(name: object) -> bool:
-    """A folder's own name, beside the session's: no path, no `.` or `..`."""
+    """A folder's own name, beside the session's: no path, no `.` or `..`, not longer than a file
+    system holds (a damaged parts.json's 300 characters ended in a traceback)."""
     return (
-        isinstance(name, str) and name not in ("", ".", "..") and Path(name).name == name and "\\" not in name
+        isinstance(name, str)
+        and name not in ("", ".", "..")
+        and Path(name).name == name
+        and "\\" not in name
+        and len(os.fsencode(name)) <= _NAME_MAX
     )
+
+
+_NAME_MAX = 255  # bytes in a folder's name (ext4, NTFS, exFAT)
 
 
 def _raw_log(folder: Path) -> Path | None:
@@ -515,6 +523,7 @@ def session_of_part(path: Path) -> tuple[Path, list[Path]] | None:
     """The session ``path`` (a session folder, or its raw log) is one part of, where the session
     went on in parts (a disk's largest file reached): its first folder and every part's log, in
     order. None for a log, a session of one part, or a session's first folder (read whole)."""
+    path = Path(os.path.realpath(path))  # `frames.log` in a part's folder, a link to one
     folder = path if path.is_dir() else path.parent
     if path.is_dir() and (path / PARTS_FILE).is_file():
         return None  # the first folder: the session is read whole (``read_session``)
@@ -527,11 +536,11 @@ def session_of_part(path: Path) -> tuple[Path, list[Path]] | None:
         try:
             if not match or not (first / PARTS_FILE).is_file() or folder.name not in _parts_named(first):
                 return None
-        except C2nError:
+        except (C2nError, OSError):
             return None
     try:
         logs, _ = read_session(first)
-    except C2nError:
+    except (C2nError, OSError):  # a part moved away, a damaged parts.json: said where it is read whole
         return None
     return (first, logs) if len(logs) > 1 else None
 

@@ -212,9 +212,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
         need("matplotlib", "drawing the plots", export.EXTRA, " (or --no-plots)")
     logs, config, out = _inputs(args)
     check([Output("--out", out, _ours_by_content, folder=True)], [*logs, *config_files(config)])
-    refused = _not_an_older_export(
-        out, logs, default=args.out is None
-    )  # the default place too: day.blf's and day.log's are one
+    # the default place too: day.blf's and day.log's are one folder
+    refused = _not_an_older_export(out, logs, default=args.out is None)
     if refused is not None:
         raise OutputError(refused)
     unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began

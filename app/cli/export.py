@@ -87,7 +87,7 @@ def _inputs(args: argparse.Namespace) -> tuple[list[Path], Config, Path]:
     return [path], config, args.out or path.with_name(f"{path.stem}-export")
 
 
-def _unfinished(path: Path) -> "list[LogReport]":
+def _notes_before_reading(path: Path) -> "list[LogReport]":
     """A note for a session folder without the summary c2n live writes when it ends
     (``recorder.unfinished``): the export is of the frames on disk so far — said in the warnings
     (and the exported summary), not taken for the whole drive; and one for a part of a session
@@ -216,7 +216,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     refused = _not_an_older_export(out, logs, default=args.out is None)
     if refused is not None:
         raise OutputError(refused)
-    unfinished = _unfinished(args.input)  # before reading: the frames on disk when it began
+    noted = _notes_before_reading(args.input)  # before reading: the frames on disk when it began
     pipeline = Pipeline(config)
     source = LogSource(
         logs,
@@ -251,7 +251,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     t0 = snapshot.t0
     trace = trace_recorder.trace(t0)
     inputs = [os.path.realpath(p) for p in logs]  # which logs (a link's file): an export found again
-    result = summary.build(snapshot, config, inputs, [*unfinished, *source.reports])
+    result = summary.build(snapshot, config, inputs, [*noted, *source.reports])
     nothing = _nothing_to_export(snapshot, config, logs, out)
     if nothing is not None:  # the warnings name each role's ids; a result line would blame the drive
         _say_result(console, snapshot, result, line=False)

@@ -61,6 +61,7 @@ from app.gap.heldout import (
     add_to,
     baselines_for,
     fit_every_sample,
+    held_out_scores,
     pooled_gap,
     score_variant,
     variants_of,
@@ -393,20 +394,9 @@ def _beside(
             continue
         lead = next((f for f in findings if channel(f.effect) == channel(j.effect)), findings[0])
         added = add_to(pb, ho, lead.scored, j.scored.candidate, workers)
-        sims = [pb.simulate(mods_of(f.fields())) for f in added.folds]
-        parts = list(zip(sims, ho.held, strict=True))
         s = lead.scored
-        scored = Scored(
-            j.scored.candidate,
-            added.fit,
-            added.folds,
-            s.gap_after,
-            pooled_gap(pb.rms_beta_deg, parts),
-            s.yaw_after,
-            pooled_gap(pb.rms_yaw_degps, parts),
-            s.speed_after,
-            pooled_gap(pb.rms_speed_mps, parts),
-        )
+        before = (s.gap_after, s.yaw_after, s.speed_after)  # judged on what the finding left
+        scored = held_out_scores(pb, j.scored.candidate, added.fit, added.folds, ho.held, before)
         ci95 = ci95_of(pb, added.fit)[-len(j.scored.candidate.params) :]
         again = _judge(pb, config, calibration, ids, bases, scored, ci95, before=lead.after)
         judged[k] = again

@@ -155,19 +155,33 @@ def fit_every_sample(pb: Problem, variant: Variant) -> Fit:
 
 
 def score_variant(pb: Problem, variant: Variant, everything: Fit, folds: tuple[Fit, ...]) -> Scored:
-    """A variant's held-out gaps: each fold's samples from its fit on the other."""
+    """A variant's held-out gaps, against the calibrated model's."""
     ho = variant.ho
+    return held_out_scores(pb, variant.candidate, everything, folds, ho.held, (ho.gap, ho.yaw, ho.speed))
+
+
+def held_out_scores(
+    pb: Problem,
+    candidate: Candidate,
+    everything: Fit,
+    folds: Sequence[Fit],
+    held: Sequence[np.ndarray],
+    before: tuple[float, float, float],
+) -> Scored:
+    """A candidate's held-out gaps — each fold's samples (``held``) from its fit on the other —
+    against the sideslip, yaw-rate and speed gaps ``before`` it."""
     sims = [pb.simulate(mods_of(f.fields())) for f in folds]
-    parts = list(zip(sims, ho.held, strict=True))
+    parts = list(zip(sims, held, strict=True))
+    gap, yaw, speed = before
     return Scored(
-        variant.candidate,
+        candidate,
         everything,
-        folds,
-        ho.gap,
+        tuple(folds),
+        gap,
         pooled_gap(pb.rms_beta_deg, parts),
-        ho.yaw,
+        yaw,
         pooled_gap(pb.rms_yaw_degps, parts),
-        ho.speed,
+        speed,
         pooled_gap(pb.rms_speed_mps, parts),
     )
 

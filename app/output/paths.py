@@ -13,6 +13,7 @@ import tempfile
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from app.errors import OutputError, UsageError
 from app.output.files import STDOUT, inside
@@ -82,27 +83,29 @@ def json_with(*keys: str) -> Callable[[Path], bool]:
     """A JSON object holding ``keys``: the file c2n writes of that kind."""
 
     def ours(path: Path) -> bool:
-        try:
-            if path.stat().st_size > _LARGEST_RESULT:
-                return False
-            data = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return False
-        return isinstance(data, dict) and all(key in data for key in keys)
+        data = _json_object(path)
+        return data is not None and all(key in data for key in keys)
 
     return ours
 
 
-def recorded_inputs(path: Path) -> list[str] | None:
-    """The inputs a result file of c2n's names (a summary's ``inputs``: logs, or a live run's
-    bus); None where it names none (an older c2n's, or not such a file)."""
+def _json_object(path: Path) -> dict[str, Any] | None:
+    """The JSON object a result file holds; None for a file too large to be c2n's result, one
+    that does not read, or not an object."""
     try:
         if path.stat().st_size > _LARGEST_RESULT:
             return None
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    inputs = data.get("inputs") if isinstance(data, dict) else None
+    return data if isinstance(data, dict) else None
+
+
+def recorded_inputs(path: Path) -> list[str] | None:
+    """The inputs a result file of c2n's names (a summary's ``inputs``: logs, or a live run's
+    bus); None where it names none (an older c2n's, or not such a file)."""
+    data = _json_object(path)
+    inputs = data.get("inputs") if data is not None else None
     if not isinstance(inputs, list) or not all(isinstance(i, str) for i in inputs):
         return None
     return inputs

@@ -259,6 +259,11 @@ def test_a_session_renamed_is_read_whole_and_one_without_its_part_is_refused(
     logs, _ = read_session(tmp_path / "day1")
     assert logs == [tmp_path / "day1" / "frames.log", *(f / "frames.log" for f in recorder.folders[1:])]
     _same([msg for log in logs for msg in can.LogReader(log)], sent)
+    from app.sinks.recorder import parts_left_out
+
+    # a part given alone still names its session, now day1 (it named none: its name gives `s`)
+    ((_, said),) = parts_left_out([recorder.folders[1] / "frames.log"])
+    assert said.startswith(f"part 2 of {len(logs)} of the session {tmp_path / 'day1'}"), said
     (tmp_path / "elsewhere").mkdir()
     recorder.folders[1].rename(tmp_path / "elsewhere" / recorder.folders[1].name)
     code, _, err = run_cli(["export", str(tmp_path / "day1"), "--no-plots", "--format", "csv"])
@@ -319,3 +324,19 @@ def test_a_parts_json_naming_a_folder_too_long_for_a_disk_is_one_line(tmp_path: 
     assert parts_left_out([first / "frames.log"]) == []
     code, _, err = run_cli(["export", str(first), "--no-plots", "--format", "csv"])
     assert code == 1 and "parts.json: not a list of part folders" in err and "Traceback" not in err, err
+
+
+def test_a_parts_json_listing_a_part_twice_is_refused_not_counted_twice(
+    tmp_path: Path, config: Config
+) -> None:
+    """A damaged parts.json naming one part twice (helper-31): the session was read with that
+    part's samples twice — the interval √2 too narrow where they are most of the drive."""
+    recorder, _ = _recorded_in_parts(tmp_path / "s", config)
+    first = recorder.folders[0]
+    names = [f.name for f in recorder.folders[1:]]
+    for listed, twice in (([*names, names[0]], names[0]), ([first.name, *names], first.name)):
+        (first / "parts.json").write_text(json.dumps({"parts": listed}))
+        code, _, err = run_cli(["export", str(first), "--no-plots", "--format", "csv"])
+        assert code == 1 and "Traceback" not in err, err
+        assert f"parts.json: lists {twice} twice" in err, err
+        assert not (first / "export").exists()

@@ -454,6 +454,12 @@ def _parts_named(folder: Path) -> list[str]:
         raise C2nError(
             f"{folder / PARTS_FILE}: not a list of part folders — give the parts' logs to c2n analyze"
         )
+    again = next((n for i, n in enumerate(listed) if n in listed[:i] or n == folder.name), None)
+    if again is not None:  # a part read twice is the drive counted twice: an interval too narrow
+        raise C2nError(
+            f"{folder / PARTS_FILE}: lists {again} twice (damaged: c2n lists each part once) — "
+            f"give the parts' logs to c2n analyze, each once"
+        )
     return listed
 
 
@@ -531,18 +537,36 @@ def session_of_part(path: Path) -> tuple[Path, list[Path]] | None:
         return None
     first = folder
     if not (folder / PARTS_FILE).is_file():
-        match = _PART_FOLDER.fullmatch(folder.name)
-        first = folder.parent / match["first"] if match else folder
-        try:
-            if not match or not (first / PARTS_FILE).is_file() or folder.name not in _parts_named(first):
-                return None
-        except (C2nError, OSError):
+        found = _first_folder_of(folder)
+        if found is None:
             return None
+        first = found
     try:
         logs, _ = read_session(first)
     except (C2nError, OSError):  # a part moved away, a damaged parts.json: said where it is read whole
         return None
     return (first, logs) if len(logs) > 1 else None
+
+
+def _first_folder_of(part: Path) -> Path | None:
+    """The first folder of the session ``part`` (a folder named ``<first>-partN``) is a part of:
+    the one its name gives, or, that renamed since (the parts keep their names), the folder beside
+    it whose parts.json lists it. None: not a part of a session."""
+    match = _PART_FOLDER.fullmatch(part.name)
+    if not match:
+        return None
+    named = part.parent / match["first"]
+    try:
+        beside = sorted(p for p in part.parent.iterdir() if p != named and (p / PARTS_FILE).is_file())
+    except OSError:
+        beside = []
+    for first in (named, *beside):
+        try:
+            if (first / PARTS_FILE).is_file() and part.name in _parts_named(first):
+                return first
+        except (C2nError, OSError):
+            continue
+    return None
 
 
 def parts_left_out(given: Sequence[Path]) -> list[tuple[Path, str]]:

@@ -640,7 +640,26 @@ def _roles(path: Path, table: dict[str, Any], dbcs: tuple[Dbc, ...]) -> dict[str
         roles[role] = RoleSpec(
             role, message.name, signal.name, float(scale), unit, factor, channel, resolution
         )
+    _each_its_own_signal(path, roles)
     return roles
+
+
+# roles that may read one signal: a car without a vehicle-speed signal of its own given the optical vx
+_ONE_SIGNAL_ALLOWED = frozenset({"vx", "speed"})
+
+
+def _each_its_own_signal(path: Path, roles: Mapping[str, RoleSpec]) -> None:
+    """Two roles of one quantity reading one signal is a copied line (vy given vx's: accepted, and
+    the sideslip's two sensors then disagree for no reason the drive holds)."""
+    seen: dict[tuple[str, str, object], str] = {}
+    for role, spec in roles.items():
+        key = (spec.message, spec.signal, spec.channel)
+        other = seen.setdefault(key, role)
+        if other != role and {other, role} != _ONE_SIGNAL_ALLOWED:
+            raise ConfigError(
+                f"{path}: [roles] {role} and {other} both read {spec.name} — each is a quantity of "
+                f"its own: give {role} its signal, or leave it out"
+            )
 
 
 def _status(

@@ -29,6 +29,14 @@ speed = "BrakeSysFeatures.Veh_V_ActlBrk"
 """
 
 
+def test_a_car_without_a_speed_signal_may_give_the_optical_vx_as_its_speed(
+    write_config: Callable[[str], Path],
+) -> None:
+    speed = 'speed = "BrakeSysFeatures.Veh_V_ActlBrk"'
+    config = load_config(write_config(GOOD.replace(speed, 'speed = "Correvit.VelX_cor"')))
+    assert config.roles["speed"].name == config.roles["vx"].name == "Correvit.VelX_cor"
+
+
 def test_default_config_loads_with_si_factors() -> None:
     config = load_config(DEFAULT_CONFIG)
     assert config.d_m == 1.11
@@ -106,6 +114,10 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
         (
             ("[sensor_status]", "[calibration]\nyaw_rate_scale_pct = -0.5\n[sensor_status]"),
             "[calibration] yaw_rate_scale_pct = -0.5 is out of range — use 0 to 10",
+        ),
+        (  # a copied line: accepted, without a word (helper-31)
+            ('vy = {signal = "Correvit.VelY_cor"', 'vy = {signal = "Correvit.VelX_cor"'),
+            "[roles] vy and vx both read Correvit.VelX_cor — each is a quantity of its own",
         ),
     ],
 )

@@ -19,8 +19,9 @@ import pytest
 from app.campaign.analysis import Job, logs_hash, where
 from app.config import Config
 from app.pipeline import Pipeline
-from app.sinks.recorder import SessionRecorder, read_session
+from app.sinks.recorder import SessionRecorder
 from app.sinks.summary import build
+from app.sources.sessions import read_session
 from tests.simulated import cached_drive
 from tests.test_reliability_inputs import run_cli
 
@@ -259,7 +260,7 @@ def test_a_session_renamed_is_read_whole_and_one_without_its_part_is_refused(
     logs, _ = read_session(tmp_path / "day1")
     assert logs == [tmp_path / "day1" / "frames.log", *(f / "frames.log" for f in recorder.folders[1:])]
     _same([msg for log in logs for msg in can.LogReader(log)], sent)
-    from app.sinks.recorder import parts_left_out
+    from app.sources.sessions import parts_left_out
 
     # a part given alone still names its session, now day1 (it named none: its name gives `s`)
     ((_, said),) = parts_left_out([recorder.folders[1] / "frames.log"])
@@ -277,7 +278,7 @@ def test_one_part_of_a_session_in_parts_is_said_to_be_one_part(tmp_path: Path, c
     four parts as the drive (3,613 of 13,623 samples, another C2n), and `export A-part2` the second,
     without a word of the others. Each now says which part it is and how to read them all; every
     part given, or the session folder, says nothing."""
-    from app.sinks.recorder import parts_left_out
+    from app.sources.sessions import parts_left_out
 
     recorder, _ = _recorded_in_parts(tmp_path / "s", config)
     first, second = recorder.folders[:2]
@@ -316,7 +317,7 @@ def test_one_part_of_a_session_in_parts_is_said_to_be_one_part(tmp_path: Path, c
 def test_a_parts_json_naming_a_folder_too_long_for_a_disk_is_one_line(tmp_path: Path, config: Config) -> None:
     """A damaged parts.json listing a 300-character name: `analyze A/frames.log` and `export A`
     ended in a traceback (File name too long)."""
-    from app.sinks.recorder import parts_left_out
+    from app.sources.sessions import parts_left_out
 
     recorder, _ = _recorded_in_parts(tmp_path / "s", config)
     first = recorder.folders[0]

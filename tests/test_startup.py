@@ -41,10 +41,9 @@ def test_help_of_c2n_and_of_every_command_loads_no_heavy_library() -> None:
 
 
 def test_the_choices_named_for_help_are_the_ones_the_writers_take() -> None:
-    from app.cli import export, live
-    from app.sinks import channels, recorder
+    from app.cli import export
+    from app.sinks import channels
 
-    assert live.RAW_FORMATS == recorder.RAW_FORMATS
     assert export.FORMATS == channels.FORMATS
 
 

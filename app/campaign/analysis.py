@@ -23,7 +23,7 @@ from app.campaign.row import SessionResult, SessionRow, finite_numbers
 from app.config import DEFAULT_CONFIG, Config, load_config
 from app.errors import C2nError, printable
 from app.results.headline import Method
-from app.sinks.recorder import parts_left_out, read_session, unfinished
+from app.sources.sessions import parts_left_out, read_session, unfinished
 from app.user_text import argument
 
 if TYPE_CHECKING:  # the analysis's own modules load where a drive is analysed

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from app.errors import C2nError
-from app.sinks.recorder import RAW_FORMATS
+from app.sources.sessions import RAW_FORMATS
 
 LOG = "log"
 

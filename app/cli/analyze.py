@@ -204,8 +204,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sinks import summary
     from app.sinks.event_printer import EventPrinter, print_result
     from app.sinks.progress import ReadProgress
-    from app.sinks.recorder import parts_left_out
     from app.sources.logs import LogReport, LogSource, check_readable, distinct, starting_at
+    from app.sources.sessions import parts_left_out
 
     config = load_config(args.config)
     whose = result_of(args.logs, "summary", _A_RUN_S_FILES)  # a session's own, an export's

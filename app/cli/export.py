@@ -75,8 +75,8 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 def _inputs(args: argparse.Namespace) -> tuple[list[Path], Config, Path]:
     """The logs (a session's: its own, then its parts'), the config and the output folder."""
-    from app.sinks.recorder import read_session
     from app.sources.logs import status
+    from app.sources.sessions import read_session
 
     path: Path = args.input
     if stat.S_ISDIR(status(path).st_mode):  # a name the system cannot look up is one line
@@ -92,8 +92,8 @@ def _notes_before_reading(path: Path) -> "list[LogReport]":
     (``recorder.unfinished``): the export is of the frames on disk so far — said in the warnings
     (and the exported summary), not taken for the whole drive; and one for a part of a session
     recorded in parts given alone (``recorder.parts_left_out``)."""
-    from app.sinks.recorder import parts_left_out, unfinished
     from app.sources.logs import LogReport
+    from app.sources.sessions import parts_left_out, unfinished
 
     parts = [LogReport(part, stopped=said, done=True) for part, said in parts_left_out([path])]
     why = unfinished(path)

@@ -32,6 +32,7 @@ from app.config import load_config
 from app.errors import C2nError, OutputError, printable
 from app.output.files import new_folder
 from app.output.paths import SUMMARY_JSON, Output, check, config_files
+from app.sources.sessions import RAW_FORMATS
 from app.user_text import shown
 
 if TYPE_CHECKING:
@@ -40,8 +41,6 @@ if TYPE_CHECKING:
     from app.config import Config
     from app.sinks.recorder import SessionRecorder
     from app.sources.buses import Backoff
-
-RAW_FORMATS = (".log", ".asc", ".blf")  # app.sinks.recorder.RAW_FORMATS, named here for `--help`
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:

@@ -368,7 +368,11 @@ def test_manifest_mistakes_are_one_line(tmp_path: Path) -> None:
         "no_log.csv": ("file,tyre_set\na.blf,A\n", "no 'log' column"),
         "twice.csv": ("log\na.blf\na.blf\n", "names a.blf again (line 2)"),
         "empty.csv": ("", "empty"),
-        "short.csv": ("log,tyre_set\na.blf\n", "line 2 has 1 fields, the header 2"),
+        "short.csv": ("log,tyre_set\na.blf\n", "line 2 has 1 field, the header 2"),
+        "quote.csv": (  # helper-32: it said "1 fields", not why
+            'log,tyre_set\n"a.blf,A\nb.blf,B\n',
+            "line 2 has 1 field, the header 2 (a quote opened there is not closed)",
+        ),
     }
     for name, (content, words) in cases.items():
         (tmp_path / name).write_text(content)

@@ -312,6 +312,17 @@ def test_one_part_of_a_session_in_parts_is_said_to_be_one_part(tmp_path: Path, c
     assert said.startswith(f"part 2 of {n}")
     _, _, err = run_cli(["analyze", *map(str, logs), "--config", copy])
     assert "which went on in parts" not in err
+    # gap too (helper-32: a diagnosis of three parts of six, without a word)
+    _, _, err = run_cli(["gap", str(logs[0]), "--config", copy])
+    assert f"c2n: warning: {logs[0]}: part 1 of {n} of the session {first}" in err, err
+    assert "or every part's log to c2n gap (" in " ".join(err.split())
+    # the session through a link (helper-32: its parts were looked for beside the link)
+    (tmp_path / "links").mkdir()
+    (tmp_path / "links" / "latest").symlink_to(first)
+    assert read_session(tmp_path / "links" / "latest")[0] == [
+        tmp_path / "links" / "latest" / "frames.log",
+        *(Path(os.path.realpath(log)) for log in logs[1:]),
+    ]
 
 
 def test_a_parts_json_naming_a_folder_too_long_for_a_disk_is_one_line(tmp_path: Path, config: Config) -> None:

@@ -406,6 +406,65 @@ def test_gap_check_on_a_pack_without_its_seal_is_refused_before_any_work(
     assert not (tmp_path / "scores.json").exists()
 
 
+def _a_pack(tmp_path: Path) -> Path:
+    """A pack of one case whose drive does not read (diagnosed at once: an error), sealed."""
+    pack = tmp_path / "pack"
+    (pack / "case_001").mkdir(parents=True)
+    (pack / "case_001" / "drive.blf").write_bytes(b"not a log")
+    (pack / "sealed").mkdir()
+    seal = {"cases": {"case_001": {"effect": {"name": "none", "size": 0.0}}}}
+    (pack / "sealed" / "truth.json").write_text(json.dumps(seal))
+    return pack
+
+
+@pytest.mark.parametrize(
+    "seal",
+    ["[]", '{"cases": 5}', '"x"', '{"cases": {"case_001": 3}}', '{"cases": {"case_001": {"effect": null}}}'],
+)
+def test_gap_check_on_a_damaged_seal_is_one_line_before_any_work(tmp_path: Path, seal: str) -> None:
+    """A seal of another form ended, after every case was diagnosed, in a KeyError, an
+    AttributeError or a TypeError (helper-32)."""
+    pack = _a_pack(tmp_path)
+    (pack / "sealed" / "truth.json").write_text(seal)
+    code, out, err = run_cli(["gap-check", str(pack)])
+    assert code == 1 and "Traceback" not in err and "case_001" not in out, err
+    [line] = err.strip().splitlines()
+    assert "truth.json: not a pack's seal (its cases, each with its effect's name and size)" in line
+    assert not (pack / "gap").exists()
+
+
+def test_gap_check_replaces_only_its_own_answers_and_leaves_no_earlier_one(tmp_path: Path) -> None:
+    """gap-check wrote `PACK/gap/` without a look (helper-32): a user's scores.json and a
+    read-only case_001.json were replaced, a file named gap failed after all the work, and a case
+    that failed this time kept the last run's diagnosis beside this run's scores."""
+    pack = _a_pack(tmp_path)
+    answers = pack / "gap"
+    answers.mkdir()
+    (answers / "scores.json").write_text("my notes")
+    code, out, err = run_cli(["gap-check", str(pack)])
+    assert code == 1 and "[1/1]" not in out, err
+    assert "gap/scores.json: exists and is not a file c2n wrote of this kind" in err
+    assert (answers / "scores.json").read_text() == "my notes"
+    (answers / "scores.json").unlink()
+    earlier = {"diagnosis": "road_cross_slope", "verdict": "…", "calibration": {}}
+    (answers / "case_001.json").write_text(json.dumps(earlier))
+    (answers / "case_001.json").chmod(0o444)
+    code, _, err = run_cli(["gap-check", str(pack)])
+    assert code == 1 and "case_001.json: is read-only" in err, err
+    (answers / "case_001.json").chmod(0o644)
+    (pack / "case_002").mkdir()  # a copy, not in the seal: said, not diagnosed
+    (pack / "case_002" / "drive.blf").write_bytes(b"not a log")
+    code, out, err = run_cli(["gap-check", str(pack)])
+    assert code == 0, err
+    assert "case_002: not a case of the pack's seal — not diagnosed" in err and "[1/1] case_001: error" in out
+    assert not (answers / "case_001.json").exists()  # the earlier answer, not beside this run's error
+    assert json.loads((answers / "scores.json").read_text())["cases"][0]["diagnosis"] == "error"
+    shutil.rmtree(answers)
+    answers.write_text("a file")
+    code, _, err = run_cli(["gap-check", str(pack)])
+    assert code == 1 and "gap: is a file, where gap-check writes its answers (a folder) — move it" in err, err
+
+
 @pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="POSIX signals")
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGHUP"])
 def test_sigterm_while_export_writes_leaves_no_hidden_folder(

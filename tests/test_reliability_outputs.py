@@ -268,10 +268,62 @@ def test_a_users_folder_filled_keeps_who_may_use_it(tmp_path: Path) -> None:
     assert after.st_gid == (group if group is not None else os.getegid())
 
 
+def test_live_never_replaces_an_export_s_or_a_session_s_summary_without_force(day: Path) -> None:
+    """`live --json EXPORT/summary.json` (helper-32): the export's summary became the live run's
+    (no C2n, 0 frames) beside the first drive's channels, and the export of that drive was then
+    refused as another's. A live run is never the drive of a summary there; one alone is its to
+    name again."""
+    export = day / "d-export"
+    assert run_cli(["export", str(day / "d.blf"), "--no-plots", "--format", "csv"])[0] == 0
+    summary = export / "summary.json"
+    before = summary.read_bytes()
+    live = ["live", "-i", "virtual", "-c", "helper-32", "--no-record", "--duration", "0.3", "--json"]
+    code, _, err = run_cli([*live, str(summary)])
+    assert code == 1, err
+    assert f"summary.json: holds the summary of {day / 'd.blf'}, not of this bus, beside that run's" in err
+    assert summary.read_bytes() == before
+    alone = day / "alone.json"
+    alone.write_bytes(before)
+    assert run_cli([*live, str(alone)])[0] == 0
+    assert run_cli([*live, str(summary), "--force"])[0] == 0
+    assert json.loads(summary.read_text())["inputs"] != json.loads(before)["inputs"]
+
+
+def test_gap_s_report_never_replaces_another_command_s_page_without_force(day: Path) -> None:
+    """`gap b.blf --report EXPORT/report.html` or a campaign's report.html (helper-32): replaced
+    without a word, and the campaign then refused its own folder (`holds files c2n did not
+    write`). A page's head names the command that wrote it; gap replaces its own, and a page of
+    an older c2n only where it is alone."""
+    from app.output.paths import page_of
+    from app.sinks.html import page
+
+    folder = day / "an-export"
+    folder.mkdir()
+    report = folder / "report.html"
+    report.write_text(page("c2n export", [], "export"))
+    (folder / "events.csv").write_text("t,event,\n")
+    before = report.read_bytes()
+    code, _, err = run_cli(["gap", str(day / "d.blf"), "--report", str(report)])
+    assert code == 1, err
+    assert "report.html: is c2n export's page, beside its summary" not in err  # no summary.json here
+    assert "report.html: is c2n export's page, beside its events.csv — choose another name, or add" in err
+    assert report.read_bytes() == before
+    whose = page_of("gap")
+    report.write_text(page("c2n gap", [], "gap"))
+    assert whose(report) is None  # its own
+    report.write_text(page("c2n", [], "campaign"))
+    assert whose(report) == "is c2n campaign's page, beside its events.csv"
+    older = "default-src 'none'; img-src data:"  # the policy of pages written before the marker
+    report.write_text(f'<html><head><meta http-equiv="Content-Security-Policy" content="{older}">')
+    assert whose(report) == "is a page of c2n's beside another run's events.csv"  # an older c2n's
+    (folder / "events.csv").unlink()
+    assert whose(report) is None  # alone: the user's to name again
+
+
 def test_every_html_page_carries_c2n_s_marker(day: Path) -> None:
     from app.sinks.html import page
 
-    assert GENERATOR in page("t", [])
+    assert GENERATOR in page("t", [], "export")
 
 
 def test_events_csv_follows_the_csv_dialect(day: Path) -> None:

@@ -125,7 +125,11 @@ def read_manifest(path: Path) -> Manifest:
         if not any(cell.strip() for cell in row):
             continue
         if len(row) != len(header):
-            raise C2nError(f"{path}: line {line} has {len(row)} fields, the header {len(header)}")
+            quote = any("\n" in cell for cell in row)  # a quote opened and not closed: the rest is one cell
+            raise C2nError(
+                f"{path}: line {line} has {len(row)} field{'s' if len(row) != 1 else ''}, the header "
+                f"{len(header)}" + (" (a quote opened there is not closed)" if quote else "")
+            )
         cells = [cell.strip() for cell in row]
         if not cells[where]:
             raise C2nError(f"{path}: line {line} names no log")

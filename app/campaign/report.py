@@ -111,7 +111,7 @@ def write_report(folder: Path, comparison: Comparison, title: str) -> None:
         ),
         section("Plots", *(figure(name, png) for name, png in images)),
     ]
-    write_html(page(title, body), folder / "report.html", "report.html")
+    write_html(page(title, body, "campaign"), folder / "report.html", "report.html")
 
 
 def _tyres(tyres: Softening | None) -> str:

@@ -184,18 +184,6 @@ def _side_by_side(reports: "list[LogReport]") -> "list[LogReport]":
     return notes
 
 
-# what a summary.json sits beside in a folder it is one file of: an export's, a live session's
-_A_RUN_S_FILES = (
-    "events.csv",
-    "channels.csv",
-    "channels.parquet",
-    "channels.mf4",
-    "frames.log",
-    "frames.asc",
-    "frames.blf",
-)
-
-
 def run(args: argparse.Namespace, console: Console) -> int:
     # loaded when the command runs, not at import: `c2n --help` needs none of them
     from app.pipeline import Pipeline
@@ -208,7 +196,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from app.sources.sessions import parts_left_out
 
     config = load_config(args.config)
-    whose = result_of(args.logs, "summary", _A_RUN_S_FILES)  # a session's own, an export's
+    whose = result_of(args.logs, "summary")  # a session's own, an export's
     out = Output("--json", args.json, SUMMARY_JSON, stdout=True, whose=whose) if args.json else None
     check([out], [*args.logs, *config_files(config)], args.force)
     pipeline = Pipeline(config)

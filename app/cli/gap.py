@@ -6,12 +6,20 @@ import os
 
 from rich.console import Console
 
-from app.cli.common import ENDING, add_config, add_force, interrupted_by, parts_disagree, path_argument
+from app.cli.common import (
+    ENDING,
+    add_config,
+    add_force,
+    error_console,
+    interrupted_by,
+    parts_disagree,
+    path_argument,
+)
 from app.config import load_config
-from app.errors import NoResultError, need
+from app.errors import NoResultError, need, printable
 from app.gap.result import GapResult
 from app.output.files import STDOUT, json_text, text_file, write_text, write_together
-from app.output.paths import DIAGNOSIS_JSON, HTML_REPORT, Output, check, config_files
+from app.output.paths import DIAGNOSIS_JSON, HTML_REPORT, Output, check, config_files, page_of
 from app.user_text import argument
 
 
@@ -47,7 +55,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     check(
         [
             Output("--json", args.json, DIAGNOSIS_JSON, stdout=True) if args.json else None,
-            Output("--report", args.report, HTML_REPORT, stdout=True) if args.report else None,
+            Output("--report", args.report, HTML_REPORT, stdout=True, whose=page_of("gap"))
+            if args.report
+            else None,
         ],
         [*args.logs, *config_files(config)],
         args.force,
@@ -56,6 +66,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
         from app.cli.analyze import each_alone
 
         each_alone(args.logs, config, "gap", console)
+    from app.sources.sessions import parts_left_out
+
+    for path, said in parts_left_out(args.logs, "gap"):  # a diagnosis of one part's driving
+        error_console().print(f"c2n: warning: {printable(f'{path}: {said}')}", markup=False)
     workers = os.cpu_count() or 1
     with interrupted_by(*ENDING):  # each stops the forked processes too
         with console.status("reading the drive…"):  # the method's detector and regressions go on

@@ -3,14 +3,18 @@ open the seal and print the confusion matrix, the accuracy, the false-alarm rate
 and the held-out shrink."""
 
 import argparse
+import os
+from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 from rich.table import Table
 
 from app.cli import common
-from app.cli.common import path_argument
+from app.cli.common import error_console, path_argument
+from app.errors import C2nError, OutputError, printable
 from app.output.files import write_json
-from app.output.paths import SCORES_JSON, Output
+from app.output.paths import DIAGNOSIS_JSON, SCORES_JSON, Output
 from app.output.paths import check as guard
 from app.user_text import shown
 
@@ -39,15 +43,9 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
 def run(args: argparse.Namespace, console: Console) -> int:
     from app.gap import check
 
-    folders = check.cases(args.pack)
-    if args.json:  # the pack's files (its cases, configs and seal) are its inputs; gap/ is c2n's
-        pack = [
-            p
-            for p in args.pack.rglob("*")
-            if p.is_file() and check.OUT not in p.relative_to(args.pack).parts[:1]
-        ]
-        guard([Output("--json", args.json, SCORES_JSON, stdout=True)], pack, args.force)
+    folders = _sealed(check.cases(args.pack), check.open_seal(args.pack))  # the seal's form, not its answers
     out = args.pack / check.OUT
+    _check_outputs(args, folders, out)
     done = 0
 
     def on_case(answer: check.CaseAnswer) -> None:
@@ -55,8 +53,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
         done += 1
         said = answer.result.diagnosis if answer.result else f"error: {answer.error}"
         console.print(f"\\[{done}/{len(folders)}] {shown(answer.case)}: {shown(said)}", highlight=False)
+        answered = out / f"{answer.case}.json"
         if answer.result:
-            write_json(out / f"{answer.case}.json", answer.result.to_json(), "the case's diagnosis")
+            write_json(answered, answer.result.to_json(), "the case's diagnosis")
+        elif DIAGNOSIS_JSON(answered):  # an earlier run's answer beside this run's error
+            answered.unlink()
 
     answers = check.run_cases(folders, args.workers or check.default_workers(), on_case)
     scores = check.score(answers, check.open_seal(args.pack))  # the seal opens only now
@@ -82,6 +83,37 @@ def run(args: argparse.Namespace, console: Console) -> int:
     else:
         write_json(out / "scores.json", scores, "the scores")
     return 0
+
+
+def _sealed(folders: list[Path], truth: dict[str, Any]) -> list[Path]:
+    """The case folders the seal scores; each other is said and left out (it was diagnosed, then
+    left out of the scores without a word)."""
+    sealed = [folder for folder in folders if folder.name in truth["cases"]]
+    for folder in folders:
+        if folder.name not in truth["cases"]:
+            error_console().print(
+                f"c2n: warning: {printable(str(folder))}: not a case of the pack's seal — not diagnosed",
+                markup=False,
+            )
+    if not sealed:
+        raise C2nError(f"{folders[0].parent}: none of its case folders is in its seal — is it one pack?")
+    return sealed
+
+
+def _check_outputs(args: argparse.Namespace, folders: list[Path], out: Path) -> None:
+    """Before any work: each case's answer in ``PACK/gap/`` and the scores are files c2n wrote
+    there, or new (a user's file there was replaced, a read-only one too); ``gap`` is a folder."""
+    if os.path.lexists(out) and not out.is_dir():
+        raise OutputError(f"{out}: is a file, where gap-check writes its answers (a folder) — move it")
+    # the pack's files (its cases, configs and seal) are its inputs
+    pack = [p for p in args.pack.rglob("*") if p.is_file() and p.relative_to(args.pack).parts[0] != out.name]
+    answers = [Output("gap-check", out / f"{folder.name}.json", DIAGNOSIS_JSON) for folder in folders]
+    scores = (
+        Output("--json", args.json, SCORES_JSON, stdout=True)
+        if args.json
+        else Output("gap-check", out / "scores.json", SCORES_JSON)
+    )
+    guard([*answers, scores], pack, args.force)
 
 
 def summary_line(summary: dict[str, object]) -> str:

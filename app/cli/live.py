@@ -31,7 +31,7 @@ from app.cli.common import (
 from app.config import load_config
 from app.errors import C2nError, OutputError, printable
 from app.output.files import new_folder
-from app.output.paths import SUMMARY_JSON, Output, check, config_files
+from app.output.paths import SUMMARY_JSON, Output, check, config_files, result_of
 from app.sources.sessions import RAW_FORMATS
 from app.user_text import shown
 
@@ -41,6 +41,9 @@ if TYPE_CHECKING:
     from app.config import Config
     from app.sinks.recorder import SessionRecorder
     from app.sources.buses import Backoff
+
+
+_NEVER_THIS_DRIVE = result_of([], "summary", now="this bus")  # a live run's drive is its own
 
 
 def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]") -> argparse.ArgumentParser:
@@ -172,7 +175,12 @@ def run(
     config = load_config(args.config)
     check(
         [
-            Output("--json", args.json, SUMMARY_JSON, stdout=True) if args.json else None,
+            # never the drive of a summary there: an export's or a session's own is not replaced
+            Output(
+                "--json", args.json, SUMMARY_JSON, stdout=True, whose=result_of([], "summary", now="this bus")
+            )
+            if args.json
+            else None,
             # a session gets a new folder of its own in --record: any folder there will do
             None if args.no_record else Output("--record", args.record, lambda path: False, parent=True),
         ],

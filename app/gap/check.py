@@ -159,12 +159,26 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def open_seal(pack: Path) -> dict[str, Any]:
+    """The sealed truth, each case's effect named (``{"cases": {case: {"effect": {"name", "size"}}}}``);
+    one line naming the file where it is not that (a damaged seal ended, after every case was
+    diagnosed, in a KeyError)."""
     path = pack / SEALED / "truth.json"
     try:
-        return dict(json.loads(path.read_text()))
+        truth = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError as error:
         raise C2nError(
             f"{path}: no sealed truth — is {pack} a pack written by c2n simulate --pack?"
         ) from error
-    except (OSError, json.JSONDecodeError) as error:
+    except (OSError, ValueError) as error:
         raise C2nError(f"{path}: cannot read ({error})") from error
+    cases = truth.get("cases") if isinstance(truth, dict) else None
+    cases = cases if isinstance(cases, dict) else {}
+    effects = [case.get("effect") if isinstance(case, dict) else None for case in cases.values()]
+    if not cases or not all(
+        isinstance(e, dict) and isinstance(e.get("name"), str) and "size" in e for e in effects
+    ):
+        raise C2nError(
+            f"{path}: not a pack's seal (its cases, each with its effect's name and size) — write the pack "
+            "again with c2n simulate --pack N"
+        )
+    return dict(truth)

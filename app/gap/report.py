@@ -239,6 +239,7 @@ def render(diagnosis: Diagnosis, title: str, inputs: Sequence[str]) -> str:
             ),
             section("Residual maps", *(figure(name, png) for name, png in plots(diagnosis))),
         ),
+        "gap",
     )
 
 

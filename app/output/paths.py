@@ -8,6 +8,7 @@ Writing itself goes through ``app.output.files`` (a temporary, swapped in whole)
 
 import json
 import os
+import re
 import stat
 import tempfile
 from collections.abc import Callable, Iterable, Sequence
@@ -19,6 +20,7 @@ from app.errors import OutputError, UsageError
 from app.output.files import STDOUT, inside
 
 GENERATOR = '<meta name="generator" content="c2n">'  # in the head of every HTML page c2n writes
+PAGE_KIND = '<meta name="c2n-page" content="{kind}">'  # and which command's page it is
 _OLDER_HTML = "default-src 'none'; img-src data:"  # the policy of pages written before the marker
 # the longest a temporary adds to an output's name (``files.partial_path``, ``files.folder_atomically``)
 _TEMPORARY_EXTRA = len(".partial-4194304-0123456789ab.")
@@ -144,36 +146,86 @@ def _same_file(recorded: str, given: Path, beside: Path) -> bool:
     return False
 
 
-def result_of(given: Sequence[str | Path], what: str, beside: Sequence[str]) -> Callable[[Path], str | None]:
+# what a result file sits beside in a folder it is one file of: an export's, a live session's
+A_RUN_S_FILES = (
+    "events.csv",
+    "channels.csv",
+    "channels.parquet",
+    "channels.mf4",
+    "frames.log",
+    "frames.asc",
+    "frames.blf",
+)
+# and what an HTML page sits beside there, or in a campaign's results
+A_PAGE_S_FILES = ("summary.json", *A_RUN_S_FILES, "results.csv", "comparison.json")
+
+
+def result_of(
+    given: Sequence[str | Path], what: str, beside: Sequence[str] = A_RUN_S_FILES, now: str | None = None
+) -> Callable[[Path], str | None]:
     """``Output.whose`` for a result file of ``given``'s: another drive's result that is one file
     of a folder's whole (an export's summary, a session's own: ``beside`` names the folder's other
     files) is named, not replaced without --force — the folder would look whole and not be. A
-    result file alone is the user's to name again, as before."""
+    result file alone is the user's to name again, as before. ``now``: what this run reads, where
+    it is not files (a live bus: never the same drive as a result's)."""
 
     def whose(path: Path) -> str | None:
         recorded = recorded_inputs(path)
-        if recorded is None or same_inputs(recorded, given, path.parent):
+        if recorded is None or (now is None and same_inputs(recorded, given, path.parent)):
             return None
-        others = [name for name in beside if (path.parent / name).exists()]
+        others = _beside(path, beside)
         if not others:
             return None
-        now = ", ".join(os.path.abspath(g) for g in given)
+        reads = now or ", ".join(os.path.abspath(g) for g in given)
         return (
-            f"holds the {what} of {', '.join(recorded) or 'no log'}, not of {now}, "
-            f"beside that run's {', '.join(others[:2])}"
+            f"holds the {what} of {', '.join(recorded) or 'no log'}, not of {reads}, beside "
+            f"that run's {others}"
         )
 
     return whose
 
 
+def page_of(kind: str) -> Callable[[Path], str | None]:
+    """``Output.whose`` for an HTML page ``kind`` writes (``c2n gap --report``): another command's
+    page (an export's report.html, a campaign's) is named, not replaced without --force — its
+    folder would look whole and not be. A page of this kind, or one alone, is the user's to name
+    again."""
+
+    def whose(path: Path) -> str | None:
+        written_by = page_kind(path)
+        if written_by == kind:
+            return None
+        others = _beside(path, A_PAGE_S_FILES)
+        if written_by is not None:
+            return f"is c2n {written_by}'s page" + (f", beside its {others}" if others else "")
+        return f"is a page of c2n's beside another run's {others}" if others else None
+
+    return whose
+
+
+def _beside(path: Path, names: Sequence[str]) -> str:
+    """The first two of ``names`` beside ``path``, as words ("" for none)."""
+    return ", ".join([name for name in names if (path.parent / name).exists()][:2])
+
+
 def HTML_REPORT(path: Path) -> bool:
     """An HTML page c2n wrote: its head carries the marker (or, older, c2n's content policy)."""
+    head = _page_head(path)
+    return GENERATOR in head or _OLDER_HTML in head
+
+
+def _page_head(path: Path) -> str:
     try:
         with path.open("rb") as file:
-            head = file.read(4096).decode("utf-8", "replace")
+            return file.read(4096).decode("utf-8", "replace")
     except OSError:
-        return False
-    return GENERATOR in head or _OLDER_HTML in head
+        return ""
+
+
+def page_kind(path: Path) -> str | None:
+    """Which command wrote an HTML page of c2n's (``PAGE_KIND``); None for an older page, or none."""
+    found = re.search(PAGE_KIND.format(kind="([a-z-]+)"), _page_head(path))
+    return found[1] if found else None
 
 
 def never(path: Path) -> bool:

@@ -201,7 +201,7 @@ def optical_gaps(f: Findings) -> str | None:
     if not gaps:
         return None
     return (
-        f"the optical data stopped {gaps} times for over "
+        f"the optical data stopped {'once' if gaps == 1 else f'{gaps} times'} for over "
         f"{f.config.filter.gap_reset_s:g} s: the filter restarted"
     )
 

@@ -44,7 +44,10 @@ def fix_for(why: str, fix: str, log: str) -> str:
     """What to do about the parts of ``log`` that ``why`` refused: ``fix`` (each part alone), or
     for a repeat, one copy."""
     if REPEATED in why:
-        return f"split it where its clock goes back (c2n split {log}) and keep one copy of the drive"
+        return (
+            f"split it (c2n split {log}: at its pauses and where its clock goes back) and keep one "
+            "copy of the drive"
+        )
     return fix.format(log=log)
 
 

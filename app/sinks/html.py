@@ -9,7 +9,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from app.output.files import write_text
-from app.output.paths import GENERATOR
+from app.output.paths import GENERATOR, PAGE_KIND
 
 DASH = "—"
 
@@ -55,8 +55,9 @@ def write_html(document: str, path: Path, what: str = "the report") -> None:
     write_text(path, document, what)
 
 
-def page(title: str, sections: Sequence[str]) -> str:
-    """A self-contained HTML document of sections (HTML already)."""
+def page(title: str, sections: Sequence[str], kind: str) -> str:
+    """A self-contained HTML document of sections (HTML already); ``kind``: the command whose page
+    it is, in its head (``c2n gap --report`` replaces no other's)."""
     return "\n".join(
         (
             "<!DOCTYPE html>",
@@ -64,6 +65,7 @@ def page(title: str, sections: Sequence[str]) -> str:
             "<head>",
             '<meta charset="utf-8">',
             GENERATOR,
+            PAGE_KIND.format(kind=kind),
             f'<meta http-equiv="Content-Security-Policy" content="{_POLICY}">',
             '<meta name="viewport" content="width=device-width, initial-scale=1">',
             f"<title>{text(title)}</title>",

@@ -52,6 +52,7 @@ def render(summary: Summary, images: Sequence[tuple[str, bytes]], title: str) ->
             _frames(summary.frames),
             _plots(images),
         ),
+        "export",
     )
 
 

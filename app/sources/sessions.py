@@ -82,7 +82,7 @@ def read_session(folder: Path) -> tuple[list[Path], Path]:
         raise C2nError(
             f"{folder / CONFIG_FOLDER}: expected one config copy, found {len(configs)} — pass --config F"
         )
-    beside = Path(os.path.abspath(folder)).parent  # `.` too has a parent
+    beside = Path(os.path.realpath(folder)).parent  # a link's parts are beside where it leads
     logs = [first]
     for name in _parts_named(folder):
         if not (beside / name).is_dir():
@@ -143,9 +143,10 @@ def _first_folder_of(part: Path) -> Path | None:
     return None
 
 
-def parts_left_out(given: Sequence[Path]) -> list[tuple[Path, str]]:
+def parts_left_out(given: Sequence[Path], command: str = "analyze") -> list[tuple[Path, str]]:
     """For each of ``given`` that is one part of a session recorded in parts, the others not
-    among ``given``: what it says (``path``, why) — its result is of that part alone."""
+    among ``given``: what it says (``path``, why) — its result is of that part alone, and every
+    part's log to c2n ``command`` reads them all."""
     read = {os.path.realpath(p) for p in given}
     said = []
     for path in given:
@@ -170,7 +171,7 @@ def parts_left_out(given: Sequence[Path]) -> list[tuple[Path, str]]:
                 path,
                 f"{which} of the session {first}, which went on in parts ({PARTS_FILE}): the result is of "
                 f"this part alone — give the session folder {first} to c2n export or a campaign, or every "
-                f"part's log to c2n analyze ({' '.join(str(log) for log in logs)})",
+                f"part's log to c2n {command} ({' '.join(str(log) for log in logs)})",
             )
         )
     return said

@@ -21,7 +21,8 @@ ROLE_UNITS: dict[str, str] = {
 Z95 = 1.959963984540054  # the normal's 97.5 % quantile: a 95 % interval is ±Z95 standard errors
 
 _DEG = math.pi / 180.0
-_G = 9.80665
+G0 = 9.80665  # standard gravity, m/s² (ISO 80000-3)
+_G = G0
 
 # unit text (normalised: lower case, no spaces) -> (dimension, factor to SI)
 _UNITS: dict[str, tuple[str, float]] = {

@@ -179,3 +179,29 @@ def test_a_vehicle_speed_that_went_quiet_is_no_vote(tmp_path: Path) -> None:
     run(iter(kept), pipeline, [])
     snapshot = pipeline.snapshot()
     assert snapshot.unit_problem is None and snapshot.headline is not None
+
+
+def test_a_yaw_rate_in_the_wrong_unit_is_named_not_the_driving(drive_log: Path, tmp_path: Path) -> None:
+    """`[units] yaw_rate = "rad/s"` over the DBC's deg/s (helper-32): 57.3× the yaw rate, every
+    turn at u·r far beyond any tyre's grip, and the result said `drive steady circles …` — in
+    analyze and in gap. Now both name the yaw rate's unit and blame no driving."""
+    from app.detect.quasi_steady import Cornering
+    from app.results.refusal import beyond_grip
+
+    line = 'yaw_rate = {signal = "AngVelHor.AngVelZ_hor", unit = "rad/s"}'
+    config = _config(tmp_path, "yaw_rate", line)
+    summary = tmp_path / "s.json"
+    code, out, err = run_cli(["analyze", str(drive_log), "--config", str(config), "--json", str(summary)])
+    said = " ".join(out.split())
+    assert code == 0 and "C2n: no result (of " in said and "C2n =" not in said, out
+    assert "over 3 g, which no tyre holds — the yaw rate reads too large: check its unit" in said
+    assert "sweep" not in err and "drive steady circles" not in said, err
+    result = json.loads(summary.read_text())
+    assert result["cornering"]["beyond_grip_s"] > 0.5 * result["cornering"]["turning_s"] > 10.0
+    code, _, err = run_cli(["gap", str(drive_log), "--config", str(config)])
+    assert code == 1 and "the yaw rate reads too large: check its unit" in err, err
+    # a drive within grip, and a track day's few seconds beyond it (a kerb, a spike), say nothing
+    assert beyond_grip(Cornering(turning_s=100.0, beyond_grip_s=49.0)) is None
+    assert beyond_grip(Cornering(turning_s=100.0, beyond_grip_s=51.0)) is not None
+    code, _, _ = run_cli(["analyze", str(drive_log), "--json", str(summary)])
+    assert code == 0 and json.loads(summary.read_text())["cornering"]["beyond_grip_s"] == 0.0

@@ -25,6 +25,7 @@ import numpy as np
 from app.config import DetectorSettings
 from app.detect.steady_state import tightest_curvature
 from app.records import Estimate
+from app.units import G0
 
 SWEEP_MAX_MPS2 = 2.0  # |u̇|: a corner under part throttle or light braking, not a stop
 YAW_ACCEL_MAX_RADPS2 = 0.25  # |ṙ|: a corner's radius tightening, not a turn-in or a slalom
@@ -33,6 +34,11 @@ SETTLE_S = 0.5  # the conditions must hold this long before samples count
 AY_MIN_MPS2 = 0.5  # a turn that asks this much of the tyres: below it, a straight's drift at low speed
 # (a second log's near-straight stretches at 6 m/s moved CommonRoad's pooled C2n by up to 1 %)
 _MAX_STEP_S = 0.5  # a longer pause between samples counts as no driving
+# |a_y| no car holds on a test pad: 3 g. A racing slick's peak friction is about 1.7–2 and road
+# tyres' about 1.0–1.2; more takes aerodynamic downforce, which at the method's 10–25 m/s is a
+# few per cent of the weight. Beyond it the reading is a unit's (a yaw rate in deg/s read as
+# rad/s: 57.3×), not the car's
+GRIP_MAX_MPS2 = 3.0 * G0
 
 
 @dataclass(frozen=True)
@@ -48,6 +54,7 @@ class Cornering:
     usable_samples: int = 0  # the quasi-steady samples
     backwards_s: float = 0.0  # cornering as above but the optical speed at or below −speed_min: vx flipped
     below_speed_s: float = 0.0  # in a turn as above but under the speed limit ([detector] speed_min_mps)
+    beyond_grip_s: float = 0.0  # of turning_s, |a_y| beyond any tyre's grip (``GRIP_MAX_MPS2``): a unit's
 
 
 NO_CORNERING = Cornering()
@@ -60,16 +67,18 @@ class QuasiSteadyGate:
         self._max_curvature = tightest_curvature(wheelbase_m)
         self._since: float | None = None  # when every condition began to hold
         self._t: float | None = None  # the last sample's time
-        self._seconds = [0.0] * 7  # Cornering's seconds: five, then backwards_s and below_speed_s
+        self._seconds = [0.0] * 8  # Cornering's seconds: five, backwards_s, below_speed_s, beyond_grip_s
         self._usable_ay = [math.inf, 0.0]  # the quasi-steady samples' least and most |a_y|
         self._usable_n = 0
 
     @property
     def cornering(self) -> Cornering:
         low, high = self._usable_ay
-        turning, ay_high, transient, usable, tight, backwards, below = self._seconds
+        turning, ay_high, transient, usable, tight, backwards, below, beyond = self._seconds
         spread = (low, high) if low <= high else None
-        return Cornering(turning, ay_high, transient, usable, tight, spread, self._usable_n, backwards, below)
+        return Cornering(
+            turning, ay_high, transient, usable, tight, spread, self._usable_n, backwards, below, beyond
+        )
 
     def new_log(self) -> None:
         """Another drive follows: nothing of this one carries over but the tally."""
@@ -104,6 +113,8 @@ class QuasiSteadyGate:
             tally = self._seconds
             tally[0] += dt
             tally[1 if not ay_ok else 4 if not wide else 3 if quasi else 2] += dt
+            if ay is not None and abs(ay) > GRIP_MAX_MPS2:
+                tally[7] += dt
         elif backwards:
             self._seconds[5] += dt
         elif (  # a turn, too slow
@@ -162,6 +173,7 @@ class QuasiSteadyGate:
         tally[4] += float(dt[turning & ay_ok & ~wide].sum())
         tally[5] += float(dt[backwards].sum())
         tally[6] += float(dt[below].sum())
+        tally[7] += float(dt[turning & (np.abs(ay) > GRIP_MAX_MPS2)].sum())
         if quasi.any():
             usable = np.abs(ay[quasi])
             spread = self._usable_ay

@@ -13,13 +13,13 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from app.config import Config
-from app.detect.quasi_steady import AY_MIN_MPS2, Cornering
+from app.detect.quasi_steady import AY_MIN_MPS2, GRIP_MAX_MPS2, Cornering
 from app.errors import NoResultError
 from app.gap.candidates import Param
 from app.gap.forked import map_forked
 from app.gap.measured import Measured
 from app.gap.nominal_model import Mods, Prepared, Simulated, prepare, run_model, simulate
-from app.results.refusal import reads_backwards, speed_min_problem
+from app.results.refusal import beyond_grip, reads_backwards, speed_min_problem
 from app.sim.vehicle_model import BicycleParams
 
 GAP_BLOCK_S = 1.0  # the sideslip gap is measured on 1-s means
@@ -103,7 +103,9 @@ def _lacking(m: Measured, config: Config) -> str | None:
     if backwards:
         return backwards
     below = np.count_nonzero(turning & (u > 0) & (u < speed_min)) * m.dt
-    return speed_min_problem(Cornering(turning_s=forwards, below_speed_s=below), speed_min)
+    beyond = np.count_nonzero(turning & (u >= speed_min) & (np.abs(u * np.nan_to_num(m.r)) > GRIP_MAX_MPS2))
+    cornering = Cornering(turning_s=forwards, below_speed_s=below, beyond_grip_s=beyond * m.dt)
+    return beyond_grip(cornering) or speed_min_problem(cornering, speed_min)
 
 
 def _noise(x: np.ndarray) -> float:

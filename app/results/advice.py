@@ -63,6 +63,7 @@ class Findings:
     )
     speed_reads: float | None = None  # the vehicle speed's ratio to vx, where off (speeds.reads_off)
     config_gated: bool = False  # the config's speed_min_mps above all the cornering (speed_min_problem)
+    beyond_grip: bool = False  # most of the cornering beyond any tyre's grip: a unit (refusal.beyond_grip)
 
     @property
     def fit(self) -> RegressionFit | None:
@@ -494,7 +495,9 @@ def rejected_crossings(f: Findings) -> str | None:
 def no_crossing(f: Findings) -> str | None:
     """No sweep crossed zero: the quasi-steady estimate, what it counts, and how to measure C2n
     the method's own way; or, without even that, that no sign change was found."""
-    if f.backwards or f.config_gated:  # no driving to blame: the result names vx's sign, or the config
+    if (
+        f.backwards or f.config_gated or f.beyond_grip
+    ):  # no driving to blame: the result names a role, or the config
         return None
     beyond = crossing_beyond_gate(f)
     if f.headline is not None and f.headline.method is Method.QUASI_STEADY:

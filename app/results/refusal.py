@@ -15,13 +15,14 @@ import math
 from collections.abc import Sequence
 
 from app.config import DetectorSettings
-from app.detect.quasi_steady import Cornering
+from app.detect.quasi_steady import GRIP_MAX_MPS2, Cornering
 from app.detect.signs import SignVotes, which_of_the_two, yaw_rate_problem
 from app.results.agreement import DriveResult, disagreement
 from app.results.combine import Combined
 from app.results.headline import Headline, headline, positive
 from app.results.pairing import Paired
 from app.results.regression import AY_SPAN_MPS2, MIN_SAMPLES, RegressionFit
+from app.units import G0
 
 SENSOR_MAX_HZ = 400.0  # an optical sensor sends at 50–250 Hz; far beyond that is not its own pace
 HINT_AFTER_S = 2.0  # of frame time: a burst at the start is no rate
@@ -175,6 +176,9 @@ def refusal(
     backwards = reads_backwards(c.backwards_s, c.turning_s, vx_scale)
     if backwards:
         return backwards
+    beyond = beyond_grip(c)
+    if beyond:
+        return beyond
     above = speed_min_problem(c, speed_min_mps)
     if above:
         return above
@@ -207,6 +211,20 @@ def refusal(
     return (
         f"no sideslip sign change and {what}: {seconds} — drive steady circles at 2–4 m/s² with the "
         "speed swept slowly through the sign change, or corners held at 1–4 m/s² at several speeds"
+    )
+
+
+def beyond_grip(c: Cornering) -> str | None:
+    """Most of the cornering at an a_y no tyre holds (``GRIP_MAX_MPS2``): the speed × yaw rate
+    the gate reads it from is a unit's mistake — a yaw rate in deg/s read as rad/s reads 57.3×, and
+    was told to drive steady circles. None where most of it is within a tyre's grip."""
+    if c.turning_s < 1.0 or c.beyond_grip_s < 0.5 * c.turning_s:
+        return None
+    return (
+        f"of {c.turning_s:.0f} s cornering, {c.beyond_grip_s:.0f} s at a lateral acceleration (speed × yaw "
+        f"rate) over {GRIP_MAX_MPS2 / G0:.0f} g, which no tyre holds — the yaw rate reads too large: check "
+        "its unit (the DBC's, or [units] yaw_rate in the config; deg/s read as rad/s is 57.3×), and "
+        "the optical vx's"
     )
 
 

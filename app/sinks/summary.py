@@ -108,6 +108,7 @@ class CorneringRow:
     tight_s: float  # on a radius under eight wheelbases: the bicycle model's small steer angles fail
     backwards_s: float  # cornering with the optical speed backwards: vx's sign flipped, the head turned
     below_speed_s: float  # in a turn, but under [detector] speed_min_mps
+    beyond_grip_s: float  # of turning_s, |a_y| beyond any tyre's grip (3 g): a yaw rate's unit, not the car
 
 
 @dataclass(frozen=True)
@@ -328,6 +329,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         wrong_unit=snapshot.unit_problem is not None,
         speed_reads=reads_off(snapshot.speeds),
         config_gated=refusal.speed_min_problem(cornering, snapshot.speed_min_mps) is not None,
+        beyond_grip=refusal.beyond_grip(cornering) is not None,
         lost_in_samples=snapshot.filter.lost_in_samples,
     )
 

@@ -336,6 +336,17 @@ class Priors:
     d_gross_wheelbases: float = 0.5
 
 
+def raised_noise(settings: FilterSettings) -> tuple[str, ...]:
+    """The process noises ``settings`` raises above their defaults, as the config says them
+    (``[filter] q_v = 1e+06 (default 0.02)``): a filter whose rates follow the sensor's noise."""
+    default = FilterSettings()
+    return tuple(
+        f"[filter] {name} = {getattr(settings, name):g} (default {getattr(default, name):g})"
+        for name in ("q_u", "q_v", "q_r")
+        if getattr(settings, name) > getattr(default, name)
+    )
+
+
 @dataclass(frozen=True)
 class Config:
     path: Path

@@ -83,6 +83,7 @@ class Snapshot:
     speed_min_mps: float = 4.0  # the gates' least speed ([detector] speed_min_mps)
     vx_scale: float = 1.0  # the config's vx scale, whose sign a drive read backwards turns
     speed_scale: float = 1.0  # the config's vehicle speed scale, likewise
+    raised_noise: tuple[str, ...] = ()  # the config's [filter] process noises above their defaults, said
     # c2n live: the parts between the optical sensor's pauses, each alone (``app.pipeline.PartedPipeline``),
     # and why they give no one C2n where they disagree (``results.parts.parts_disagree``)
     parts: tuple[Part, ...] = ()
@@ -133,6 +134,7 @@ class Snapshot:
             self.filter.lost_in_samples,
             self.vx_scale,
             self.speed_min_mps,
+            self.raised_noise,
         )
 
     @property

@@ -230,6 +230,28 @@ def test_refusal_names_the_manoeuvre_lacked() -> None:
     assert refusal.refusal("sign", "apart", None, None, Cornering()) == "sign"  # the sign first
 
 
+def test_a_filter_whose_process_noise_the_config_raised_is_named_beside_the_driving() -> None:
+    """`[filter] q_v = 1e6` (helper-32): the filter's rates follow the sensor's noise, all 139 s of
+    cornering read as changing too fast, and only the driving was blamed."""
+    from app.config import FilterSettings, raised_noise
+
+    raised = raised_noise(FilterSettings(q_v=1e6, q_u=1e-3))
+    assert raised == ("[filter] q_v = 1e+06 (default 0.02)",)  # a lowered one is not this
+    assert raised_noise(FilterSettings()) == ()
+    shaky = Cornering(turning_s=139.0, transient_s=139.0)
+    said = refusal.refusal(None, None, None, None, shaky, raised_noise=raised)
+    assert (
+        "— the config raises the filter's process noise ([filter] q_v = 1e+06 (default 0.02)): its rates"
+        in said
+    )
+    assert said.endswith("corners held at 1–4 m/s² at several speeds")
+    assert "process noise" not in refusal.refusal(
+        None, None, None, None, shaky
+    )  # at its default: the driving
+    steady_enough = Cornering(turning_s=139.0, transient_s=60.0, ay_high_s=79.0)
+    assert "process noise" not in refusal.refusal(None, None, None, None, steady_enough, raised_noise=raised)
+
+
 def test_quasi_steady_cornering_at_one_a_y_is_told_as_that_not_as_too_little() -> None:
     """A 30 s window of circles at one speed: 29 s quasi-steady, but all at one a_y, where C2n is
     the slope over a_y: it said "too little quasi-steady cornering … 29 s quasi-steady"."""

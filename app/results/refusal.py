@@ -153,6 +153,7 @@ def refusal(
     lost_in_samples: int = 0,
     vx_scale: float = 1.0,
     speed_min_mps: float = DetectorSettings.speed_min_mps,
+    raised_noise: Sequence[str] = (),
 ) -> str:
     """Why there is no C2n: the filter lost the car in the samples (its estimates there lag the
     car, so a sign or a fit read from them is the filter's), a wrong sign (``sign_problem``),
@@ -208,9 +209,15 @@ def refusal(
         )
     else:
         what = "too little quasi-steady cornering"
+    noisy = (
+        f"the config raises the filter's process noise ({', '.join(raised_noise)}): its rates follow the "
+        "sensor's noise, and steady cornering reads as changing too fast — restore the default, or "
+        if raised_noise and c.transient_s >= 0.5 * c.turning_s
+        else ""
+    )
     return (
-        f"no sideslip sign change and {what}: {seconds} — drive steady circles at 2–4 m/s² with the "
-        "speed swept slowly through the sign change, or corners held at 1–4 m/s² at several speeds"
+        f"no sideslip sign change and {what}: {seconds} — {noisy}drive steady circles at 2–4 m/s² with "
+        "the speed swept slowly through the sign change, or corners held at 1–4 m/s² at several speeds"
     )
 
 

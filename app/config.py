@@ -10,7 +10,7 @@ import stat
 import tomllib
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -339,12 +339,25 @@ class Priors:
 def raised_noise(settings: FilterSettings) -> tuple[str, ...]:
     """The process noises ``settings`` raises above their defaults, as the config says them
     (``[filter] q_v = 1e+06 (default 0.02)``): a filter whose rates follow the sensor's noise."""
+    return tuple(_against_default(settings, _NOISES, 1.0).values())
+
+
+def lowered_filter(settings: FilterSettings) -> dict[str, str]:
+    """The process noises and the innovation gate ``settings`` lowers below their defaults, each
+    as the config says it: a filter that lags the car, or rejects the sensor's own noise."""
+    return _against_default(settings, (*_NOISES, "innovation_gate"), -1.0)
+
+
+_NOISES = ("q_u", "q_v", "q_r")
+
+
+def _against_default(settings: FilterSettings, names: Sequence[str], sign: float) -> dict[str, str]:
     default = FilterSettings()
-    return tuple(
-        f"[filter] {name} = {getattr(settings, name):g} (default {getattr(default, name):g})"
-        for name in ("q_u", "q_v", "q_r")
-        if getattr(settings, name) > getattr(default, name)
-    )
+    return {
+        name: f"[filter] {name} = {getattr(settings, name):g} (default {getattr(default, name):g})"
+        for name in names
+        if sign * (getattr(settings, name) - getattr(default, name)) > 0.0
+    }
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from typing import TypeVar
 import can
 import numpy as np
 
-from app.config import OPTICAL_ROLES, Config, raised_noise
+from app.config import OPTICAL_ROLES, Config, lowered_filter, raised_noise
 from app.decode.decoder import Decoder
 from app.detect.crossings import CrossingDetector
 from app.detect.quasi_steady import QuasiSteadyGate
@@ -166,6 +166,7 @@ class Pipeline:
             vx_scale=self.config.roles["vx"].scale if "vx" in self.config.roles else 1.0,
             speed_scale=self.config.roles["speed"].scale if "speed" in self.config.roles else 1.0,
             raised_noise=raised_noise(self.config.filter),
+            lowered_filter=lowered_filter(self.config.filter),
         )
         if first_stage is None:
             return snapshot

@@ -12,7 +12,7 @@ from app.decode.counts import FrameCounts
 from app.detect.quasi_steady import NO_CORNERING, Cornering
 from app.detect.signs import SignVotes, odd_sign
 from app.detect.speeds import SpeedVotes, speed_backwards, speed_unit_problem
-from app.estimate.motion_model import FilterCounts
+from app.estimate.motion_model import FOLLOWS, FilterCounts
 from app.paper import crossing_speed
 from app.records import Crossing, CrossingRejected, Direction, Record
 from app.results.combine import Combined
@@ -54,6 +54,18 @@ class FilterState:
     lost_in_samples: int = 0  # of counts' times it lost the car, those in a steady or quasi-steady sample
 
 
+def lagged(state: FilterState, lowered: Mapping[str, str]) -> bool:
+    """The filter lost the car in the samples C2n rests on, where the config lowered the process
+    noise that follows the sensor it lost, or narrowed its gate (``lowered``:
+    ``config.lowered_filter``): its estimates lag the car there by what the drive cannot tell
+    (q_u = 1e-6 read 16–17 for 15.1) — no C2n, the setting named (``refusal``,
+    ``advice.filter_lost``). At the defaults a loss in the samples (a sensor's glitch) is said
+    beside the C2n."""
+    lost = state.counts.lost
+    knobs = {FOLLOWS[kind] for kind in lost} | {"innovation_gate"}
+    return bool(state.lost_in_samples and lost and knobs & lowered.keys())
+
+
 @dataclass(frozen=True)
 class Snapshot:
     t_first: float | None
@@ -84,6 +96,7 @@ class Snapshot:
     vx_scale: float = 1.0  # the config's vx scale, whose sign a drive read backwards turns
     speed_scale: float = 1.0  # the config's vehicle speed scale, likewise
     raised_noise: tuple[str, ...] = ()  # the config's [filter] process noises above their defaults, said
+    lowered_filter: Mapping[str, str] = field(default_factory=dict)  # and those below (config.lowered_filter)
     # c2n live: the parts between the optical sensor's pauses, each alone (``app.pipeline.PartedPipeline``),
     # and why they give no one C2n where they disagree (``results.parts.parts_disagree``)
     parts: tuple[Part, ...] = ()
@@ -102,7 +115,7 @@ class Snapshot:
     def headline(self) -> Headline | None:
         """The C2n to report, unless a refusal stands (``refusal.standing_headline``, or the run's
         parts disagree)."""
-        if self.parts_disagree:
+        if self.parts_disagree or self.filter_lagged:
             return None
         return standing_headline(
             self.sign_problem,
@@ -158,6 +171,11 @@ class Snapshot:
         """Why no C2n of the drive is a result: a speed in the wrong unit (``unit_problem``), or
         a role the wrong way round (``refusal.sign_problem``)."""
         return self.unit_problem or sign_problem(self.fit, self._witness, self.signs)
+
+    @property
+    def filter_lagged(self) -> bool:
+        """The filter lagged the car where C2n is measured, by the config (``lagged``): no C2n."""
+        return lagged(self.filter, self.lowered_filter)
 
     @property
     def unit_problem(self) -> str | None:

@@ -324,6 +324,28 @@ def test_a_lost_filter_names_the_process_noise_of_each_sensor_it_lost(config: Co
     assert "raise [filter] innovation_gate (4; default 30), or check" in said  # not q_r: the gate first
 
 
+def test_a_loss_in_the_samples_refuses_c2n_only_where_the_config_slowed_that_sensor_s_filter() -> None:
+    """No C2n where the filter lost the car in the samples and the config lowered the process
+    noise that follows that sensor (or narrowed the gate): its lag moved C2n by what the drive
+    cannot tell. At the defaults a loss there (a sensor's glitch) leaves the C2n, said beside it."""
+    from app.config import FilterSettings, lowered_filter
+    from app.estimate.motion_model import FilterCounts
+    from app.snapshot import FilterState
+    from app.snapshot import lagged as snapshot_lagged
+
+    def lagged(lost: FilterCounts, settings: FilterSettings, in_samples: int = 5) -> bool:
+        return snapshot_lagged(FilterState(lost, 1.0, {}, in_samples), lowered_filter(settings))
+
+    slow_u = FilterSettings(q_u=1e-6)
+    assert lagged(FilterCounts(lost_vx=9), slow_u)
+    assert lagged(FilterCounts(lost_speed=9), slow_u)  # q_u follows the vehicle speed too
+    assert not lagged(FilterCounts(lost_vx=9), FilterSettings())  # the defaults: a glitch
+    assert not lagged(FilterCounts(lost_yaw=9), slow_u)  # q_r follows the yaw rate: not lowered
+    assert not lagged(FilterCounts(lost_vx=9), slow_u, in_samples=0)  # lost elsewhere
+    assert lagged(FilterCounts(lost_yaw=9), FilterSettings(innovation_gate=4.0))  # a narrow gate: any
+    assert lowered_filter(FilterSettings(q_v=1e6)) == {}
+
+
 def test_a_vehicle_speed_reading_high_is_named_not_the_filter_s_q_u(config: Config) -> None:
     """A speedometer's reading (+10 % + 4 km/h, inside what the unit check allows) lost the car
     178 times and the warning said raise q_u; C2n moved 0.04 %. Now its ratio and scale."""

@@ -330,6 +330,24 @@ def test_a_filter_too_slow_for_the_drive_says_it_lost_the_car(drive_log: Path, t
     said = [w for w in results["slow"]["warnings"] if "lost the car" in w]
     assert len(said) == 1 and f"times (optical vx {lost:,}" in said[0]
     assert "raise [filter] q_u (1e-06; default 0.05)" in said[0]
+    # the config slowed the filter and it lost the car where C2n is measured: how far its lag moved
+    # C2n the drive cannot tell (it read 16–17 for 15.1, and d apart from the tape): no C2n, and
+    # no word of d, whose fit is the lagging filter's
+    assert results["slow"]["c2n"] is None
+    assert results["slow"]["no_result"].startswith("the filter lost the car in ")
+    assert not any("disagrees with the config's" in w for w in results["slow"]["warnings"])
+    # slowed less, losing it nowhere: the C2n, and that its interval does not count the lag
+    slower = config_with(tmp_path, ("[beta_status]", "[filter]\nq_u = 3e-5\n\n[beta_status]"), name="q.toml")
+    code, _, _ = run_cli(
+        ["analyze", str(drive_log), "--config", str(slower), "--json", str(tmp_path / "q.json")]
+    )
+    result = json.loads((tmp_path / "q.json").read_text())
+    assert code == 0 and result["c2n"] is not None and result["filter"]["lost_in_samples"] == 0
+    assert any(
+        w.startswith("the config lowers the filter's process noise ([filter] q_u = 3e-05 (default 0.05))")
+        for w in result["warnings"]
+    )
+    assert not any("process noise" in w for w in results["default"]["warnings"])
 
 
 @pytest.mark.parametrize("command", ["analyze", "gap", "export"])

@@ -49,6 +49,10 @@ def angle_innovation(beta: float, h: float) -> float:
     return d - math.pi * math.floor(d / math.pi + 0.5)
 
 
+# the process noise that lets the filter follow what each sensor measures (``FilterCounts.lost``'s kinds)
+FOLLOWS = {"vx": "q_u", "speed": "q_u", "lateral": "q_v", "yaw": "q_r"}
+
+
 @dataclass
 class FilterCounts:
     resets: int = 0

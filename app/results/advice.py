@@ -11,10 +11,10 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from app.config import Config, FilterSettings
+from app.config import Config, FilterSettings, lowered_filter
 from app.decode.counts import FrameCounts
 from app.detect.steady_state import WHEELBASE_M
-from app.estimate.motion_model import MAX_CONSECUTIVE_REJECTS, FilterCounts
+from app.estimate.motion_model import FOLLOWS, MAX_CONSECUTIVE_REJECTS, FilterCounts
 from app.results.combine import bracket
 from app.results.headline import Headline, Method
 from app.results.pairing import Paired
@@ -42,6 +42,7 @@ class Findings:
     frames: FrameCounts = field(default_factory=FrameCounts)
     filter_counts: FilterCounts = field(default_factory=FilterCounts)
     lost_in_samples: int = 0  # of the times the filter lost the car, those in a sample C2n rests on
+    filter_lagged: bool = False  # lost in the samples, the config's process noise lowered: no C2n (Snapshot)
     result_fit: RegressionFit | None = None  # the fit the result rests on (refusal.resting_fit)
     regression: RegressionFit | None = None  # the steady samples'
     quasi: RegressionFit | None = None  # the quasi-steady samples'
@@ -69,7 +70,8 @@ class Findings:
     def fit(self) -> RegressionFit | None:
         """The fit the advice speaks of: none where drives apart leave no pooled fit to speak of,
         or a role the wrong way round leaves no fit's terms to trust."""
-        return self.result_fit if not self.drives_disagree and not self.sign_problem else None
+        lagged = self.drives_disagree or self.sign_problem or self.filter_lagged  # its samples, the filter's
+        return self.result_fit if not lagged else None
 
     @property
     def on_quasi(self) -> bool:
@@ -207,8 +209,6 @@ def optical_gaps(f: Findings) -> str | None:
     )
 
 
-# the process noise that lets the filter follow what each sensor measures
-_FOLLOWS = {"vx": "q_u", "speed": "q_u", "lateral": "q_v", "yaw": "q_r"}
 _SENSOR = {"vx": "optical vx", "speed": "vehicle speed", "lateral": "optical lateral", "yaw": "yaw"}
 
 
@@ -224,8 +224,10 @@ def filter_lost(f: Findings) -> str | None:
     session q_u = 1e-3 read C2n unchanged, 1e-5 +2.3 %, 1e-6 +18 % (docs/method.md). A loss
     elsewhere (a hard stop, a reversal) touches no sample: counted in the result file, not said."""
     lost = f.filter_counts.lost
-    if not lost or not f.lost_in_samples or f.backwards or f.wrong_unit:  # the result names those
+    if f.backwards or f.wrong_unit:  # the result names those
         return None
+    if not lost or not f.lost_in_samples:
+        return _filter_slowed(f)
     settings, default = f.config.filter, FilterSettings()
     times = sum(lost.values())
     where = ", ".join(f"{_SENSOR[kind]} {n:,}" for kind, n in lost.items())
@@ -243,13 +245,27 @@ def filter_lost(f: Findings) -> str | None:
     else:
         knobs = ", ".join(
             _setting(q, getattr(settings, q), getattr(default, q))
-            for q in sorted({_FOLLOWS[kind] for kind in lost})
+            for q in sorted({FOLLOWS[kind] for kind in lost})
         )
     return (
         f"the filter lost the car {times:,} time{'s' if times != 1 else ''} ({where}: frames beyond its "
         f"innovation gate {MAX_CONSECUTIVE_REJECTS} running, then believed), and in {f.lost_in_samples:,} "
         "samples of the cornering C2n is measured on: its speeds and sideslip lagged the car there, "
         f"and C2n with them — raise [filter] {knobs}, or check the sensor's signal"
+    )
+
+
+def _filter_slowed(f: Findings) -> str | None:
+    """A config that lowers the filter's process noise, where it lost the car in no sample: its
+    estimates may still lag the car through a sweep, by what the drive cannot tell (q_u = 1e-5 read
+    14.674 [14.489, 14.857] for 14.870, losing it nowhere), and the interval does not count that."""
+    lowered = [said for name, said in lowered_filter(f.config.filter).items() if name.startswith("q_")]
+    if not lowered or f.headline is None:
+        return None
+    return (
+        f"the config lowers the filter's process noise ({', '.join(lowered)}): its speeds and sideslip "
+        "may lag the car through the sweeps, and C2n with them, by what its interval does not count — "
+        "restore the default"
     )
 
 

@@ -331,6 +331,7 @@ def findings(snapshot: Snapshot, config: Config, reports: Sequence[LogReport] = 
         config_gated=refusal.speed_min_problem(cornering, snapshot.speed_min_mps) is not None,
         beyond_grip=refusal.beyond_grip(cornering) is not None,
         lost_in_samples=snapshot.filter.lost_in_samples,
+        filter_lagged=snapshot.filter_lagged,
     )
 
 

@@ -675,15 +675,19 @@ _ONE_SIGNAL_ALLOWED = frozenset({"vx", "speed"})
 def _each_its_own_signal(path: Path, roles: Mapping[str, RoleSpec]) -> None:
     """Two roles of one quantity reading one signal is a copied line (vy given vx's: accepted, and
     the sideslip's two sensors then disagree for no reason the drive holds)."""
-    seen: dict[tuple[str, str, object], str] = {}
-    for role, spec in roles.items():
-        key = (spec.message, spec.signal, spec.channel)
-        other = seen.setdefault(key, role)
-        if other != role and {other, role} != _ONE_SIGNAL_ALLOWED:
-            raise ConfigError(
-                f"{path}: [roles] {role} and {other} both read {spec.name} — each is a quantity of "
-                f"its own: give {role} its signal, or leave it out"
-            )
+    specs = list(roles.values())
+    for i, spec in enumerate(specs):
+        for other in specs[:i]:
+            one_bus = spec.channel is None or other.channel is None or spec.channel == other.channel
+            if (
+                spec.name == other.name
+                and one_bus  # a role without a channel reads every channel (helper-33)
+                and {spec.role, other.role} != _ONE_SIGNAL_ALLOWED
+            ):
+                raise ConfigError(
+                    f"{path}: [roles] {spec.role} and {other.role} both read {spec.name} — each is a "
+                    f"quantity of its own: give {spec.role} its signal, or leave it out"
+                )
 
 
 def _status(

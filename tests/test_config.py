@@ -119,6 +119,10 @@ def test_scale_and_lateral_offset(write_config: Callable[[str], Path]) -> None:
             ('vy = {signal = "Correvit.VelY_cor"', 'vy = {signal = "Correvit.VelX_cor"'),
             "[roles] vy and vx both read Correvit.VelX_cor — each is a quantity of its own",
         ),
+        (  # one of them on a channel: vx, on none, reads every channel (helper-33)
+            ('vy = {signal = "Correvit.VelY_cor"', 'vy = {channel = "can1", signal = "Correvit.VelX_cor"'),
+            "[roles] vy and vx both read Correvit.VelX_cor — each is a quantity of its own",
+        ),
     ],
 )
 def test_mistakes_give_one_line_naming_file_key_and_fix(

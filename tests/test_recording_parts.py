@@ -18,6 +18,7 @@ import pytest
 
 from app.campaign.analysis import Job, logs_hash, where
 from app.config import Config
+from app.errors import C2nError
 from app.pipeline import Pipeline
 from app.sinks.recorder import SessionRecorder
 from app.sinks.summary import build
@@ -352,3 +353,27 @@ def test_a_parts_json_listing_a_part_twice_is_refused_not_counted_twice(
         assert code == 1 and "Traceback" not in err, err
         assert f"parts.json: lists {twice} twice" in err, err
         assert not (first / "export").exists()
+
+
+def test_a_part_whose_log_is_gone_is_named_not_left_out(tmp_path: Path, config: Config) -> None:
+    """A part of a session that ended, its frames.log moved away (helper-33): the export read the
+    others as the drive (9,059 of 13,628 samples, another C2n), only `the optical data stopped
+    once` said. A part without a log is the run killed as its last part was made, and only that."""
+    import shutil
+
+    recorder, _ = _recorded_in_parts(tmp_path / "s", config)
+    first, second = recorder.folders[:2]
+    assert recorder.folders == [first, second] and not (first / "summary.json").exists()
+    (second / "frames.log").rename(tmp_path / "p2.bak")  # killed as its last part was made
+    assert read_session(first)[0] == [first / "frames.log"]
+    (first / "summary.json").write_text("{}")  # but the session ended: its last part had frames
+    with pytest.raises(C2nError, match=f"went on in {second.name}, whose log .* is not there"):
+        read_session(first)
+    (first / "summary.json").unlink()
+    third = shutil.copytree(second, tmp_path / "s-part3")  # a part after it: it had frames
+    (third / "frames.log").write_bytes((tmp_path / "p2.bak").read_bytes())
+    (first / "parts.json").write_text(json.dumps({"parts": [second.name, third.name]}))
+    with pytest.raises(C2nError, match=f"went on in {second.name}, whose log"):
+        read_session(first)
+    code, _, err = run_cli(["export", str(first), "--no-plots", "--format", "csv"])
+    assert code == 1 and "whose log (frames.log/.asc/.blf) is not there" in err and "Traceback" not in err

@@ -419,7 +419,15 @@ def _a_pack(tmp_path: Path) -> Path:
 
 @pytest.mark.parametrize(
     "seal",
-    ["[]", '{"cases": 5}', '"x"', '{"cases": {"case_001": 3}}', '{"cases": {"case_001": {"effect": null}}}'],
+    [
+        "[]",
+        '{"cases": 5}',
+        '"x"',
+        '{"cases": {"case_001": 3}}',
+        '{"cases": {"case_001": {"effect": null}}}',
+        '{"cases": {"case_001": {"effect": {"name": "none", "size": 0}, "model": 5}}}',  # helper-33
+        '{"cases": {"case_001": {"effect": {"name": "none", "size": "big"}}}}',
+    ],
 )
 def test_gap_check_on_a_damaged_seal_is_one_line_before_any_work(tmp_path: Path, seal: str) -> None:
     """A seal of another form ended, after every case was diagnosed, in a KeyError, an

@@ -282,11 +282,50 @@ def test_live_never_replaces_an_export_s_or_a_session_s_summary_without_force(da
     assert code == 1, err
     assert f"summary.json: holds the summary of {day / 'd.blf'}, not of this bus, beside that run's" in err
     assert summary.read_bytes() == before
+    link = day / "s.json"  # through a link (helper-33: the files were looked for beside the link)
+    link.symlink_to(summary)
+    for argv in ([*live, str(link)], ["analyze", str(day / "other.blf"), "--json", str(link)]):
+        if argv[0] == "analyze":
+            shutil.copy(day / "d.blf", day / "other.blf")
+        code, _, err = run_cli(argv)
+        assert code == 1 and "beside that run's" in err, err
+        assert summary.read_bytes() == before
+    # a summary new to a session folder that has none (killed, or still recording) would say it ended
+    session = day / "killed"
+    session.mkdir()
+    (session / "frames.log").write_text("(0.000000) can0 123#0102\n")
+    code, _, err = run_cli([*live, str(session / "summary.json")])
+    assert code == 1 and "is the place of the summary of the session beside it (frames.log), which" in err, (
+        err
+    )
+    assert not (session / "summary.json").exists()
     alone = day / "alone.json"
     alone.write_bytes(before)
     assert run_cli([*live, str(alone)])[0] == 0
     assert run_cli([*live, str(summary), "--force"])[0] == 0
     assert json.loads(summary.read_text())["inputs"] != json.loads(before)["inputs"]
+
+
+def test_a_read_only_export_is_not_replaced(day: Path) -> None:
+    """`chmod -R a-w` on an export, then the same export again (helper-33, as root: replaced,
+    its parquet gone, the read-only summary 644). A read-only result file was refused; a folder
+    holding one is too: folders are never forced."""
+    export = day / "d-export"
+    assert run_cli(["export", str(day / "d.blf"), "--no-plots", "--format", "csv"])[0] == 0
+    before = _snapshot(export)
+    (export / "summary.json").chmod(0o444)
+    code, _, err = run_cli(["export", str(day / "d.blf"), "--no-plots", "--format", "csv"])
+    assert code == 1 and "d-export: holds read-only files (summary.json) — make it writable" in err, err
+    assert _snapshot(export) == before
+    (export / "summary.json").chmod(0o644)
+    export.chmod(0o555)
+    try:
+        code, _, err = run_cli(["export", str(day / "d.blf"), "--no-plots", "--format", "csv"])
+        assert code == 1 and "d-export: is read-only — make it writable" in err, err
+    finally:
+        export.chmod(0o755)
+    assert _snapshot(export) == before
+    assert run_cli(["export", str(day / "d.blf"), "--no-plots", "--format", "csv"])[0] == 0
 
 
 def test_gap_s_report_never_replaces_another_command_s_page_without_force(day: Path) -> None:

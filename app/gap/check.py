@@ -173,12 +173,22 @@ def open_seal(pack: Path) -> dict[str, Any]:
         raise C2nError(f"{path}: cannot read ({error})") from error
     cases = truth.get("cases") if isinstance(truth, dict) else None
     cases = cases if isinstance(cases, dict) else {}
-    effects = [case.get("effect") if isinstance(case, dict) else None for case in cases.values()]
-    if not cases or not all(
-        isinstance(e, dict) and isinstance(e.get("name"), str) and "size" in e for e in effects
-    ):
+    if not cases or not all(_sealed_case(case) for case in cases.values()):
         raise C2nError(
             f"{path}: not a pack's seal (its cases, each with its effect's name and size) — write the pack "
             "again with c2n simulate --pack N"
         )
     return dict(truth)
+
+
+def _sealed_case(case: object) -> bool:
+    """One case of a seal: its effect's name (text) and size (a number, or none), and its
+    generator's name (text) where given — what ``score`` reads (a number there ended, after every
+    case was diagnosed, in a TypeError)."""
+    if not isinstance(case, dict) or not isinstance(case.get("model", ""), str):
+        return False
+    effect = case.get("effect")
+    if not isinstance(effect, dict) or not isinstance(effect.get("name"), str) or "size" not in effect:
+        return False
+    size = effect["size"]
+    return size is None or (isinstance(size, int | float) and not isinstance(size, bool))

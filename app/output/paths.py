@@ -170,6 +170,9 @@ def result_of(
     it is not files (a live bus: never the same drive as a result's)."""
 
     def whose(path: Path) -> str | None:
+        path = Path(os.path.realpath(path))  # a link's target is what is replaced, beside its folder's files
+        if not path.exists():
+            return _a_session_s(path)
         recorded = recorded_inputs(path)
         if recorded is None or (now is None and same_inputs(recorded, given, path.parent)):
             return None
@@ -192,6 +195,9 @@ def page_of(kind: str) -> Callable[[Path], str | None]:
     again."""
 
     def whose(path: Path) -> str | None:
+        path = Path(os.path.realpath(path))  # a link's target is what is replaced, beside its folder's files
+        if not path.exists():
+            return None
         written_by = page_kind(path)
         if written_by == kind:
             return None
@@ -201,6 +207,21 @@ def page_of(kind: str) -> Callable[[Path], str | None]:
         return f"is a page of c2n's beside another run's {others}" if others else None
 
     return whose
+
+
+_SESSION_SUMMARY = "summary.json"  # what c2n live writes in its session folder when it ends
+
+
+def _a_session_s(path: Path) -> str | None:
+    """A new ``summary.json`` in a session folder that has none (its raw log beside it): it would
+    make a killed session, or one still recording, read as one that ended (helper-33)."""
+    frames = _beside(path, [name for name in A_RUN_S_FILES if name.startswith("frames.")])
+    if path.name != _SESSION_SUMMARY or not frames:
+        return None
+    return (
+        f"is the place of the summary of the session beside it ({frames}), which has none: its c2n "
+        "live was killed or still records, and a summary there would say it ended"
+    )
 
 
 def _beside(path: Path, names: Sequence[str]) -> str:
@@ -277,6 +298,7 @@ def _name_max(folder: Path) -> int:
 def _ours(out: Output, force: bool | None) -> None:
     path = out.path
     if not os.path.lexists(path):
+        _new_file(out, force)
         return
     if out.parent:
         if not path.is_dir():
@@ -297,8 +319,14 @@ def _ours(out: Output, force: bool | None) -> None:
             shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
             what = "is not empty" if out.ours is never else "holds files c2n did not write"
             raise OutputError(f"{out.option} {path}: {what} ({shown}) — choose a new or empty folder")
+        locked = _read_only(path)
+        if locked:  # made so to keep them (root writes them all the same): folders are never forced
+            raise OutputError(
+                f"{out.option} {path}: {locked} — make it writable to replace it, or choose another folder"
+            )
         return
     if not os.path.exists(path):  # a symlink to nothing: written where it points
+        _new_file(out, force)
         return
     _a_plain_file(out, force)
     if force or (path.is_file() and path.stat().st_size == 0):
@@ -312,6 +340,28 @@ def _ours(out: Output, force: bool | None) -> None:
     raise OutputError(
         f"{out.option} {path}: exists and is not a file c2n wrote of this kind — choose another name{how}"
     )
+
+
+def _read_only(folder: Path) -> str | None:
+    """What in a folder c2n would replace is read-only: the folder, or its files (named)."""
+    if not os.stat(folder).st_mode & 0o222:
+        return "is read-only"
+    locked = sorted(
+        str(entry.relative_to(folder))
+        for entry in folder.rglob("*")
+        if not entry.is_symlink() and not entry.lstat().st_mode & 0o222
+    )
+    if not locked:
+        return None
+    return f"holds read-only files ({', '.join(locked[:3])}{' …' if len(locked) > 3 else ''})"
+
+
+def _new_file(out: Output, force: bool | None) -> None:
+    """A file not there yet that would stand for another's (a session's summary: ``whose``) is
+    written only with --force."""
+    other = out.whose(out.path) if out.whose is not None and not force else None
+    if other is not None:
+        raise OutputError(f"{out.option} {out.path}: {other} — choose another name, or add --force")
 
 
 def _a_plain_file(out: Output, force: bool | None) -> None:

@@ -84,15 +84,25 @@ def read_session(folder: Path) -> tuple[list[Path], Path]:
         )
     beside = Path(os.path.realpath(folder)).parent  # a link's parts are beside where it leads
     logs = [first]
-    for name in _parts_named(folder):
+    names = _parts_named(folder)
+    for k, name in enumerate(names, 1):
         if not (beside / name).is_dir():
             raise C2nError(
                 f"{folder}: its session went on in {name}, which is not beside it (moved, renamed or "
                 f"deleted) — put the parts beside it, or give the logs you have to c2n analyze"
             )
         log = _raw_log(beside / name)
-        if log is not None:  # none: the run was killed as the part was made, before its first frame
+        if log is not None:
             logs.append(log)
+            continue
+        # none: the run was killed as its last part was made, before that part's first frame; a
+        # part before it, or one of a session that ended, had frames (a drive read without them)
+        ended = any((f / SESSION_SUMMARY).exists() for f in (folder, beside / name))
+        if k < len(names) or ended:
+            raise C2nError(
+                f"{folder}: its session went on in {name}, whose log (frames.log/.asc/.blf) is not there "
+                f"(moved or deleted) — put it back, or give the logs you have to c2n analyze"
+            )
     return logs, configs[0]
 
 

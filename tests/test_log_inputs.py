@@ -103,6 +103,24 @@ def test_an_export_where_no_role_decodes_says_so_exits_1_and_writes_nothing(tmp_
     assert {path.name: path.read_bytes() for path in out.iterdir()} == before  # the older export kept
 
 
+def test_a_config_whose_channels_are_not_the_log_s_says_so(drive_log: Path, tmp_path: Path) -> None:
+    """`[channels]` naming can0/can1 on a log whose channels are numbered otherwise (helper-33:
+    c2n's own .trc, 1 and 2): `no frames for any role … wrong DBC or config for this log?`, where
+    the ids were all there on other channels."""
+    text = (REPO / "config" / "mondeo.toml").read_text().replace('"../dbc/', f'"{REPO}/dbc/')
+    dbcs = f'"{REPO}/dbc/kistler_smotion.dbc" = "can7"\n"{REPO}/dbc/vehicle_ford.dbc" = "can8"'
+    text = text.replace("# [channels]", f"[channels]\n{dbcs}\n#", 1)
+    config = tmp_path / "car.toml"
+    config.write_text(text)
+    code, _, err = run_cli(["analyze", str(drive_log), "--config", str(config)])
+    error = err.strip().splitlines()[-1]
+    assert (
+        code == 1
+        and f"no frames for any role of {config} on the channels it names for them (can7, can8)" in error
+    )
+    assert "frames of their ids came on others — set [channels] to the channels this log carries" in error
+
+
 @pytest.mark.parametrize("command", ["analyze", "export"])
 def test_a_log_of_another_car_is_refused_for_what_it_lacks_without_a_result_line(
     command: str, tmp_path: Path

@@ -110,9 +110,18 @@ def no_role_decoded(snapshot: "Snapshot", config: Config, logs: Sequence[Path]) 
     the run found: a result line would blame the drive ("no cornering") for what the log lacks."""
     if any(snapshot.frames.role_frames[role] for role in config.roles):
         return None
+    logs_said = ", ".join(str(p) for p in logs)
+    elsewhere = snapshot.frames.other_channel
+    if elsewhere:  # the ids are there, on channels the config's [channels] does not name for them
+        channels = sorted({str(spec.channel) for spec in config.roles.values() if spec.channel is not None})
+        return (
+            f"{logs_said}: no frames for any role of {config.path} on the channels it names for them "
+            f"({', '.join(channels)}), though {elsewhere:,} frames of their ids came on others — set "
+            "[channels] to the channels this log carries them on, or leave it out (a CSV log keeps none)"
+        )
     return (
-        f"{', '.join(str(p) for p in logs)}: no frames for any role of {config.path} — wrong DBC or "
-        "config for this log? give the car's with --config"
+        f"{logs_said}: no frames for any role of {config.path} — wrong DBC or config for this log? give "
+        "the car's with --config"
     )
 
 

@@ -146,6 +146,7 @@ def _same_file(recorded: str, given: Path, beside: Path) -> bool:
     return False
 
 
+SESSION_SUMMARY = "summary.json"  # what c2n live writes in its session folder when it ends
 # what a result file sits beside in a folder it is one file of: an export's, a live session's
 A_RUN_S_FILES = (
     "events.csv",
@@ -209,14 +210,11 @@ def page_of(kind: str) -> Callable[[Path], str | None]:
     return whose
 
 
-_SESSION_SUMMARY = "summary.json"  # what c2n live writes in its session folder when it ends
-
-
 def _a_session_s(path: Path) -> str | None:
     """A new ``summary.json`` in a session folder that has none (its raw log beside it): it would
     make a killed session, or one still recording, read as one that ended (helper-33)."""
     frames = _beside(path, [name for name in A_RUN_S_FILES if name.startswith("frames.")])
-    if path.name != _SESSION_SUMMARY or not frames:
+    if path.name != SESSION_SUMMARY or not frames:
         return None
     return (
         f"is the place of the summary of the session beside it ({frames}), which has none: its c2n "

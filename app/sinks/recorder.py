@@ -25,12 +25,13 @@ from app.config import Config
 from app.errors import C2nError, OutputError
 from app.output.durable import PeriodicSync, synced, synced_tree
 from app.output.files import new_folder
+from app.output.paths import SESSION_SUMMARY
 from app.records import Crossing, CrossingRejected, Event
 from app.sinks.events_csv import EventsTable
 from app.sinks.sink import Sink
 from app.sinks.summary import Summary
 from app.sinks.summary import write as write_summary
-from app.sources.sessions import CONFIG_FOLDER, PARTS_FILE, RAW_FORMATS, SESSION_SUMMARY
+from app.sources.sessions import CONFIG_FOLDER, PARTS_FILE, RAW_FORMATS
 
 # how often the raw log and the events table are synced to the disk: what a power cut can lose
 # (a sync is about a millisecond on a laptop's SSD and is made off the bus's thread)

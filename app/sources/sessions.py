@@ -10,11 +10,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from app.errors import C2nError
+from app.output.paths import SESSION_SUMMARY
 
 RAW_FORMATS = (".log", ".asc", ".blf")
 CONFIG_FOLDER = "config"
 PARTS_FILE = "parts.json"  # in a session's first folder: the parts it went on in, in order
-SESSION_SUMMARY = "summary.json"  # what a session folder holds once its c2n live has ended
 
 
 def _parts_named(folder: Path) -> list[str]:

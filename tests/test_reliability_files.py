@@ -467,6 +467,12 @@ def test_gap_check_replaces_only_its_own_answers_and_leaves_no_earlier_one(tmp_p
     assert "case_002: not a case of the pack's seal — not diagnosed" in err and "[1/1] case_001: error" in out
     assert not (answers / "case_001.json").exists()  # the earlier answer, not beside this run's error
     assert json.loads((answers / "scores.json").read_text())["cases"][0]["diagnosis"] == "error"
+    (answers / "scores.json").write_text(json.dumps({"accuracy": 1.0, "generators": {}, "cases": []}))
+    code, _, err = run_cli(["gap-check", str(pack), "--json", str(tmp_path / "elsewhere.json")])
+    assert code == 0, err  # helper-34: the pack's own scores were left as they were beside new answers
+    assert json.loads((answers / "scores.json").read_text()) == json.loads(
+        (tmp_path / "elsewhere.json").read_text()
+    )
     shutil.rmtree(answers)
     answers.write_text("a file")
     code, _, err = run_cli(["gap-check", str(pack)])

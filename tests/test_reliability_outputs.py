@@ -292,7 +292,8 @@ def test_live_never_replaces_an_export_s_or_a_session_s_summary_without_force(da
         assert summary.read_bytes() == before
     # a summary new to a session folder that has none (killed, or still recording) would say it ended
     session = day / "killed"
-    session.mkdir()
+    (session / "config").mkdir(parents=True)  # a session: its frames beside its config's copy
+    (session / "config" / "car.toml").write_text((day / "car.toml").read_text())
     (session / "frames.log").write_text("(0.000000) can0 123#0102\n")
     code, _, err = run_cli([*live, str(session / "summary.json")])
     assert code == 1 and "is the place of the summary of the session beside it (frames.log), which" in err, (
@@ -304,6 +305,35 @@ def test_live_never_replaces_an_export_s_or_a_session_s_summary_without_force(da
     assert run_cli([*live, str(alone)])[0] == 0
     assert run_cli([*live, str(summary), "--force"])[0] == 0
     assert json.loads(summary.read_text())["inputs"] != json.loads(before)["inputs"]
+
+
+def test_the_same_drive_s_summary_is_replaced_again_through_a_link_or_from_elsewhere(
+    day: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """helper-34: `analyze d.blf --json latest.json` (a link to an export's summary) twice: the
+    second refused as another drive's — analyze recorded `d.blf` as typed, read from the link's
+    target's folder; and `analyze logs/d.blf --json logs/d-export/summary.json` from the folder
+    above, twice. Its inputs are now recorded absolute. A folder of the user's holding a log named
+    frames.log is not a session: its summary.json is written."""
+    logs = day / "logs"
+    logs.mkdir()
+    shutil.copy(day / "d.blf", logs / "d.blf")
+    assert run_cli(["export", str(logs / "d.blf"), "--no-plots", "--format", "csv"])[0] == 0
+    monkeypatch.chdir(logs)
+    (logs / "latest.json").symlink_to("d-export/summary.json")
+    for _ in range(2):
+        code, _, err = run_cli(["analyze", "d.blf", "--json", "latest.json"])
+        assert code == 0, err
+    assert json.loads((logs / "d-export" / "summary.json").read_text())["inputs"] == [str(logs / "d.blf")]
+    monkeypatch.chdir(day)
+    for _ in range(2):
+        code, _, err = run_cli(["analyze", "logs/d.blf", "--json", "logs/d-export/summary.json"])
+        assert code == 0, err
+    plain = day / "plain"
+    plain.mkdir()
+    shutil.copy(day / "d.blf", plain / "frames.blf")
+    code, _, err = run_cli(["analyze", str(plain / "frames.blf"), "--json", str(plain / "summary.json")])
+    assert code == 0 and (plain / "summary.json").exists(), err
 
 
 def test_a_read_only_export_is_not_replaced(day: Path) -> None:

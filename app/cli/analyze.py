@@ -2,6 +2,7 @@
 
 import argparse
 import itertools
+import os
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
@@ -244,7 +245,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     snapshot = pipeline.snapshot()
     clock = clock_notes(read, config)
     parts = [LogReport(path, stopped=why, done=True) for path, why in parts_left_out(args.logs)]
-    result = summary.build(snapshot, config, [str(p) for p in args.logs], [*clock, *parts, *notes])
+    # the inputs named absolute, as an export's: a later run from elsewhere knows them (helper-34)
+    inputs = [os.path.abspath(p) for p in args.logs]
+    result = summary.build(snapshot, config, inputs, [*clock, *parts, *notes])
     missing = summary.missing_required(snapshot, config)
     refused = no_role_decoded(snapshot, config, args.logs) or (
         f"{', '.join(str(p) for p in args.logs)}: {missing}" if missing else None

@@ -33,7 +33,10 @@ def add_parser(subparsers: "argparse._SubParsersAction[argparse.ArgumentParser]"
         help="parallel cases (default: the CPU count)",
     )
     parser.add_argument(
-        "--json", type=path_argument, metavar="OUT", help="write the scores JSON here (- : standard output)"
+        "--json",
+        type=path_argument,
+        metavar="OUT",
+        help="the scores JSON here too (- : standard output); PACK/gap/scores.json always",
     )
     common.add_force(parser)
     parser.set_defaults(run=run)
@@ -78,10 +81,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(f"{generator}: {summary_line(summary)}", highlight=False)
     if len(scores["generators"]) > 1:
         console.print(f"all: {summary_line(scores)}", highlight=False)
-    if args.json:
+    write_json(out / "scores.json", scores, "the scores")
+    if args.json and os.path.realpath(args.json) != os.path.realpath(out / "scores.json"):
         write_json(args.json, scores, "the scores")
-    else:
-        write_json(out / "scores.json", scores, "the scores")
     return 0
 
 
@@ -108,12 +110,11 @@ def _check_outputs(args: argparse.Namespace, folders: list[Path], out: Path) -> 
     # the pack's files (its cases, configs and seal) are its inputs
     pack = [p for p in args.pack.rglob("*") if p.is_file() and p.relative_to(args.pack).parts[0] != out.name]
     answers = [Output("gap-check", out / f"{folder.name}.json", DIAGNOSIS_JSON) for folder in folders]
-    scores = (
-        Output("--json", args.json, SCORES_JSON, stdout=True)
-        if args.json
-        else Output("gap-check", out / "scores.json", SCORES_JSON)
-    )
-    guard([*answers, scores], pack, args.force)
+    # the pack's scores beside its answers always (an earlier run's were left beside new answers)
+    scores = [Output("gap-check", out / "scores.json", SCORES_JSON)]
+    if args.json and os.path.realpath(args.json) != os.path.realpath(out / "scores.json"):
+        scores.append(Output("--json", args.json, SCORES_JSON, stdout=True))
+    guard([*answers, *scores], pack, args.force)
 
 
 def summary_line(summary: dict[str, object]) -> str:

@@ -147,6 +147,7 @@ def _same_file(recorded: str, given: Path, beside: Path) -> bool:
 
 
 SESSION_SUMMARY = "summary.json"  # what c2n live writes in its session folder when it ends
+SESSION_CONFIG = "config"  # and the config and DBCs it ran with, in a folder of this name, from its start
 # what a result file sits beside in a folder it is one file of: an export's, a live session's
 A_RUN_S_FILES = (
     "events.csv",
@@ -170,12 +171,13 @@ def result_of(
     result file alone is the user's to name again, as before. ``now``: what this run reads, where
     it is not files (a live bus: never the same drive as a result's)."""
 
-    def whose(path: Path) -> str | None:
-        path = Path(os.path.realpath(path))  # a link's target is what is replaced, beside its folder's files
+    def whose(named: Path) -> str | None:
+        path = Path(os.path.realpath(named))  # a link's target is what is replaced, beside its folder's files
         if not path.exists():
             return _a_session_s(path)
         recorded = recorded_inputs(path)
-        if recorded is None or (now is None and same_inputs(recorded, given, path.parent)):
+        folders = {path.parent, Path(os.path.abspath(named)).parent}  # a relative record: from either
+        if recorded is None or (now is None and any(same_inputs(recorded, given, f) for f in folders)):
             return None
         others = _beside(path, beside)
         if not others:
@@ -214,8 +216,9 @@ def _a_session_s(path: Path) -> str | None:
     """A new ``summary.json`` in a session folder that has none (its raw log beside it): it would
     make a killed session, or one still recording, read as one that ended (helper-33)."""
     frames = _beside(path, [name for name in A_RUN_S_FILES if name.startswith("frames.")])
-    if path.name != SESSION_SUMMARY or not frames:
-        return None
+    configs = path.parent / SESSION_CONFIG
+    if path.name != SESSION_SUMMARY or not frames or not any(configs.glob("*.toml")):
+        return None  # not a session: a log named frames.log in a folder of the user's (helper-34)
     return (
         f"is the place of the summary of the session beside it ({frames}), which has none: its c2n "
         "live was killed or still records, and a summary there would say it ended"

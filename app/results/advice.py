@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from app.config import Config, FilterSettings, lowered_filter
+from app.config import Config, FilterSettings
 from app.decode.counts import FrameCounts
 from app.detect.steady_state import WHEELBASE_M
 from app.estimate.motion_model import FOLLOWS, MAX_CONSECUTIVE_REJECTS, FilterCounts
@@ -224,10 +224,8 @@ def filter_lost(f: Findings) -> str | None:
     session q_u = 1e-3 read C2n unchanged, 1e-5 +2.3 %, 1e-6 +18 % (docs/method.md). A loss
     elsewhere (a hard stop, a reversal) touches no sample: counted in the result file, not said."""
     lost = f.filter_counts.lost
-    if f.backwards or f.wrong_unit:  # the result names those
+    if not lost or not f.lost_in_samples or f.backwards or f.wrong_unit:  # the result names those
         return None
-    if not lost or not f.lost_in_samples:
-        return _filter_slowed(f)
     settings, default = f.config.filter, FilterSettings()
     times = sum(lost.values())
     where = ", ".join(f"{_SENSOR[kind]} {n:,}" for kind, n in lost.items())
@@ -252,20 +250,6 @@ def filter_lost(f: Findings) -> str | None:
         f"innovation gate {MAX_CONSECUTIVE_REJECTS} running, then believed), and in {f.lost_in_samples:,} "
         "samples of the cornering C2n is measured on: its speeds and sideslip lagged the car there, "
         f"and C2n with them — raise [filter] {knobs}, or check the sensor's signal"
-    )
-
-
-def _filter_slowed(f: Findings) -> str | None:
-    """A config that lowers the filter's process noise, where it lost the car in no sample: its
-    estimates may still lag the car through a sweep, by what the drive cannot tell (q_u = 1e-5 read
-    14.674 [14.489, 14.857] for 14.870, losing it nowhere), and the interval does not count that."""
-    lowered = [said for name, said in lowered_filter(f.config.filter).items() if name.startswith("q_")]
-    if not lowered or f.headline is None:
-        return None
-    return (
-        f"the config lowers the filter's process noise ({', '.join(lowered)}): its speeds and sideslip "
-        "may lag the car through the sweeps, and C2n with them, by what its interval does not count — "
-        "restore the default"
     )
 
 

@@ -25,13 +25,13 @@ from app.config import Config
 from app.errors import C2nError, OutputError
 from app.output.durable import PeriodicSync, synced, synced_tree
 from app.output.files import new_folder
-from app.output.paths import SESSION_SUMMARY
+from app.output.paths import SESSION_CONFIG, SESSION_SUMMARY
 from app.records import Crossing, CrossingRejected, Event
 from app.sinks.events_csv import EventsTable
 from app.sinks.sink import Sink
 from app.sinks.summary import Summary
 from app.sinks.summary import write as write_summary
-from app.sources.sessions import CONFIG_FOLDER, PARTS_FILE, RAW_FORMATS
+from app.sources.sessions import PARTS_FILE, RAW_FORMATS
 
 # how often the raw log and the events table are synced to the disk: what a power cut can lose
 # (a sync is about a millisecond on a laptop's SSD and is made off the bus's thread)
@@ -251,7 +251,7 @@ class SessionRecorder(Sink):
         try:
             if not claimed:
                 folder.mkdir(parents=True, exist_ok=False)
-            copy_config(config, folder / CONFIG_FOLDER)
+            copy_config(config, folder / SESSION_CONFIG)
             self.raw_path = folder / f"frames{raw_format}"
             self._spool = (
                 _Spool(self.raw_path, parts=raw_format == ".log") if raw_format in _TEXT_WRITERS else None
@@ -342,7 +342,7 @@ class SessionRecorder(Sink):
         try:
             folder = _new_beside(self.folders[0], len(self.folders) + 1)
             _list_parts(self.folders[0], [*self.folders[1:], folder])
-            copy_config(self._config, folder / CONFIG_FOLDER)
+            copy_config(self._config, folder / SESSION_CONFIG)
             events = EventsTable(folder / "events.csv")
             raw = folder / full.name
             self._spool.restart(raw)

@@ -10,10 +10,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from app.errors import C2nError
-from app.output.paths import SESSION_SUMMARY
+from app.output.paths import SESSION_CONFIG, SESSION_SUMMARY
 
 RAW_FORMATS = (".log", ".asc", ".blf")
-CONFIG_FOLDER = "config"
 PARTS_FILE = "parts.json"  # in a session's first folder: the parts it went on in, in order
 
 
@@ -73,14 +72,14 @@ def read_session(folder: Path) -> tuple[list[Path], Path]:
     (``<folder>-part2``…, a disk's largest file reached), in order — and its config copy (whose
     DBCs lie beside it)."""
     first = _raw_log(folder)
-    configs = sorted((folder / CONFIG_FOLDER).glob("*.toml"))
+    configs = sorted((folder / SESSION_CONFIG).glob("*.toml"))
     if first is None:
         raise C2nError(
             f"{folder}: not a c2n session folder (no frames.log/.asc/.blf) — give a session folder or a log"
         )
     if len(configs) != 1:
         raise C2nError(
-            f"{folder / CONFIG_FOLDER}: expected one config copy, found {len(configs)} — pass --config F"
+            f"{folder / SESSION_CONFIG}: expected one config copy, found {len(configs)} — pass --config F"
         )
     beside = Path(os.path.realpath(folder)).parent  # a link's parts are beside where it leads
     logs = [first]

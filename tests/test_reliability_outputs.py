@@ -435,7 +435,8 @@ def test_every_output_option_of_every_command_runs_the_guard(day: Path) -> None:
 
     pack = day / "pack"
     (pack / "sealed").mkdir(parents=True)
-    (pack / "sealed" / "truth.json").write_text("{}")
+    seal = {"cases": {"case1": {"effect": {"name": "none", "size": 0.0}}}}  # a seal of its form
+    (pack / "sealed" / "truth.json").write_text(json.dumps(seal))
     (pack / "case1").mkdir()
     shutil.copy(day / "d.blf", pack / "case1" / "drive.blf")
     (day / "manifest.csv").write_text("log,tyre_set\nd.blf,A\n")

@@ -121,6 +121,8 @@ class Pipeline:
         self.profile = SideslipProfile()
         self.state = SessionState(speeds=SpeedVotes(config.detector.speed_min_mps))
         self._speed_votes = {"vx", "speed"} <= config.roles.keys()  # two measures of u to compare
+        # the config's process noises against their defaults, said where a refusal names them
+        self._raised_noise, self._lowered_filter = raised_noise(config.filter), lowered_filter(config.filter)
         self._speed_t = -math.inf  # the latest vehicle speed's time: a vote takes it while fresh
         self._fresh_s = config.filter.status_timeout_s  # older than this a value is unknown
         self._last_fit = -float("inf")
@@ -165,8 +167,8 @@ class Pipeline:
             speed_min_mps=self.config.detector.speed_min_mps,
             vx_scale=self.config.roles["vx"].scale if "vx" in self.config.roles else 1.0,
             speed_scale=self.config.roles["speed"].scale if "speed" in self.config.roles else 1.0,
-            raised_noise=raised_noise(self.config.filter),
-            lowered_filter=lowered_filter(self.config.filter),
+            raised_noise=self._raised_noise,
+            lowered_filter=self._lowered_filter,
         )
         if first_stage is None:
             return snapshot

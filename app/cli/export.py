@@ -89,9 +89,9 @@ def _inputs(args: argparse.Namespace) -> tuple[list[Path], Config, Path]:
 
 def _notes_before_reading(path: Path) -> "list[LogReport]":
     """A note for a session folder without the summary c2n live writes when it ends
-    (``recorder.unfinished``): the export is of the frames on disk so far — said in the warnings
+    (``sessions.unfinished``): the export is of the frames on disk so far — said in the warnings
     (and the exported summary), not taken for the whole drive; and one for a part of a session
-    recorded in parts given alone (``recorder.parts_left_out``)."""
+    recorded in parts given alone (``sessions.parts_left_out``)."""
     from app.sources.logs import LogReport
     from app.sources.sessions import parts_left_out, unfinished
 

@@ -176,9 +176,7 @@ def run(
     check(
         [
             # never the drive of a summary there: an export's or a session's own is not replaced
-            Output(
-                "--json", args.json, SUMMARY_JSON, stdout=True, whose=result_of([], "summary", now="this bus")
-            )
+            Output("--json", args.json, SUMMARY_JSON, stdout=True, whose=_NEVER_THIS_DRIVE)
             if args.json
             else None,
             # a session gets a new folder of its own in --record: any folder there will do

@@ -69,9 +69,10 @@ class Findings:
     @property
     def fit(self) -> RegressionFit | None:
         """The fit the advice speaks of: none where drives apart leave no pooled fit to speak of,
-        or a role the wrong way round leaves no fit's terms to trust."""
-        lagged = self.drives_disagree or self.sign_problem or self.filter_lagged  # its samples, the filter's
-        return self.result_fit if not lagged else None
+        or a role the wrong way round (or a filter lagging in its samples) leaves no fit's terms
+        to trust."""
+        untrusted = self.drives_disagree or self.sign_problem or self.filter_lagged
+        return self.result_fit if not untrusted else None
 
     @property
     def on_quasi(self) -> bool:
